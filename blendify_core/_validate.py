@@ -1,0 +1,173 @@
+"""Input validation helpers: every check names the argument, what was expected and what was given."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from .errors import InvalidSceneError
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, np.ndarray):
+        return f"an array of shape {value.shape} and dtype {value.dtype}"
+    text = repr(value)
+    if len(text) > 80:
+        text = text[:77] + "..."
+    return f"{type(value).__name__} {text}"
+
+
+def frozen(array: np.ndarray) -> np.ndarray:
+    """Mark an array read-only (in place) and return it."""
+    array.flags.writeable = False
+    return array
+
+
+def as_array(
+    name: str,
+    value: Any,
+    *,
+    dtype: Any = np.float64,
+    shape: Sequence[int | None] | None = None,
+    ndim: int | tuple[int, ...] | None = None,
+    finite: bool = True,
+    min_value: float | None = None,
+    max_value: float | None = None,
+    copy: bool = True,
+    allow_empty: bool = True,
+) -> np.ndarray:
+    """Convert ``value`` to a read-only array of ``dtype`` and check it.
+
+    ``shape`` may contain ``None`` for "any size" in that dimension.
+    """
+    if value is None:
+        raise InvalidSceneError(f"{name}: expected an array, got None")
+    if isinstance(value, (str, bytes)):
+        raise InvalidSceneError(f"{name}: expected a numeric array, got {_describe(value)}")
+    try:
+        raw = np.asarray(value)
+    except (ValueError, TypeError) as exc:  # ragged nested lists
+        raise InvalidSceneError(f"{name}: expected a numeric array, got {_describe(value)} ({exc})") from None
+    if raw.dtype == object or raw.dtype.kind in "USV":
+        raise InvalidSceneError(f"{name}: expected a numeric array, got {_describe(value)}")
+    if raw.dtype.kind == "c":
+        raise InvalidSceneError(f"{name}: expected real numbers, got complex values")
+    if raw.dtype.kind == "b" and np.dtype(dtype).kind != "b":
+        raise InvalidSceneError(f"{name}: expected numbers, got a boolean array")
+    target = np.dtype(dtype)
+    if target.kind in "iu" and raw.dtype.kind == "f":
+        if raw.size and (not np.all(np.isfinite(raw)) or np.any(raw != np.round(raw))):
+            raise InvalidSceneError(f"{name}: expected integer values, got non-integer floats")
+    if ndim is not None:
+        allowed = (ndim,) if isinstance(ndim, int) else ndim
+        if raw.ndim not in allowed:
+            raise InvalidSceneError(
+                f"{name}: expected {' or '.join(map(str, allowed))} dimensions, got {_describe(raw)}"
+            )
+    if shape is not None:
+        if raw.ndim != len(shape) or any(s is not None and s != r for s, r in zip(shape, raw.shape)):
+            want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
+            raise InvalidSceneError(f"{name}: expected shape {want}, got {_describe(raw)}")
+    if not allow_empty and raw.size == 0:
+        raise InvalidSceneError(f"{name}: expected a non-empty array, got {_describe(raw)}")
+    if target.kind in "iu" and raw.size:
+        info = np.iinfo(target)
+        if raw.min() < info.min or raw.max() > info.max:
+            raise InvalidSceneError(f"{name}: values do not fit in {target}")
+    out = np.array(raw, dtype=target, copy=True) if copy else np.asarray(raw, dtype=target)
+    if out.dtype.kind == "f" and out.size:
+        if finite and not np.all(np.isfinite(out)):
+            bad = int(np.count_nonzero(~np.isfinite(out)))
+            raise InvalidSceneError(f"{name}: expected finite values, got {bad} NaN or infinite value(s)")
+        if min_value is not None and np.nanmin(out) < min_value:
+            raise InvalidSceneError(f"{name}: expected values >= {min_value}, got a minimum of {np.nanmin(out):g}")
+        if max_value is not None and np.nanmax(out) > max_value:
+            raise InvalidSceneError(f"{name}: expected values <= {max_value}, got a maximum of {np.nanmax(out):g}")
+    elif out.dtype.kind in "iu" and out.size:
+        if min_value is not None and out.min() < min_value:
+            raise InvalidSceneError(f"{name}: expected values >= {min_value}, got a minimum of {out.min()}")
+        if max_value is not None and out.max() > max_value:
+            raise InvalidSceneError(f"{name}: expected values <= {max_value}, got a maximum of {out.max()}")
+    return frozen(out)
+
+
+def as_float(
+    name: str,
+    value: Any,
+    *,
+    min_value: float | None = None,
+    max_value: float | None = None,
+    exclusive_min: bool = False,
+    exclusive_max: bool = False,
+) -> float:
+    """Check a real scalar (finite) within an optional range."""
+    if isinstance(value, bool) or value is None:
+        raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}")
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}") from None
+    if isinstance(value, np.ndarray) and value.size != 1:
+        raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}")
+    if not math.isfinite(out):
+        raise InvalidSceneError(f"{name}: expected a finite number, got {out}")
+    if min_value is not None and (out < min_value or (exclusive_min and out == min_value)):
+        op = ">" if exclusive_min else ">="
+        raise InvalidSceneError(f"{name}: expected a value {op} {min_value}, got {out:g}")
+    if max_value is not None and (out > max_value or (exclusive_max and out == max_value)):
+        op = "<" if exclusive_max else "<="
+        raise InvalidSceneError(f"{name}: expected a value {op} {max_value}, got {out:g}")
+    return out
+
+
+def as_int(name: str, value: Any, *, min_value: int | None = None, max_value: int | None = None) -> int:
+    """Check an integer scalar within an optional range."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        else:
+            raise InvalidSceneError(f"{name}: expected an integer, got {_describe(value)}")
+    out = int(value)
+    if min_value is not None and out < min_value:
+        raise InvalidSceneError(f"{name}: expected an integer >= {min_value}, got {out}")
+    if max_value is not None and out > max_value:
+        raise InvalidSceneError(f"{name}: expected an integer <= {max_value}, got {out}")
+    return out
+
+
+def as_bool(name: str, value: Any) -> bool:
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise InvalidSceneError(f"{name}: expected True or False, got {_describe(value)}")
+
+
+def as_choice(name: str, value: Any, choices: Iterable[str], *, case_insensitive: bool = True) -> str:
+    options = list(choices)
+    if not isinstance(value, str):
+        raise InvalidSceneError(f"{name}: expected one of {options}, got {_describe(value)}")
+    key = value.lower() if case_insensitive else value
+    for option in options:
+        if (option.lower() if case_insensitive else option) == key:
+            return option
+    raise InvalidSceneError(f"{name}: expected one of {options}, got {value!r}")
+
+
+def as_vector(name: str, value: Any, size: int, **kwargs: Any) -> np.ndarray:
+    return as_array(name, value, shape=(size,), **kwargs)
+
+
+def check_tag(name: str, value: Any) -> str:
+    if not isinstance(value, str) or not value or value != value.strip():
+        raise InvalidSceneError(
+            f"{name}: expected a non-empty string without surrounding spaces, got {_describe(value)}"
+        )
+    return value
+
+
+def reject_unknown(where: str, kwargs: dict[str, Any], allowed: Iterable[str] = ()) -> None:
+    unknown = sorted(set(kwargs) - set(allowed))
+    if unknown:
+        raise InvalidSceneError(f"{where}: unknown keyword argument(s) {unknown}")

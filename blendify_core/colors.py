@@ -1,0 +1,417 @@
+"""Colour sources and UV maps of renderables, and data textures of materials.
+
+One rule for every colour class: values are sRGB-encoded by default (as colour pickers and image files
+are), ``color_space="linear"`` takes linear values. Backends read linear values through ``linear_rgba``
+(uniform and per-vertex colours) or ``linear_rgba_image()`` (textures), or pass the raw data and its
+colour space to an engine that decodes sRGB itself. Data textures (roughness, metallic, normal maps) are
+never colour-managed.
+
+Texture images are stored with row 0 = the TOP of the image (as image files and numpy images are); UV
+(0, 0) is the BOTTOM-left of the texture (OpenGL/Blender/OBJ convention).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._validate import _describe, as_array, as_choice, as_float, frozen
+from .colorspace import srgb8_to_linear, srgb_to_linear
+from .errors import InvalidSceneError
+
+__all__ = [
+    "Colors",
+    "UniformColors",
+    "VertexColors",
+    "TextureColors",
+    "FileTextureColors",
+    "UVMap",
+    "VertexUV",
+    "FacesUV",
+    "TextureMap",
+    "NormalMap",
+    "load_image",
+]
+
+COLOR_SPACES = ("srgb", "linear")
+INTERPOLATIONS = ("linear", "closest")
+
+
+def _color_space(value: Any) -> str:
+    return as_choice("color_space", value, COLOR_SPACES)
+
+
+def _to_linear(values: np.ndarray, color_space: str) -> np.ndarray:
+    """Linearise the RGB channels of float values in [0, 1]; alpha is never colour-managed."""
+    out = np.array(values, dtype=np.float32 if values.dtype == np.float32 else np.float64)
+    if color_space == "srgb":
+        out[..., :3] = srgb_to_linear(out[..., :3])
+    return out
+
+
+def load_image(path: str | os.PathLike[str]) -> np.ndarray:
+    """Read an image file: uint8 (H, W, C) for 8-bit formats, float32 for EXR/HDR/16-bit; row 0 = top."""
+    p = Path(path)
+    if not p.is_file():
+        raise InvalidSceneError(f"texture_path: no such file {str(p)!r}")
+    suffix = p.suffix.lower()
+    if suffix == ".exr":
+        try:
+            import OpenEXR
+        except ImportError:
+            raise InvalidSceneError(
+                f"texture_path: reading {p.name} needs the 'openexr' package (pip install openexr)"
+            ) from None
+        with OpenEXR.File(str(p)) as f:
+            channels = f.channels()
+            if "RGBA" in channels:
+                return np.asarray(channels["RGBA"].pixels, dtype=np.float32)
+            if "RGB" in channels:
+                return np.asarray(channels["RGB"].pixels, dtype=np.float32)
+            names = [n for n in ("R", "G", "B", "A") if n in channels]
+            if not names:
+                raise InvalidSceneError(f"texture_path: {p.name} has no R/G/B channels")
+            return np.stack([np.asarray(channels[n].pixels, dtype=np.float32) for n in names], axis=-1)
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(p) as im:
+            im.load()
+            if im.mode in ("I;16", "I;16B", "I"):
+                return (np.asarray(im, dtype=np.float32) / 65535.0)[..., None]
+            if im.mode not in ("L", "LA", "RGB", "RGBA"):
+                im = im.convert("RGBA" if "A" in im.getbands() else "RGB")
+            arr = np.asarray(im)
+    except (UnidentifiedImageError, OSError) as exc:
+        raise InvalidSceneError(f"texture_path: cannot read {str(p)!r} as an image ({exc})") from None
+    if arr.ndim == 2:
+        arr = arr[..., None]
+    return arr
+
+
+def _check_image(name: str, texture: Any, *, max_value: float | None = 1.0) -> np.ndarray:
+    arr = np.asarray(texture) if not isinstance(texture, np.ndarray) else texture
+    if arr.dtype.kind not in "uif" or arr.dtype.kind == "b":
+        raise InvalidSceneError(f"{name}: expected a uint8 or float image, got {_describe(texture)}")
+    if arr.ndim == 2:
+        arr = arr[..., None]
+    if arr.ndim != 3 or arr.shape[2] not in (1, 3, 4) or arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise InvalidSceneError(
+            f"{name}: expected an image of shape (H, W), (H, W, 3) or (H, W, 4), got {_describe(arr)}"
+        )
+    if arr.dtype == np.uint8:
+        return frozen(np.array(arr))
+    if arr.dtype.kind in "iu":
+        raise InvalidSceneError(f"{name}: integer images must be uint8 (0-255), got dtype {arr.dtype}")
+    return as_array(name, arr, dtype=np.float32, min_value=0.0, max_value=max_value)
+
+
+def _to_rgba(img: np.ndarray) -> np.ndarray:
+    if img.shape[2] == 4:
+        return img
+    if img.shape[2] == 1:
+        img = np.repeat(img, 3, axis=2)
+    alpha = np.ones(img.shape[:2] + (1,), dtype=img.dtype)
+    if img.dtype == np.uint8:
+        alpha[:] = 255
+    return np.concatenate([img, alpha], axis=2)
+
+
+class Colors:
+    """Base of colour sources. ``kind`` names the class for backends and scene files."""
+
+    kind = "base"
+    color_space: str
+
+    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:  # pragma: no cover
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(color_space={self.color_space!r})"
+
+
+class UniformColors(Colors):
+    """One colour for the whole object: RGB or RGBA in [0, 1] (RGB sRGB-encoded unless ``color_space="linear"``)."""
+
+    kind = "uniform"
+
+    def __init__(self, uniform_color: Any, color_space: str = "srgb"):
+        c = np.asarray(uniform_color)
+        if c.dtype.kind in "iu" and c.size and np.any(c > 1):
+            raise InvalidSceneError(
+                f"uniform_color: expected floats in [0, 1], got integers {c.tolist()} (divide 8-bit values by 255)"
+            )
+        c = as_array("uniform_color", uniform_color, ndim=1, min_value=0.0, max_value=1.0)
+        if c.shape[0] not in (3, 4):
+            raise InvalidSceneError(f"uniform_color: expected 3 (RGB) or 4 (RGBA) values, got {c.shape[0]}")
+        self.color = c
+        self.color_space = _color_space(color_space)
+
+    @property
+    def has_alpha(self) -> bool:
+        return self.color.shape[0] == 4 and self.color[3] < 1.0
+
+    @property
+    def linear_rgba(self) -> np.ndarray:
+        """(4,) float64 linear RGBA."""
+        rgba = np.ones(4)
+        rgba[: self.color.shape[0]] = self.color
+        return _to_linear(rgba, self.color_space)
+
+    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+        return {"kind": self.kind, "color": self.color.tolist(), "color_space": self.color_space}
+
+
+class VertexColors(Colors):
+    """One colour per vertex (or per point): (N, 3) or (N, 4) floats in [0, 1], or uint8 (divided by 255)."""
+
+    kind = "vertex"
+
+    def __init__(self, vertex_colors: Any, color_space: str = "srgb"):
+        raw = np.asarray(vertex_colors)
+        if raw.dtype == np.uint8:
+            raw = raw.astype(np.float32) / 255.0
+        elif raw.dtype.kind in "iu":
+            raise InvalidSceneError(f"vertex_colors: integer colours must be uint8 (0-255), got dtype {raw.dtype}")
+        c = as_array("vertex_colors", raw, dtype=np.float32, ndim=2, min_value=0.0, max_value=1.0)
+        if c.shape[1] not in (3, 4):
+            raise InvalidSceneError(f"vertex_colors: expected shape (N, 3) or (N, 4), got {_describe(c)}")
+        self.vertex_colors = c
+        self.color_space = _color_space(color_space)
+        self._linear: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return self.vertex_colors.shape[0]
+
+    @property
+    def has_alpha(self) -> bool:
+        return self.vertex_colors.shape[1] == 4 and bool(np.any(self.vertex_colors[:, 3] < 1.0))
+
+    @property
+    def linear_rgba(self) -> np.ndarray:
+        """(N, 4) float32 linear RGBA (cached, read-only)."""
+        if self._linear is None:
+            n = self.vertex_colors.shape[0]
+            rgba = np.ones((n, 4), dtype=np.float32)
+            rgba[:, : self.vertex_colors.shape[1]] = self.vertex_colors
+            self._linear = frozen(_to_linear(rgba, self.color_space).astype(np.float32))
+        return self._linear
+
+    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+        arrays[prefix + "vertex_colors"] = self.vertex_colors
+        return {"kind": self.kind, "vertex_colors": prefix + "vertex_colors", "color_space": self.color_space}
+
+
+class UVMap:
+    """Base of UV maps. UV (0, 0) is the bottom-left of the texture."""
+
+    kind = "base"
+    data: np.ndarray
+
+
+class VertexUV(UVMap):
+    """One UV per vertex: (N, 2)."""
+
+    kind = "vertex_uv"
+
+    def __init__(self, data: Any):
+        self.data = as_array("uv_map", data, dtype=np.float32, ndim=2)
+        if self.data.shape[1] != 2:
+            raise InvalidSceneError(f"uv_map: expected shape (N, 2) for VertexUV, got {_describe(self.data)}")
+
+    def __repr__(self) -> str:
+        return f"VertexUV({self.data.shape[0]} vertices)"
+
+
+class FacesUV(UVMap):
+    """One UV per face corner: (M, k, 2) for M faces of k corners (per original polygon)."""
+
+    kind = "faces_uv"
+
+    def __init__(self, data: Any):
+        self.data = as_array("uv_map", data, dtype=np.float32, ndim=3)
+        if self.data.shape[2] != 2 or self.data.shape[1] < 3:
+            raise InvalidSceneError(f"uv_map: expected shape (M, k>=3, 2) for FacesUV, got {_describe(self.data)}")
+
+    def __repr__(self) -> str:
+        return f"FacesUV({self.data.shape[0]} faces)"
+
+
+def _check_uv(uv_map: Any) -> UVMap:
+    if not isinstance(uv_map, UVMap):
+        raise InvalidSceneError(f"uv_map: expected a VertexUV or FacesUV, got {_describe(uv_map)}")
+    return uv_map
+
+
+def uv_to_dict(uv: UVMap | None, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any] | None:
+    if uv is None:
+        return None
+    arrays[prefix + "uv"] = uv.data
+    return {"kind": uv.kind, "data": prefix + "uv"}
+
+
+class TextureColors(Colors):
+    """An in-memory texture: (H, W[, 3|4]) uint8 (sRGB bytes by default) or float in [0, 1]; row 0 = top."""
+
+    kind = "texture"
+
+    def __init__(self, texture: Any, uv_map: UVMap, color_space: str = "srgb", interpolation: str = "linear"):
+        self.texture = _check_image("texture", texture)
+        self.uv_map = _check_uv(uv_map)
+        self.color_space = _color_space(color_space)
+        self.interpolation = as_choice("interpolation", interpolation, INTERPOLATIONS)
+
+    @property
+    def has_alpha(self) -> bool:
+        t = self.texture
+        return t.shape[2] == 4 and bool(np.any(t[..., 3] < (255 if t.dtype == np.uint8 else 1.0)))
+
+    def image(self) -> np.ndarray:
+        """The texture as stored (uint8 or float32), row 0 = top."""
+        return self.texture
+
+    def linear_rgba_image(self) -> np.ndarray:
+        """(H, W, 4) float32 linear RGBA, row 0 = top."""
+        return _linear_rgba_image(self.image(), self.color_space)
+
+    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+        arrays[prefix + "texture"] = self.texture
+        return {
+            "kind": self.kind,
+            "texture": prefix + "texture",
+            "uv_map": uv_to_dict(self.uv_map, arrays, prefix),
+            "color_space": self.color_space,
+            "interpolation": self.interpolation,
+        }
+
+
+def _linear_rgba_image(img: np.ndarray, color_space: str) -> np.ndarray:
+    rgba = _to_rgba(img)
+    if rgba.dtype == np.uint8:
+        out = np.empty(rgba.shape, dtype=np.float32)
+        if color_space == "srgb":
+            out[..., :3] = srgb8_to_linear(rgba[..., :3])
+        else:
+            out[..., :3] = rgba[..., :3].astype(np.float32) / 255.0
+        out[..., 3] = rgba[..., 3].astype(np.float32) / 255.0
+        return out
+    return _to_linear(rgba.astype(np.float32), color_space).astype(np.float32)
+
+
+class FileTextureColors(Colors):
+    """A texture read from a file by the backend that needs it (the IR never loads the pixels)."""
+
+    kind = "file_texture"
+
+    def __init__(
+        self,
+        texture_path: str | os.PathLike[str],
+        uv_map: UVMap,
+        color_space: str = "srgb",
+        interpolation: str = "linear",
+    ):
+        if not isinstance(texture_path, (str, os.PathLike)):
+            raise InvalidSceneError(f"texture_path: expected a file path, got {_describe(texture_path)}")
+        p = Path(texture_path).expanduser()
+        if not p.is_file():
+            raise InvalidSceneError(f"texture_path: no such file {str(p)!r}")
+        self.texture_path = str(p.resolve())
+        self.uv_map = _check_uv(uv_map)
+        self.color_space = _color_space(color_space)
+        self.interpolation = as_choice("interpolation", interpolation, INTERPOLATIONS)
+        self._cache: np.ndarray | None = None
+
+    @property
+    def has_alpha(self) -> bool:
+        img = self.image()
+        return img.shape[2] == 4 and bool(np.any(img[..., 3] < (255 if img.dtype == np.uint8 else 1.0)))
+
+    def image(self) -> np.ndarray:
+        """Load (once) and return the pixels as stored in the file (uint8 or float32), row 0 = top."""
+        if self._cache is None:
+            self._cache = frozen(load_image(self.texture_path))
+        return self._cache
+
+    def linear_rgba_image(self) -> np.ndarray:
+        return _linear_rgba_image(self.image(), self.color_space)
+
+    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "texture_path": self.texture_path,
+            "uv_map": uv_to_dict(self.uv_map, arrays, prefix),
+            "color_space": self.color_space,
+            "interpolation": self.interpolation,
+        }
+
+
+class TextureMap:
+    """A non-colour data texture (roughness or metallic): an image (H, W[, C]) or a file path.
+
+    Values are used as stored (never colour-managed); ``channel`` picks the channel of a multi-channel image.
+    UVs come from the mesh (``add_mesh(..., uv_map=...)`` or its texture colours).
+    """
+
+    kind = "texture_map"
+
+    def __init__(self, image_or_path: Any, channel: int = 0):
+        self.path: str | None = None
+        self._image: np.ndarray | None = None
+        if isinstance(image_or_path, (str, os.PathLike)):
+            p = Path(image_or_path).expanduser()
+            if not p.is_file():
+                raise InvalidSceneError(f"image_or_path: no such file {str(p)!r}")
+            self.path = str(p.resolve())
+        else:
+            self._image = _check_image("image_or_path", image_or_path)
+        if isinstance(channel, bool) or not isinstance(channel, (int, np.integer)) or channel < 0 or channel > 3:
+            raise InvalidSceneError(f"channel: expected an integer channel index 0-3, got {channel!r}")
+        self.channel = int(channel)
+        if self._image is not None and self.channel >= self._image.shape[2]:
+            raise InvalidSceneError(f"channel: image has {self._image.shape[2]} channel(s), got channel {channel}")
+
+    def image(self) -> np.ndarray:
+        if self._image is None:
+            self._image = frozen(load_image(str(self.path)))
+        return self._image
+
+    def values(self) -> np.ndarray:
+        """(H, W) float32 data values in [0, 1], row 0 = top."""
+        img = self.image()
+        ch = img[..., min(self.channel, img.shape[2] - 1)]
+        return (ch.astype(np.float32) / 255.0) if ch.dtype == np.uint8 else ch.astype(np.float32)
+
+    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+        d: dict[str, Any] = {"kind": self.kind, "channel": self.channel, "path": self.path}
+        if self.path is None:
+            arrays[prefix + "image"] = self.image()
+            d["image"] = prefix + "image"
+        return d
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.path or 'in-memory ' + str(self.image().shape)})"
+
+
+class NormalMap(TextureMap):
+    """A tangent-space normal map (OpenGL convention: +Y up / green = up), RGB in [0, 1] -> n = 2c - 1."""
+
+    kind = "normal_map"
+
+    def __init__(self, image_or_path: Any, strength: float = 1.0):
+        super().__init__(image_or_path, channel=0)
+        self.strength = as_float("strength", strength, min_value=0.0)
+
+    def normals(self) -> np.ndarray:
+        """(H, W, 3) float32 tangent-space normals in [-1, 1], row 0 = top."""
+        img = self.image()
+        rgb = _to_rgba(img)[..., :3]
+        v = rgb.astype(np.float32) / 255.0 if rgb.dtype == np.uint8 else rgb.astype(np.float32)
+        return v * 2.0 - 1.0
+
+    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+        d = super().to_dict(arrays, prefix)
+        d["strength"] = self.strength
+        return d

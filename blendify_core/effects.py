@@ -1,0 +1,148 @@
+"""Which light transport a scene needs (``bf.analyse_effects``), so backends simulate nothing more."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from .renderables import CircleMesh, CubeMesh, EllipsoidNURBS, PlaneMesh, PointCloud, SphereNURBS
+
+__all__ = ["Effects", "analyse_effects"]
+
+_CONVEX = (SphereNURBS, EllipsoidNURBS, CubeMesh, PlaneMesh, CircleMesh)
+_FIELDS = (
+    "shadows",
+    "indirect_diffuse",
+    "glossy",
+    "transmission",
+    "caustics",
+    "transparency",
+    "emission",
+    "background",
+)
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Light-transport effects a scene calls for; ``reasons`` says why each one is on or off."""
+
+    shadows: bool = True
+    indirect_diffuse: bool = True
+    glossy: bool = True
+    transmission: bool = True
+    caustics: bool = True
+    transparency: bool = True
+    emission: bool = True
+    background: bool = True
+    reasons: dict[str, str] = field(default_factory=dict, compare=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {**{f: getattr(self, f) for f in _FIELDS}, "reasons": dict(self.reasons)}
+
+    @classmethod
+    def full(cls) -> Effects:
+        return cls(reasons={f: "full simulation requested" for f in _FIELDS})
+
+
+def _is_specular(m: Any) -> tuple[bool, float]:
+    v = m.parameters()
+    if m.kind == "glossy":
+        return True, float(v["roughness"])
+    spec = (
+        v.get("specular_ior", 0) > 0
+        or v.get("metallic", 0) > 0
+        or v.get("metallic_map") is not None
+        or v.get("coat_weight", 0) > 0
+        or v.get("sheen_weight", 0) > 0
+    )
+    return spec, float(v.get("roughness", 1.0))
+
+
+def analyse_effects(scene: Any) -> Effects:
+    """Analyse a scene: shadows, indirect diffuse, glossy, transmission, caustics, transparency, emission
+    and background light, each with the reason."""
+    r: dict[str, str] = {}
+    renderables = list(scene.renderables)
+    lights = [light for light in scene.lights if light.strength > 0]
+    bg = scene.lights.background is not None and scene.lights.background.strength > 0
+    env = scene.lights.environment is not None and scene.lights.environment.strength > 0
+
+    emitters = [(f"material of {o.tag!r}") for o in renderables for m in o.materials if m.is_emissive]
+    emitters += [
+        f"point cloud {o.tag!r} emits"
+        for o in renderables
+        if isinstance(o, PointCloud) and o.particle_emission_strength > 0
+    ]
+    emission = bool(emitters)
+    r["emission"] = emitters[0] if emission else "no emissive material"
+
+    background = bg or env
+    r["background"] = ("environment map" if env else "background light") if background else "no background light"
+
+    casters = [o for o in renderables if o.emit_shadows]
+    catchers = [o for o in renderables if isinstance(o, PlaneMesh) and o.shadow_catcher]
+    shadow_lights = [light for light in lights if light.use_shadow]
+    if catchers:
+        shadows, r["shadows"] = True, f"shadow catcher {catchers[0].tag!r}"
+    elif not casters:
+        shadows, r["shadows"] = False, "no object casts shadows"
+    elif shadow_lights:
+        shadows, r["shadows"] = True, f"light {shadow_lights[0].tag!r} casts shadows"
+    elif background or emission:
+        shadows, r["shadows"] = True, "background or emissive light is occluded by objects"
+    else:
+        shadows, r["shadows"] = False, "no light casts shadows"
+
+    several = len(renderables) > 1
+    concave = [o for o in renderables if not isinstance(o, _CONVEX)]
+    if several:
+        indirect, r["indirect_diffuse"] = True, f"{len(renderables)} objects can light each other"
+    elif concave:
+        indirect, r["indirect_diffuse"] = True, f"{concave[0].tag!r} may see itself (not convex)"
+    else:
+        indirect, r["indirect_diffuse"] = False, "a single convex object (or none) cannot light itself"
+
+    glossy_objs, sharp, transmissive, transparent = [], [], [], []
+    for o in renderables:
+        for m in o.materials:
+            spec, rough = _is_specular(m)
+            if spec:
+                glossy_objs.append(o.tag)
+                if rough < 0.25:
+                    sharp.append(o.tag)
+            if m.parameters().get("transmission_weight", 0) > 0:
+                transmissive.append(o.tag)
+            if m.parameters().get("alpha", 1.0) < 1.0:
+                transparent.append(o.tag)
+        for c in o.colors_list:
+            if getattr(c, "has_alpha", False):
+                transparent.append(o.tag)
+    glossy = bool(glossy_objs)
+    r["glossy"] = f"specular material on {glossy_objs[0]!r}" if glossy else "all materials are diffuse"
+    transmission = bool(transmissive)
+    r["transmission"] = f"transmissive material on {transmissive[0]!r}" if transmission else "no transmissive material"
+    transparency = bool(transparent)
+    r["transparency"] = f"alpha < 1 on {transparent[0]!r}" if transparency else "everything is opaque"
+    specular_paths = sorted(set(sharp) | set(transmissive))
+    diffuse_receivers = [o.tag for o in renderables if o.tag not in specular_paths]
+    has_light = bool(lights) or background or emission
+    caustics = bool(specular_paths) and bool(diffuse_receivers) and has_light
+    r["caustics"] = (
+        f"specular {specular_paths[0]!r} can focus light onto {diffuse_receivers[0]!r}"
+        if caustics
+        else "no sharp specular or refractive surface between a light and a diffuse one"
+    )
+    if not has_light:
+        r["shadows"] = "no light at all"
+        shadows = False if not catchers else shadows
+    return Effects(
+        shadows=shadows,
+        indirect_diffuse=indirect,
+        glossy=glossy,
+        transmission=transmission,
+        caustics=caustics,
+        transparency=transparency,
+        emission=emission,
+        background=background,
+        reasons=r,
+    )

@@ -1,0 +1,246 @@
+"""Geometry helpers shared by the IR and every backend: triangulation, normals and the tessellations
+of parametric primitives (so that all backends that tessellate use the very same triangles)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "TriMesh",
+    "triangulate_polygons",
+    "face_normals",
+    "vertex_normals",
+    "uv_sphere",
+    "icosphere",
+    "tube_along_polyline",
+]
+
+
+@dataclass
+class TriMesh:
+    """A plain triangle mesh in object space.
+
+    ``uv`` is per triangle corner (F, 3, 2) or None; ``normals`` per vertex (N, 3) for smooth shading or
+    None for flat shading; ``face_polygon`` maps each triangle to the polygon (material slot face) it
+    came from.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray | None = None
+    uv: np.ndarray | None = None
+    face_polygon: np.ndarray | None = None
+    smooth: bool = False
+
+    @property
+    def is_empty(self) -> bool:
+        return len(self.faces) == 0
+
+
+def triangulate_polygons(polygons: list[np.ndarray] | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fan-triangulate polygons: (F, 3) int32 triangles, (F,) int32 polygon index, (F, 3) int32 corner
+    index within the polygon (for per-corner data such as FacesUV)."""
+    if isinstance(polygons, np.ndarray) and polygons.ndim == 2:
+        m, k = polygons.shape
+        if k == 3:
+            return (
+                polygons.astype(np.int32),
+                np.arange(m, dtype=np.int32),
+                np.tile(np.array([0, 1, 2], dtype=np.int32), (m, 1)),
+            )
+        j = np.arange(1, k - 1)
+        corners = np.stack([np.zeros_like(j), j, j + 1], axis=1)  # (k-2, 3)
+        tris = polygons[:, corners].reshape(-1, 3)
+        poly = np.repeat(np.arange(m, dtype=np.int32), k - 2)
+        return tris.astype(np.int32), poly, np.tile(corners, (m, 1)).astype(np.int32)
+    tris_l, poly_l, corner_l = [], [], []
+    for i, p in enumerate(polygons):
+        p = np.asarray(p)
+        j = np.arange(1, len(p) - 1)
+        corners = np.stack([np.zeros_like(j), j, j + 1], axis=1)
+        tris_l.append(p[corners])
+        poly_l.append(np.full(len(j), i))
+        corner_l.append(corners)
+    if not tris_l:
+        return np.zeros((0, 3), np.int32), np.zeros(0, np.int32), np.zeros((0, 3), np.int32)
+    return (
+        np.concatenate(tris_l).astype(np.int32),
+        np.concatenate(poly_l).astype(np.int32),
+        np.concatenate(corner_l).astype(np.int32),
+    )
+
+
+def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F, 3) unit face normals (zero for degenerate triangles, never NaN)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    n = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(N, 3) area-weighted unit vertex normals (zero where undefined, never NaN)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    n = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
+    acc = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(acc, faces[:, k], n)
+    length = np.linalg.norm(acc, axis=1, keepdims=True)
+    return np.divide(acc, length, out=np.zeros_like(acc), where=length > 0)
+
+
+def uv_sphere(radius: float = 1.0, segments: int = 64, rings: int = 32) -> TriMesh:
+    """A UV sphere (poles on +/-Z) with per-vertex normals and UVs (u around Z, v from south to north)."""
+    theta = np.linspace(0.0, np.pi, rings + 1)  # from north pole
+    phi = np.linspace(0.0, 2 * np.pi, segments + 1)
+    tt, pp = np.meshgrid(theta, phi, indexing="ij")  # (rings+1, segments+1)
+    n = np.stack([np.sin(tt) * np.cos(pp), np.sin(tt) * np.sin(pp), np.cos(tt)], axis=-1).reshape(-1, 3)
+    uv = np.stack([pp / (2 * np.pi), 1.0 - tt / np.pi], axis=-1).reshape(-1, 2)
+    idx = np.arange((rings + 1) * (segments + 1)).reshape(rings + 1, segments + 1)
+    a, b = idx[:-1, :-1], idx[:-1, 1:]
+    c, d = idx[1:, :-1], idx[1:, 1:]
+    top = np.stack([a, c, d], axis=-1)[0]  # north cap: a is the pole
+    bottom = np.stack([a, c, b], axis=-1)[-1]
+    mid_a = np.stack([a, c, d], axis=-1)[1:-1].reshape(-1, 3)
+    mid_b = np.stack([a, d, b], axis=-1)[1:-1].reshape(-1, 3)
+    faces = np.concatenate([top, mid_a, mid_b, bottom]).astype(np.int32)
+    tri_uv = uv[faces].astype(np.float32)
+    return TriMesh(vertices=n * radius, faces=faces, normals=n.copy(), uv=tri_uv, smooth=True)
+
+
+def icosphere(subdivisions: int = 1, radius: float = 1.0) -> TriMesh:
+    """An icosphere (subdivided icosahedron), smooth normals, no UVs."""
+    t = (1.0 + 5**0.5) / 2.0
+    v = np.array(
+        [
+            [-1, t, 0],
+            [1, t, 0],
+            [-1, -t, 0],
+            [1, -t, 0],
+            [0, -1, t],
+            [0, 1, t],
+            [0, -1, -t],
+            [0, 1, -t],
+            [t, 0, -1],
+            [t, 0, 1],
+            [-t, 0, -1],
+            [-t, 0, 1],
+        ],
+        dtype=np.float64,
+    )
+    f = np.array(
+        [
+            [0, 11, 5],
+            [0, 5, 1],
+            [0, 1, 7],
+            [0, 7, 10],
+            [0, 10, 11],
+            [1, 5, 9],
+            [5, 11, 4],
+            [11, 10, 2],
+            [10, 7, 6],
+            [7, 1, 8],
+            [3, 9, 4],
+            [3, 4, 2],
+            [3, 2, 6],
+            [3, 6, 8],
+            [3, 8, 9],
+            [4, 9, 5],
+            [2, 4, 11],
+            [6, 2, 10],
+            [8, 6, 7],
+            [9, 8, 1],
+        ],
+        dtype=np.int64,
+    )
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    for _ in range(subdivisions):
+        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        uniq, inv = np.unique(edges, axis=0, return_inverse=True)
+        inv = inv.reshape(-1)
+        mids = v[uniq[:, 0]] + v[uniq[:, 1]]
+        mids /= np.linalg.norm(mids, axis=1, keepdims=True)
+        m = inv.reshape(3, -1).T + len(v)  # per face: mid of (0,1), (1,2), (2,0)
+        v = np.concatenate([v, mids])
+        f = np.concatenate(
+            [
+                np.stack([f[:, 0], m[:, 0], m[:, 2]], 1),
+                np.stack([f[:, 1], m[:, 1], m[:, 0]], 1),
+                np.stack([f[:, 2], m[:, 2], m[:, 1]], 1),
+                m,
+            ]
+        )
+    return TriMesh(vertices=v * radius, faces=f.astype(np.int32), normals=v.copy(), smooth=True)
+
+
+def _frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rotation-minimising frames (double reflection) along a polyline: tangents, normals, binormals."""
+    seg = np.diff(points, axis=0)
+    seg_len = np.linalg.norm(seg, axis=1, keepdims=True)
+    seg_t = seg / np.maximum(seg_len, 1e-300)
+    t = np.empty_like(points)
+    t[0], t[-1] = seg_t[0], seg_t[-1]
+    if len(points) > 2:
+        mid = seg_t[:-1] + seg_t[1:]
+        ln = np.linalg.norm(mid, axis=1, keepdims=True)
+        t[1:-1] = np.where(ln > 1e-9, mid / np.maximum(ln, 1e-300), seg_t[1:])
+    helper = np.array([0.0, 0.0, 1.0]) if abs(t[0][2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    n0 = np.cross(t[0], helper)
+    n0 /= np.linalg.norm(n0)
+    normals = np.empty_like(points)
+    normals[0] = n0
+    for i in range(len(points) - 1):
+        v1 = points[i + 1] - points[i]
+        c1 = v1 @ v1
+        if c1 < 1e-300:
+            normals[i + 1] = normals[i]
+            continue
+        r_l = normals[i] - (2.0 / c1) * (v1 @ normals[i]) * v1
+        t_l = t[i] - (2.0 / c1) * (v1 @ t[i]) * v1
+        v2 = t[i + 1] - t_l
+        c2 = v2 @ v2
+        r = r_l - (2.0 / c2) * (v2 @ r_l) * v2 if c2 > 1e-300 else r_l
+        r -= (r @ t[i + 1]) * t[i + 1]
+        normals[i + 1] = r / max(np.linalg.norm(r), 1e-300)
+    binormals = np.cross(t, normals)
+    return t, normals, binormals
+
+
+def tube_along_polyline(points: np.ndarray, radius: float, segments: int = 16, caps: bool = True) -> TriMesh:
+    """A tube of ``radius`` around a polyline (consecutive duplicate points removed), smooth sides,
+    flat caps at both ends. The cross-section keeps a constant radius (mitred joints are not widened)."""
+    pts = np.asarray(points, dtype=np.float64)
+    keep = np.ones(len(pts), bool)
+    keep[1:] = np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-12 * max(1.0, float(np.abs(pts).max()))
+    pts = pts[keep]
+    if len(pts) < 2:
+        return TriMesh(vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), np.int32), smooth=True)
+    t, n, b = _frames(pts)
+    ang = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    ring = np.cos(ang)[None, :, None] * n[:, None, :] + np.sin(ang)[None, :, None] * b[:, None, :]  # (K,S,3)
+    verts = (pts[:, None, :] + radius * ring).reshape(-1, 3)
+    norms = ring.reshape(-1, 3)
+    k, s = len(pts), segments
+    idx = np.arange(k * s).reshape(k, s)
+    a, bb = idx[:-1], np.roll(idx[:-1], -1, axis=1)
+    c, d = idx[1:], np.roll(idx[1:], -1, axis=1)
+    faces = np.concatenate([np.stack([a, bb, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    if caps:
+        cap_faces, cap_verts, cap_norms = [], [], []
+        base = len(verts)
+        for end, sign in ((0, -1.0), (k - 1, 1.0)):
+            centre = base + len(cap_verts)
+            cap_verts.append(pts[end])
+            cap_norms.append(sign * t[end])
+            ring_start = base + len(cap_verts)
+            cap_verts.extend(verts[idx[end]])
+            cap_norms.extend([sign * t[end]] * s)
+            j = np.arange(s)
+            tri = np.stack([np.full(s, centre), ring_start + j, ring_start + (j + 1) % s], 1)
+            cap_faces.append(tri if sign > 0 else tri[:, [0, 2, 1]])
+        verts = np.concatenate([verts, np.array(cap_verts)])
+        norms = np.concatenate([norms, np.array(cap_norms)])
+        faces = np.concatenate([faces, *cap_faces])
+    return TriMesh(vertices=verts, faces=faces.astype(np.int32), normals=norms, smooth=True)

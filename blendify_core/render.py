@@ -1,0 +1,169 @@
+"""``bf.render``: one call from a scene to a :class:`RenderResult` with any backend."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+import warnings
+from typing import Any
+
+from .backend import Backend, available_backends, shared_backend
+from .effects import analyse_effects
+from .errors import BackendUnavailableError, InvalidSceneError, UnsupportedFeatureError
+from .features import scene_features
+from .result import RenderResult
+from .settings import RenderSettings, resolve_settings
+
+__all__ = ["render", "check_capabilities", "choose_backend"]
+
+log = logging.getLogger("blendify_core")
+
+# backend=None: the preference order per quality mode
+_PREFERENCE = {
+    "preview": ("pyrender", "cycles", "mitsuba"),
+    "draft": ("cycles", "mitsuba", "pyrender"),
+    "final": ("cycles", "mitsuba", "pyrender"),
+}
+_SETTING_NAMES = {f.name for f in dataclasses.fields(RenderSettings)} - {"extra"}
+
+
+def choose_backend(quality: str) -> tuple[str, list[str]]:
+    """The best available backend for ``quality`` and the reasons the better ones were skipped."""
+    status = available_backends()
+    skipped = []
+    order = list(_PREFERENCE.get(quality, _PREFERENCE["final"]))
+    order += [n for n in sorted(status) if n not in order]
+    for name in order:
+        st = status.get(name)
+        if st is None:
+            continue
+        if st.available:
+            return name, skipped
+        skipped.append(f"{name}: {st.reason}")
+    raise BackendUnavailableError("no backend is available: " + "; ".join(skipped or ["none registered"]))
+
+
+def check_capabilities(backend: Backend, scene: Any, settings: RenderSettings) -> list[str]:
+    """Check the scene's features against the backend's capability table; return the approximations."""
+    caps = backend.capabilities()
+    approximations = []
+    for feature, where in scene_features(scene, settings.outputs).items():
+        cap = caps.get(feature)
+        if cap is None or cap.level == "unsupported":
+            note = f" ({cap.note})" if cap is not None and cap.note else ""
+            raise UnsupportedFeatureError(
+                f"backend {backend.name!r} cannot render {feature} used by {where}{note}",
+                feature=feature,
+                backend=backend.name,
+            )
+        if cap.level == "approximate":
+            text = f"{feature}: {cap.note}" if cap.note else feature
+            if settings.strict:
+                raise UnsupportedFeatureError(
+                    f"backend {backend.name!r} only approximates {feature} used by {where} ({cap.note}); "
+                    "strict=True forbids approximations",
+                    feature=feature,
+                    backend=backend.name,
+                )
+            approximations.append(text)
+    return approximations
+
+
+def render(
+    scene: Any,
+    backend: str | Backend | None = None,
+    quality: str = "final",
+    samples: int | None = None,
+    seed: int = 0,
+    outputs: Any = ("rgb",),
+    threads: int | None = None,
+    strict: bool = False,
+    **kwargs: Any,
+) -> RenderResult:
+    """Render ``scene`` and return a :class:`RenderResult`.
+
+    ``backend``: a name ("cycles", "mitsuba", "pyrender"), a backend instance, or None for the best
+    available one for ``quality`` ("preview" -> pyrender; "draft"/"final" -> cycles), falling back to the
+    next available backend with a logged reason. Keyword arguments that name a :class:`RenderSettings`
+    field (``denoise``, ``max_bounces``, ``time_limit``, ``target_error``, ``pixel_filter``, ...) override
+    the quality preset; all others are backend options (e.g. ``platform="egl"``, ``variant="scalar_rgb"``).
+    """
+    from .scene import Scene
+
+    t_start = time.perf_counter()
+    if not isinstance(scene, Scene):
+        raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
+    setting_kwargs = {k: v for k, v in kwargs.items() if k in _SETTING_NAMES}
+    options = {k: v for k, v in kwargs.items() if k not in _SETTING_NAMES}
+    settings = resolve_settings(
+        quality=quality, samples=samples, seed=seed, outputs=outputs, threads=threads, strict=strict, **setting_kwargs
+    )
+    if scene.camera is None:
+        raise InvalidSceneError(
+            "scene.camera: the scene has no camera; call scene.set_perspective_camera(...) "
+            "or scene.set_orthographic_camera(...) first"
+        )
+    fallback_notes: list[str] = []
+    if isinstance(backend, Backend):
+        inst = backend
+        if options:
+            raise InvalidSceneError(
+                f"render: backend options {sorted(options)} cannot be applied to an existing "
+                "backend instance; pass them when creating it"
+            )
+    else:
+        if backend is None:
+            name, fallback_notes = choose_backend(settings.quality)
+            for note in fallback_notes:
+                log.info("blendify: skipped backend %s", note)
+        elif isinstance(backend, str):
+            name = backend
+        else:
+            raise InvalidSceneError(f"backend: expected a backend name or instance, got {type(backend).__name__}")
+        inst = shared_backend(name, **options)
+
+    if (
+        "rgb" in settings.outputs
+        and not len(scene.lights)
+        and scene.lights.background is None
+        and scene.lights.environment is None
+        and not any(m.is_emissive for r in scene.renderables for m in r.materials)
+    ):
+        warnings.warn(
+            "scene has no lights, no background and no emissive material: the colour image will be black", stacklevel=2
+        )
+    approximations = check_capabilities(inst, scene, settings)
+    effects = analyse_effects(scene)
+
+    cam = scene.camera
+    out_cam = cam._scaled(cam.resolution_percentage / 100.0) if cam.resolution_percentage != 100 else cam
+    render_cam, src = out_cam, None
+    if getattr(out_cam, "distortion", None) is not None:
+        from .distortion import margin_camera
+
+        render_cam, src = margin_camera(out_cam)  # type: ignore[arg-type]
+    view = scene if render_cam is cam else scene.with_camera(render_cam)
+
+    result = inst.render_scene(view, settings)
+
+    if src is not None:
+        from .distortion import remap_result
+
+        t0 = time.perf_counter()
+        remap_result(result, src, out_cam, render_cam)  # type: ignore[arg-type]
+        result.meta.setdefault("timings", {})["distortion"] = time.perf_counter() - t0
+    meta = result.meta
+    meta.setdefault("backend", inst.name)
+    meta.setdefault("engine_version", inst.engine_version())
+    meta["settings"] = settings.to_dict()
+    meta.setdefault("effects", effects.to_dict())
+    meta["approximations"] = sorted(set(approximations) | set(meta.get("approximations", [])))
+    if fallback_notes:
+        meta["backend_fallback"] = fallback_notes
+    meta.setdefault("samples", settings.samples)
+    meta["scene_fingerprint"] = scene.fingerprint()
+    if not result.instance_tags:
+        result.instance_tags = [r.tag for r in scene.renderables]
+    meta.setdefault("timings", {})["total"] = time.perf_counter() - t_start
+    return result

@@ -1,0 +1,227 @@
+"""The result of a render: numpy arrays plus metadata, and how to save and show it."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .colorspace import linear_to_srgb
+from .errors import InvalidSceneError
+
+__all__ = ["RenderResult", "atomic_write"]
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return str(value)
+    if isinstance(value, (str, int, float, bool)) or value is None:
+        return value
+    return repr(value)
+
+
+def atomic_write(path: str | os.PathLike[str], writer: Any, suffix: str | None = None) -> Path:
+    """Call ``writer(tmp_path)`` on a temporary file in the destination folder, then rename it into place.
+
+    The destination folder must exist; nothing is left behind when the writer fails."""
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise InvalidSceneError(f"path: the folder {str(parent)!r} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=suffix or p.suffix, dir=parent)
+    os.close(fd)
+    try:
+        writer(tmp)
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return p
+
+
+@dataclass
+class RenderResult:
+    """Arrays of one render. Outputs that were not requested are None.
+
+    - ``rgba``: (H, W, 4) float32, scene-linear, premultiplied alpha
+    - ``depth``: (H, W) float32 planar z along the camera axis, +inf where nothing was hit
+    - ``normal``: (H, W, 3) float32 world-space unit normals, 0 where nothing was hit
+    - ``albedo``: (H, W, 3) float32 linear base colour of the visible material, 0 where nothing was hit
+    - ``instance``: (H, W) int32 index into ``instance_tags``, -1 for background
+    - ``meta``: backend, engine version, settings, effects, approximations, timings, samples, ...
+    """
+
+    rgba: np.ndarray | None = None
+    depth: np.ndarray | None = None
+    normal: np.ndarray | None = None
+    albedo: np.ndarray | None = None
+    instance: np.ndarray | None = None
+    instance_tags: list[str] = field(default_factory=list)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    # -- derived ---------------------------------------------------------------------------------
+    @property
+    def resolution(self) -> tuple[int, int] | None:
+        for a in (self.rgba, self.depth, self.normal, self.albedo, self.instance):
+            if a is not None:
+                return (a.shape[1], a.shape[0])
+        return None
+
+    @property
+    def mask(self) -> np.ndarray | None:
+        """(H, W) bool: where a surface was hit (from depth or instance when present, else alpha > 0)."""
+        if self.depth is not None:
+            return np.isfinite(self.depth)
+        if self.instance is not None:
+            return self.instance >= 0
+        if self.rgba is not None:
+            return self.rgba[..., 3] > 0
+        return None
+
+    @property
+    def rgb(self) -> np.ndarray | None:
+        """(H, W, 3) premultiplied linear colour (over black)."""
+        return None if self.rgba is None else self.rgba[..., :3]
+
+    def straight_rgba(self) -> np.ndarray:
+        """(H, W, 4) float32 linear colour with straight (un-premultiplied) alpha."""
+        if self.rgba is None:
+            raise InvalidSceneError("outputs: this result has no 'rgb' output")
+        a = self.rgba[..., 3:4]
+        rgb = np.divide(self.rgba[..., :3], a, out=np.zeros_like(self.rgba[..., :3]), where=a > 0)
+        return np.concatenate([rgb, a], axis=-1).astype(np.float32)
+
+    def to_srgb8(self) -> np.ndarray:
+        """(H, W, 4) uint8: sRGB-encoded ("Standard" view transform) colour with straight alpha."""
+        s = self.straight_rgba()
+        out = np.empty(s.shape, dtype=np.uint8)
+        out[..., :3] = np.round(linear_to_srgb(s[..., :3]) * 255.0)
+        out[..., 3] = np.round(np.clip(s[..., 3], 0, 1) * 255.0)
+        return out
+
+    def provenance(self) -> dict[str, Any]:
+        keys = ("backend", "engine_version", "scene_fingerprint", "settings", "samples", "variant")
+        return {k: self.meta[k] for k in keys if k in self.meta}
+
+    # -- saving ----------------------------------------------------------------------------------
+    def save(self, path: str | os.PathLike[str], output: str = "rgb") -> Path:
+        """Write ``.png`` (8-bit sRGB, straight alpha), ``.exr`` (linear float, needs ``openexr``) or
+        ``.npz`` (every output, lossless), atomically, with provenance in PNG text / EXR header / npz."""
+        p = Path(path)
+        suffix = p.suffix.lower()
+        if suffix not in (".png", ".exr", ".npz"):
+            raise InvalidSceneError(f"path: expected a .png, .exr or .npz file name, got {str(path)!r}")
+        prov = json.dumps(_jsonable(self.provenance()))
+        if suffix == ".npz":
+            arrays = {
+                k: getattr(self, k)
+                for k in ("rgba", "depth", "normal", "albedo", "instance")
+                if getattr(self, k) is not None
+            }
+            arrays["instance_tags"] = np.array(self.instance_tags, dtype=str)
+            arrays["meta"] = np.array(json.dumps(_jsonable(self.meta)))
+
+            def write_npz(tmp: str) -> None:
+                with open(tmp, "wb") as f:
+                    np.savez_compressed(f, **arrays)
+
+            return atomic_write(p, write_npz)
+        image = self._output_image(output, suffix)
+        if suffix == ".png":
+            from PIL import Image, PngImagePlugin
+
+            info = PngImagePlugin.PngInfo()
+            info.add_text("blendify", prov)
+
+            def write_png(tmp: str) -> None:
+                Image.fromarray(image).save(tmp, format="PNG", pnginfo=info)
+
+            return atomic_write(p, write_png)
+        try:
+            import OpenEXR
+        except ImportError:
+            raise InvalidSceneError("path: writing .exr needs the 'openexr' package (pip install openexr)") from None
+
+        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, "blendify": prov}
+        channels = {
+            "RGBA" if image.shape[-1] == 4 else ("RGB" if image.ndim == 3 else "Y"): np.ascontiguousarray(
+                image.astype(np.float32)
+            )
+        }
+
+        def write_exr(tmp: str) -> None:
+            with OpenEXR.File(header, channels) as f:
+                f.write(tmp)
+
+        return atomic_write(p, write_exr)
+
+    def _output_image(self, output: str, suffix: str) -> np.ndarray:
+        name = "rgba" if output in ("rgb", "rgba") else output
+        data = getattr(self, name, None) if name in ("rgba", "depth", "normal", "albedo", "instance") else None
+        if data is None:
+            raise InvalidSceneError(
+                f"output: this result has no {output!r} output (it has "
+                f"{[k for k in ('rgba', 'depth', 'normal', 'albedo', 'instance') if getattr(self, k) is not None]})"
+            )
+        if suffix == ".exr":
+            return data.astype(np.float32) if name != "instance" else data.astype(np.float32)
+        if name == "rgba":
+            return self.to_srgb8()
+        if name == "albedo":
+            return np.round(linear_to_srgb(data) * 255).astype(np.uint8)
+        if name == "normal":
+            return np.round(np.clip(data * 0.5 + 0.5, 0, 1) * 255).astype(np.uint8)
+        if name == "depth":
+            return depth_to_image(data)
+        return instance_to_image(data)
+
+    def _repr_png_(self) -> bytes | None:
+        if self.rgba is None:
+            return None
+        import io
+
+        from PIL import Image
+
+        buf = io.BytesIO()
+        Image.fromarray(self.to_srgb8()).save(buf, format="PNG")
+        return buf.getvalue()
+
+    def __repr__(self) -> str:
+        have = [k for k in ("rgba", "depth", "normal", "albedo", "instance") if getattr(self, k) is not None]
+        return f"RenderResult({self.resolution}, outputs={have}, backend={self.meta.get('backend')!r})"
+
+
+def depth_to_image(depth: np.ndarray) -> np.ndarray:
+    """8-bit visualisation of a depth map: near = bright, background = black."""
+    finite = np.isfinite(depth)
+    out = np.zeros(depth.shape, dtype=np.uint8)
+    if finite.any():
+        lo, hi = float(depth[finite].min()), float(depth[finite].max())
+        span = max(hi - lo, 1e-12)
+        out[finite] = np.round(255 - 215 * (depth[finite] - lo) / span).astype(np.uint8)
+    return out
+
+
+def instance_to_image(instance: np.ndarray) -> np.ndarray:
+    """RGB visualisation of an instance map (a fixed colour per id, black background)."""
+    rng = np.random.default_rng(12345)
+    n = int(instance.max()) + 1 if instance.size else 0
+    palette = rng.integers(60, 256, size=(max(n, 1), 3), dtype=np.uint8)
+    out = np.zeros(instance.shape + (3,), dtype=np.uint8)
+    valid = instance >= 0
+    out[valid] = palette[instance[valid]]
+    return out

@@ -1,0 +1,180 @@
+"""The scene: renderables, lights and one camera. A plain object; any number may coexist."""
+
+from __future__ import annotations
+
+import copy
+import os
+from typing import Any
+
+import numpy as np
+
+from .cameras import Camera, OrthographicCamera, PerspectiveCamera, camera_from_opencv
+from .errors import InvalidSceneError
+from .lights import LightsCollection
+from .renderables import RenderablesCollection
+
+__all__ = ["Scene"]
+
+
+class Scene:
+    """A scene described in plain numpy: ``scene.renderables``, ``scene.lights`` and ``scene.camera``."""
+
+    def __init__(self) -> None:
+        self.renderables = RenderablesCollection()
+        self.lights = LightsCollection()
+        self._camera: Camera | None = None
+        self.attached_blends: list[str] = []
+
+    # -- camera ------------------------------------------------------------------------------------
+    @property
+    def camera(self) -> Camera | None:
+        return self._camera
+
+    @camera.setter
+    def camera(self, value: Camera | None) -> None:
+        if value is not None and not isinstance(value, Camera):
+            raise InvalidSceneError(f"camera: expected a PerspectiveCamera or OrthographicCamera, got {type(value)}")
+        self._camera = value
+
+    def set_perspective_camera(
+        self,
+        resolution: Any,
+        focal_dist: float | None = None,
+        fov_x: float | None = None,
+        fov_y: float | None = None,
+        center: Any = None,
+        near: float = 0.1,
+        far: float = 100.0,
+        tag: str = "camera",
+        rotation_mode: str = "quaternionWXYZ",
+        rotation: Any = None,
+        translation: Any = (0, 0, 0),
+        resolution_percentage: int = 100,
+        K: Any = None,  # noqa: N803
+        distortion: Any = None,
+    ) -> PerspectiveCamera:
+        """Replace the camera by a pinhole camera (see :class:`PerspectiveCamera`)."""
+        cam = PerspectiveCamera(
+            resolution,
+            focal_dist=focal_dist,
+            fov_x=fov_x,
+            fov_y=fov_y,
+            center=center,
+            K=K,
+            near=near,
+            far=far,
+            distortion=distortion,
+            tag=tag,
+            resolution_percentage=resolution_percentage,
+            rotation_mode=rotation_mode,
+            rotation=rotation,
+            translation=translation,
+        )
+        self._camera = cam
+        return cam
+
+    def set_orthographic_camera(
+        self,
+        resolution: Any,
+        ortho_scale: float = 1.0,
+        near: float = 0.1,
+        far: float = 100.0,
+        tag: str = "camera",
+        rotation_mode: str = "quaternionWXYZ",
+        rotation: Any = None,
+        translation: Any = (0, 0, 0),
+        resolution_percentage: int = 100,
+        center: Any = None,
+    ) -> OrthographicCamera:
+        """Replace the camera by an orthographic camera seeing ``ortho_scale`` world units across."""
+        cam = OrthographicCamera(
+            resolution,
+            ortho_scale=ortho_scale,
+            near=near,
+            far=far,
+            center=center,
+            tag=tag,
+            resolution_percentage=resolution_percentage,
+            rotation_mode=rotation_mode,
+            rotation=rotation,
+            translation=translation,
+        )
+        self._camera = cam
+        return cam
+
+    def set_camera_from_opencv(
+        self,
+        K: Any,
+        R: Any,
+        t: Any,
+        resolution: Any,
+        distortion: Any = None,  # noqa: N803
+        near: float = 0.1,
+        far: float = 100.0,
+    ) -> PerspectiveCamera:
+        """Set a pinhole camera from OpenCV intrinsics ``K`` and extrinsics ``x_cam = R @ x_world + t``.
+        The way back is ``scene.camera.K`` and ``scene.camera.opencv_extrinsics()``."""
+        cam = camera_from_opencv(K, R, t, resolution, distortion, near, far)
+        self._camera = cam
+        return cam
+
+    # -- views used by the renderer ----------------------------------------------------------------
+    def with_camera(self, camera: Camera) -> Scene:
+        """A shallow view of this scene (same renderables and lights) with another camera."""
+        view = copy.copy(self)
+        view._camera = camera
+        return view
+
+    def clear(self) -> None:
+        self.renderables.clear()
+        self.lights.clear()
+        self._camera = None
+
+    # -- files -------------------------------------------------------------------------------------
+    def save(self, path: str | os.PathLike[str], relative_paths: bool = True) -> None:
+        """Write the scene to one portable ``.npz`` file (JSON header + arrays, no pickle), atomically.
+        Texture files are referenced by path (relative to the scene file when ``relative_paths``)."""
+        from .scenefile import save_scene
+
+        save_scene(self, path, relative_paths=relative_paths)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str], allow_outside: bool = False) -> Scene:
+        """Read a scene file. Relative texture paths resolve against the file's folder and may not leave
+        it unless ``allow_outside=True``."""
+        from .scenefile import load_scene
+
+        return load_scene(path, allow_outside=allow_outside)
+
+    def fingerprint(self) -> str:
+        """A stable content hash (hex SHA-256) of everything that affects the picture."""
+        from .scenefile import fingerprint
+
+        return fingerprint(self)
+
+    # -- Blender-only helpers (need the Cycles backend) ------------------------------------------
+    def export_blend(self, path: str | os.PathLike[str], **kwargs: Any) -> None:
+        """Write a .blend file that renders this scene in Blender (needs the ``cycles`` backend)."""
+        from .backend import get_backend_class
+
+        get_backend_class("cycles").export_blend(self, path, **kwargs)  # type: ignore[attr-defined]
+
+    def attach_blend(self, path: str | os.PathLike[str], with_camera: bool = False, **kwargs: Any) -> Any:
+        """Import a .blend file's meshes, materials, lights (and camera) into this scene (needs ``cycles``)."""
+        from .backend import get_backend_class
+
+        return get_backend_class("cycles").attach_blend(self, path, with_camera=with_camera, **kwargs)  # type: ignore[attr-defined]
+
+    # -- summaries -------------------------------------------------------------------------------
+    def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """World-space axis-aligned bounds of all renderables, or None for an empty scene."""
+        boxes = [r.world_bounds() for r in self.renderables]
+        if not boxes:
+            return None
+        lo = np.min([b[0] for b in boxes], axis=0)
+        hi = np.max([b[1] for b in boxes], axis=0)
+        return lo, hi
+
+    def __repr__(self) -> str:
+        cam = type(self._camera).__name__ if self._camera else "no camera"
+        return f"Scene({len(self.renderables)} renderables, {len(self.lights)} lights, {cam})"
