@@ -1,0 +1,327 @@
+"""Scene builders shared by the test suite and the benchmarks (so benchmarked scenes are tested ones).
+
+Every builder returns a fresh :class:`~blendify_core.Scene`; small resolutions by default.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .colors import FacesUV, TextureColors, UniformColors, VertexColors, VertexUV
+from .materials import DiffuseMaterial, MetalMaterial, PlasticMaterial, PrincipledBSDFMaterial
+from .scene import Scene
+
+__all__ = [
+    "DATA_DIR",
+    "data_path",
+    "marker_scene",
+    "plane_scene",
+    "depth_plane_scene",
+    "bunny_scene",
+    "textured_quad_scene",
+    "pointcloud_scene",
+    "primitives_scene",
+    "every_feature_scene",
+    "look_at_camera",
+]
+
+DATA_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+def data_path(name: str) -> Path:
+    """Path of a file in the project's shared test data (``../shared/data`` next to the checkout)."""
+    for base in (DATA_DIR, Path(__file__).resolve().parents[1] / "shared" / "data"):
+        if (base / name).exists():
+            return base / name
+    raise FileNotFoundError(f"test data {name!r} not found in {DATA_DIR}")
+
+
+def look_at_camera(
+    scene: Scene, resolution: tuple[int, int], position: Any, target: Any = (0, 0, 0), **kwargs: Any
+) -> Any:
+    """Perspective camera at ``position`` looking at ``target`` (kwargs: fov_x/focal_dist/K/center/...)."""
+    if not any(k in kwargs for k in ("fov_x", "fov_y", "focal_dist", "K")):
+        kwargs["fov_x"] = np.deg2rad(40.0)
+    return scene.set_perspective_camera(
+        resolution, rotation_mode="look_at", rotation=np.asarray(target, float), translation=position, **kwargs
+    )
+
+
+def marker_points(scene: Scene, pixels: np.ndarray, depths: np.ndarray) -> np.ndarray:
+    """World points that project to OpenCV pixel coordinates ``pixels`` at planar ``depths``."""
+    cam = scene.camera
+    r, t = cam.opencv_extrinsics()  # type: ignore[union-attr]
+    x = (pixels[:, 0] - cam.cx) / cam.fx * depths  # type: ignore[union-attr]
+    y = (pixels[:, 1] - cam.cy) / cam.fy * depths  # type: ignore[union-attr]
+    p_cam = np.stack([x, y, depths], axis=1)
+    return (p_cam - t) @ r
+
+
+def marker_scene(
+    resolution: tuple[int, int] = (160, 120),
+    fx: float = 150.0,
+    fy: float | None = None,
+    center: tuple[float, float] | None = (83.3, 57.1),
+    radius: float = 0.12,
+    orthographic: bool = False,
+    ortho_scale: float = 4.0,
+    lit: bool = True,
+) -> tuple[Scene, np.ndarray]:
+    """The camera self-test: spheres placed by back-projecting chosen pixels (including near the
+    corners) through a known K. Returns the scene and the (N, 2) expected OpenCV pixel centres of the
+    markers (the projected sphere centres). Camera at (3, -4, 2.5) with a 12 degree roll."""
+    scene = Scene()
+    w, h = resolution
+    fy = fx if fy is None else fy
+    cx, cy = center if center is not None else ((w - 1) / 2, (h - 1) / 2)
+    pose = dict(rotation_mode="look_at", rotation=(np.zeros(3), 12.0), translation=(3.0, -4.0, 2.5))
+    if orthographic:
+        scene.set_orthographic_camera(resolution, ortho_scale=ortho_scale, center=(cx, cy), **pose)  # type: ignore[arg-type]
+    else:
+        k = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+        scene.set_perspective_camera(resolution, K=k, **pose)  # type: ignore[arg-type]
+    pixels = np.array(
+        [
+            [w * 0.5, h * 0.5],
+            [12.0, 10.0],
+            [w - 13.0, 11.0],
+            [14.0, h - 12.0],
+            [w - 12.5, h - 13.5],
+            [w * 0.3, h * 0.62],
+        ]
+    )
+    depths = np.array([5.0, 5.5, 6.0, 6.5, 5.8, 6.2])
+    pts = marker_points(scene, pixels, depths)
+    if orthographic:
+        cam = scene.camera
+        r, t = cam.opencv_extrinsics()  # type: ignore[union-attr]
+        s = cam.pixel_size  # type: ignore[union-attr]
+        p_cam = np.stack([(pixels[:, 0] - cx) * s, (pixels[:, 1] - cy) * s, depths], axis=1)
+        pts = (p_cam - t) @ r
+        radius = radius * ortho_scale / 4.0
+    mat = DiffuseMaterial()
+    for i, p in enumerate(pts):
+        scene.renderables.add_sphere_nurbs(
+            radius, mat, UniformColors((0.8, 0.8, 0.8)), translation=p, tag=f"marker_{i}"
+        )
+    if lit:
+        scene.lights.set_background_light(1.0, (1.0, 1.0, 1.0))
+    return scene, pixels
+
+
+def plane_scene(light: str = "sun", resolution: tuple[int, int] = (64, 64), albedo: float = 0.5) -> Scene:
+    """The light-unit check: a Lambertian plane (reflectance ``albedo``, linear) facing +Z, an
+    orthographic camera looking straight down, one light of type ``light`` (point, sun, spot, area,
+    area_disk, background)."""
+    scene = Scene()
+    scene.set_orthographic_camera(resolution, ortho_scale=2.0, translation=(0, 0, 5.0), near=0.1, far=20)
+    scene.renderables.add_plane_mesh(
+        4.0, DiffuseMaterial(), UniformColors((albedo,) * 3, color_space="linear"), tag="plane"
+    )
+    if light == "point":
+        scene.lights.add_point(strength=100.0, shadow_soft_size=0.0, translation=(0, 0, 2.0))
+    elif light == "sun":
+        scene.lights.add_sun(strength=3.0, angular_diameter=0.0, rotation_mode="eulerXYZ", rotation=(20, 0, 0))
+    elif light == "spot":
+        scene.lights.add_spot(
+            strength=200.0, spot_size=np.deg2rad(120), spot_blend=0.0, shadow_soft_size=0.0, translation=(0, 0, 2.0)
+        )
+    elif light == "area":
+        scene.lights.add_area("square", 0.5, strength=100.0, translation=(0, 0, 1.5))
+    elif light == "area_disk":
+        scene.lights.add_area("circle", 0.5, strength=100.0, translation=(0, 0, 1.5))
+    elif light == "background":
+        scene.lights.set_background_light(1.0, (1.0, 1.0, 1.0))
+    else:
+        raise ValueError(f"light: unknown light type {light!r}")
+    return scene
+
+
+def depth_plane_scene(resolution: tuple[int, int] = (64, 48), distance: float = 3.0, tilt_deg: float = 30.0) -> Scene:
+    """A large plane through (0, 0, 0) tilted by ``tilt_deg`` about X, seen by a camera at (0, 0, distance)
+    looking down -Z: planar depth is known analytically (see :func:`expected_plane_depth`)."""
+    scene = Scene()
+    scene.set_perspective_camera(resolution, fov_x=np.deg2rad(50), translation=(0, 0, distance), near=0.05, far=100)
+    scene.renderables.add_plane_mesh(
+        20.0,
+        DiffuseMaterial(),
+        UniformColors((0.5, 0.5, 0.5)),
+        rotation_mode="eulerXYZ",
+        rotation=(tilt_deg, 0, 0),
+        tag="plane",
+    )
+    scene.lights.set_background_light(1.0)
+    return scene
+
+
+def expected_plane_depth(scene: Scene) -> np.ndarray:
+    """Analytic planar depth (H, W) of the plane tagged "plane" (infinite plane; +inf where parallel/behind)."""
+    cam = scene.camera
+    plane = scene.renderables["plane"]
+    n = plane.rotation_matrix[:, 2]
+    p0 = plane.translation
+    origins, dirs = cam.pixel_rays()  # type: ignore[union-attr]
+    denom = dirs @ n
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = ((p0 - origins) @ n) / denom
+    t = np.where(t > 0, t, np.inf)
+    z = t * (dirs @ cam.viewdir)  # type: ignore[union-attr]
+    return z.reshape(cam.height, cam.width).astype(np.float64)  # type: ignore[union-attr]
+
+
+def bunny_scene(
+    resolution: tuple[int, int] = (128, 128), vertex_colors: bool = True, plane: bool = True, light: str = "sun"
+) -> Scene:
+    """The Stanford bunny (``../shared/data/bunny.ply``, +Y up rotated to +Z up) on a plane, lit by a sun
+    (or an area light), with colours from its normals."""
+    import trimesh
+
+    tm = trimesh.load(data_path("bunny.ply"), process=False)
+    v = np.asarray(tm.vertices, dtype=np.float64)
+    v = v[:, [0, 2, 1]] * np.array([1, -1, 1])  # +Y up -> +Z up (right-handed)
+    v -= [v[:, 0].mean(), v[:, 1].mean(), v[:, 2].min()]
+    faces = np.asarray(tm.faces)[:, [0, 2, 1]]
+    scene = Scene()
+    if vertex_colors:
+        from .geometry import vertex_normals
+
+        n = vertex_normals(v, faces)
+        colors: Any = VertexColors(np.clip(np.abs(n) * 0.8 + 0.1, 0, 1))
+    else:
+        colors = UniformColors((0.8, 0.6, 0.4))
+    scene.renderables.add_mesh(v, faces, PrincipledBSDFMaterial(roughness=0.6), colors, smooth=True, tag="bunny")
+    if plane:
+        scene.renderables.add_plane_mesh(1.0, DiffuseMaterial(), UniformColors((0.6, 0.6, 0.6)), tag="ground")
+    look_at_camera(scene, resolution, (0.25, -0.35, 0.2), (0, 0, 0.07), fov_x=np.deg2rad(35))
+    if light == "area":
+        scene.lights.add_area(
+            "square", 0.3, strength=30.0, rotation_mode="look_at", rotation=(0, 0, 0), translation=(0.3, -0.2, 0.6)
+        )
+    else:
+        scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(30, 20, 0))
+    scene.lights.set_background_light(0.2)
+    return scene
+
+
+def textured_quad_scene(resolution: tuple[int, int] = (64, 64), faces_uv: bool = False) -> Scene:
+    """A unit quad facing the camera with a 2x2 texture (top-left red, top-right green, bottom-left blue,
+    bottom-right white), lit by a uniform background: checks UV orientation in every backend."""
+    scene = Scene()
+    tex = np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 255]]], dtype=np.uint8)
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=float)
+    uv_v = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    faces = np.array([[0, 1, 2, 3]])
+    uv = FacesUV(uv_v[faces]) if faces_uv else VertexUV(uv_v)
+    scene.renderables.add_mesh(v, faces, DiffuseMaterial(), TextureColors(tex, uv, interpolation="closest"), tag="quad")
+    scene.set_orthographic_camera(resolution, ortho_scale=2.0, translation=(0, 0, 3.0))
+    scene.lights.set_background_light(1.0)
+    return scene
+
+
+def pointcloud_scene(
+    n: int = 2000, resolution: tuple[int, int] = (128, 128), seed: int = 0, point_size: float = 0.03
+) -> Scene:
+    """``n`` points on a unit sphere with per-point colours, lit by a sun and the background."""
+    rng = np.random.default_rng(seed)
+    p = rng.normal(size=(n, 3))
+    p /= np.linalg.norm(p, axis=1, keepdims=True)
+    scene = Scene()
+    scene.renderables.add_pointcloud(
+        p, DiffuseMaterial(), VertexColors(p * 0.5 + 0.5), point_size=point_size, tag="points"
+    )
+    look_at_camera(scene, resolution, (2.5, -2.5, 2.0), fov_x=np.deg2rad(40))
+    scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(30, 20, 0))
+    scene.lights.set_background_light(0.3)
+    return scene
+
+
+def primitives_scene(resolution: tuple[int, int] = (128, 96)) -> Scene:
+    """Every primitive (cube, circle, cylinder, plane, sphere, ellipsoid, curve) in a row."""
+    scene = Scene()
+    r = scene.renderables
+    grey = UniformColors((0.7, 0.7, 0.7))
+    r.add_plane_mesh(6.0, DiffuseMaterial(), grey, tag="ground")
+    r.add_cube_mesh(0.6, PlasticMaterial(), UniformColors((0.8, 0.2, 0.2)), translation=(-2.0, 0, 0.3), tag="cube")
+    r.add_cylinder_mesh(
+        0.3, 0.6, MetalMaterial(), UniformColors((0.9, 0.7, 0.3)), translation=(-1.0, 0, 0.3), tag="cylinder"
+    )
+    r.add_sphere_nurbs(0.3, DiffuseMaterial(), UniformColors((0.2, 0.6, 0.9)), translation=(0.0, 0, 0.3), tag="sphere")
+    r.add_ellipsoid_nurbs(
+        (0.2, 0.3, 0.4), DiffuseMaterial(), UniformColors((0.3, 0.8, 0.3)), translation=(1.0, 0, 0.4), tag="ellipsoid"
+    )
+    r.add_circle_mesh(
+        0.3,
+        DiffuseMaterial(),
+        UniformColors((0.9, 0.9, 0.2)),
+        translation=(2.0, 0, 0.3),
+        rotation_mode="eulerXYZ",
+        rotation=(90, 0, 0),
+        tag="circle",
+    )
+    t = np.linspace(0, 1, 20)
+    keys = np.stack([-2 + 4 * t, 0.8 + 0.2 * np.sin(6 * t), 0.2 + 0.4 * t], axis=1)
+    r.add_curve_nurbs(keys, 0.05, DiffuseMaterial(), UniformColors((0.8, 0.3, 0.8)), tag="curve")
+    look_at_camera(scene, resolution, (0.0, -6.0, 3.0), (0, 0, 0.3), fov_x=np.deg2rad(50))
+    scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(35, 15, 0))
+    scene.lights.set_background_light(0.3)
+    return scene
+
+
+def every_feature_scene(resolution: tuple[int, int] = (96, 72)) -> Scene:
+    """One scene using (nearly) every IR feature: meshes with uniform/vertex/texture colours and per-face
+    materials, a point cloud, all primitives, wireframe, emission, alpha, all light types."""
+    from .colors import NormalMap, TextureMap
+    from .materials import GlossyBSDFMaterial, PlasticWireframeMaterial
+
+    scene = primitives_scene(resolution)
+    r = scene.renderables
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1]], dtype=float)
+    f = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+    r.add_mesh(
+        v * 0.5,
+        f,
+        [DiffuseMaterial(), GlossyBSDFMaterial(roughness=0.2)],
+        [UniformColors((0.9, 0.1, 0.1)), UniformColors((0.1, 0.9, 0.1))],
+        faces_material=[0, 1, 0, 1],
+        translation=(-1.5, -1.2, 0),
+        tag="pyramid",
+    )
+    r.add_mesh(
+        v * 0.5,
+        f,
+        PlasticWireframeMaterial(wireframe_thickness=0.01),
+        VertexColors(np.eye(5, 3) * 0.8 + 0.1),
+        translation=(-0.5, -1.2, 0),
+        tag="wire_pyramid",
+    )
+    tex = (np.indices((8, 8)).sum(axis=0) % 2 * 200 + 30).astype(np.uint8)
+    rough = TextureMap(np.linspace(0, 1, 64).reshape(8, 8).astype(np.float32))
+    nmap = NormalMap(np.dstack([np.full((8, 8), 0.5), np.full((8, 8), 0.5), np.ones((8, 8))]).astype(np.float32))
+    uv = VertexUV(v[:, :2])
+    r.add_mesh(
+        v * 0.5,
+        f,
+        PrincipledBSDFMaterial(roughness_map=rough, normal_map=nmap, alpha=0.7),
+        TextureColors(np.dstack([tex] * 3), uv),
+        translation=(0.5, -1.2, 0),
+        tag="textured",
+    )
+    r.add_sphere_nurbs(
+        0.15,
+        PrincipledBSDFMaterial(emission_color=(1, 0.5, 0.2), emission_strength=2.0),
+        UniformColors((1, 1, 1)),
+        translation=(1.5, -1.2, 0.3),
+        tag="emitter",
+    )
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(-0.3, 0.3, size=(200, 3)) + [2.2, -1.2, 0.4]
+    r.add_pointcloud(pts, DiffuseMaterial(), VertexColors(rng.uniform(size=(200, 3))), point_size=0.03, tag="points")
+    lights = scene.lights
+    lights.add_point(50.0, shadow_soft_size=0.1, translation=(0, -2, 2))
+    lights.add_spot(100.0, translation=(2, -2, 3), rotation_mode="look_at", rotation=(0, 0, 0))
+    lights.add_area("rectangle", (0.5, 0.3), 50.0, translation=(-2, -2, 2), rotation_mode="look_at", rotation=(0, 0, 0))
+    lights.add_area("circle", 0.4, 30.0, translation=(0, 2, 2), rotation_mode="look_at", rotation=(0, 0, 0))
+    return scene
