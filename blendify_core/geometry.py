@@ -244,3 +244,29 @@ def tube_along_polyline(points: np.ndarray, radius: float, segments: int = 16, c
         norms = np.concatenate([norms, np.array(cap_norms)])
         faces = np.concatenate([faces, *cap_faces])
     return TriMesh(vertices=verts, faces=faces.astype(np.int32), normals=norms, smooth=True)
+
+
+def torus(
+    major_radius: float = 1.0, minor_radius: float = 0.4, major_segments: int = 64, minor_segments: int = 32
+) -> TriMesh:
+    """A torus around +Z (a donut lying flat), smooth normals, UVs (u around Z, v around the tube)."""
+    u = np.linspace(0, 2 * np.pi, major_segments, endpoint=False)
+    v = np.linspace(0, 2 * np.pi, minor_segments, endpoint=False)
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    centre = np.stack([np.cos(uu), np.sin(uu), np.zeros_like(uu)], axis=-1)
+    n = np.stack([np.cos(vv) * np.cos(uu), np.cos(vv) * np.sin(uu), np.sin(vv)], axis=-1)
+    verts = (centre * major_radius + n * minor_radius).reshape(-1, 3)
+    idx = np.arange(major_segments * minor_segments).reshape(major_segments, minor_segments)
+    a = idx
+    b = np.roll(idx, -1, axis=0)
+    c = np.roll(idx, -1, axis=1)
+    d = np.roll(b, -1, axis=1)
+    faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    uv = np.stack([uu / (2 * np.pi), vv / (2 * np.pi)], axis=-1).reshape(-1, 2)
+    return TriMesh(
+        vertices=verts,
+        faces=faces.astype(np.int32),
+        normals=n.reshape(-1, 3),
+        uv=uv[faces].astype(np.float32),
+        smooth=True,
+    )

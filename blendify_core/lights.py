@@ -237,7 +237,8 @@ class AreaLight(Light):
         return self.linear_color * self.strength / (np.pi * self.area)
 
     def _params(self) -> dict[str, Any]:
-        return {**super()._params(), "shape": self.shape, "size": list(self.size)}
+        size: Any = self.size[0] if self.shape in ("square", "circle") else list(self.size)
+        return {**super()._params(), "shape": self.shape, "size": size}
 
 
 SquareAreaLight = CircleAreaLight = RectangleAreaLight = EllipseAreaLight = AreaLight

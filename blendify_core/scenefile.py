@@ -77,7 +77,10 @@ def load_scene(path: str | os.PathLike[str], allow_outside: bool = False) -> Any
     if not p.is_file():
         raise InvalidSceneError(f"path: no such scene file {str(path)!r}")
     try:
-        with np.load(p, allow_pickle=False) as data:
+        loaded = np.load(p, allow_pickle=False)
+        if not hasattr(loaded, "files"):  # a plain .npy array under an .npz name
+            raise InvalidSceneError(f"path: {str(path)!r} is not a blendify-core scene file (a single .npy array)")
+        with loaded as data:
             if _HEADER not in data.files:
                 raise InvalidSceneError(f"path: {str(path)!r} is not a blendify-core scene file (no header)")
             header = json.loads(bytes(data[_HEADER]).decode("utf-8"))
@@ -111,7 +114,7 @@ def load_scene(path: str | os.PathLike[str], allow_outside: bool = False) -> Any
         return _build(header, arrays)
     except InvalidSceneError as exc:
         raise InvalidSceneError(f"path: {str(path)!r} holds an invalid scene: {exc}") from None
-    except (KeyError, TypeError, IndexError) as exc:
+    except (KeyError, TypeError, IndexError, AttributeError, ValueError) as exc:
         raise InvalidSceneError(f"path: {str(path)!r} is corrupt ({type(exc).__name__}: {exc})") from None
 
 

@@ -133,7 +133,9 @@ def quaternion_from_rotation(
         n = np.linalg.norm(q)
         if n < 1e-12:
             raise InvalidSceneError(f"{name}: expected a non-zero quaternion, got {np.asarray(q).tolist()}")
-        q = np.array(q, dtype=np.float64) / n
+        q = np.array(q, dtype=np.float64)
+        if abs(n - 1.0) > 4 * np.finfo(np.float64).eps:  # keep unit quaternions bit-exact (file round trips)
+            q /= n
         return -q if q[0] < 0 else q
     if mode == "rotvec":
         from scipy.spatial.transform import Rotation

@@ -1,0 +1,149 @@
+"""The ``blendify`` command line: ``info``, ``render``, ``demo``, ``crosscheck``.
+
+Every command has ``--help``; bad arguments print a one-line error and return a non-zero exit code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import platform
+import sys
+from pathlib import Path
+from typing import Any
+
+from . import __version__
+
+__all__ = ["main"]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # type: ignore[override]
+        # one line, no usage dump, exit code 2 (argparse's convention)
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _info(args: argparse.Namespace) -> int:
+    from .backend import available_backends
+
+    print(f"blendify-core {__version__} (Python {platform.python_version()}, {platform.system()} {platform.machine()})")
+    import numpy
+    import scipy
+
+    print(f"numpy {numpy.__version__}, scipy {scipy.__version__}")
+    for name, st in available_backends().items():
+        state = "available" if st.available else "unavailable"
+        version = f" (engine {st.version})" if st.version else ""
+        reason = f": {st.reason}" if st.reason else ""
+        print(f"  {name:<10} {state}{version}{reason}")
+    return 0
+
+
+def _outputs(text: str) -> tuple[str, ...]:
+    return tuple(t.strip() for t in text.split(",") if t.strip())
+
+
+def _render(args: argparse.Namespace) -> int:
+    from . import render
+    from .scene import Scene
+
+    scene = Scene.load(args.scene, allow_outside=args.allow_outside)
+    result = render(
+        scene,
+        backend=args.backend,
+        quality=args.quality,
+        samples=args.samples,
+        seed=args.seed,
+        outputs=_outputs(args.outputs),
+    )
+    out = Path(args.output)
+    result.save(out)
+    if out.suffix.lower() == ".png":
+        for name in result.meta["settings"]["outputs"]:
+            if name != "rgb":
+                result.save(out.with_name(f"{out.stem}.{name}{out.suffix}"), output=name)
+    t = result.meta.get("timings", {}).get("total", 0.0)
+    print(f"wrote {out} ({result.meta['backend']}, {t:.2f} s)")
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from .demo import run_demo
+
+    run_demo(args.output, backend=args.backend, quality=args.quality, size=args.size, samples=args.samples)
+    return 0
+
+
+def _crosscheck(args: argparse.Namespace) -> int:
+    try:
+        from .compare import crosscheck_main  # type: ignore[attr-defined]
+    except ImportError:
+        print("blendify crosscheck: not available in this version", file=sys.stderr)
+        return 1
+    return int(crosscheck_main(args.rest) or 0)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="blendify", description="blendify-core: one numpy scene, three renderers.")
+    parser.add_argument("--version", action="version", version=f"blendify-core {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log backend choices and engine messages")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser("info", help="versions, available backends and why others are not")
+    p.set_defaults(func=_info)
+
+    p = sub.add_parser("render", help="render a scene file (.npz) to an image")
+    p.add_argument("scene", help="scene file written by Scene.save()")
+    p.add_argument("-b", "--backend", default=None, help="cycles, mitsuba, pyrender (default: best for the quality)")
+    p.add_argument("-q", "--quality", default="final", choices=("preview", "draft", "final"))
+    p.add_argument("-o", "--output", default="render.png", help="output file: .png, .exr or .npz")
+    p.add_argument("-s", "--samples", type=int, default=None, help="samples per pixel (overrides the preset)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--outputs", default="rgb", help="comma-separated: rgb,depth,normal,albedo,instance")
+    p.add_argument("--allow-outside", action="store_true", help="allow texture paths outside the scene's folder")
+    p.set_defaults(func=_render)
+
+    p = sub.add_parser("demo", help="render the built-in donut demo into a labelled contact sheet")
+    p.add_argument("-o", "--output", default="blendify_demo.png")
+    p.add_argument("-b", "--backend", default=None)
+    p.add_argument("-q", "--quality", default="draft", choices=("preview", "draft", "final"))
+    p.add_argument("--size", type=int, default=256, help="panel size in pixels")
+    p.add_argument("-s", "--samples", type=int, default=None)
+    p.set_defaults(func=_demo)
+
+    p = sub.add_parser("crosscheck", help="render a scene with every backend and compare them pairwise", add_help=False)
+    p.add_argument("rest", nargs=argparse.REMAINDER)
+    p.set_defaults(func=_crosscheck)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``blendify`` command; returns the process exit code."""
+    from .errors import BlendifyError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
+    if not getattr(args, "command", None):
+        parser.print_help()
+        return 2
+    for name in ("samples", "size"):
+        value = getattr(args, name, None)
+        if value is not None and value < 1:
+            print(f"blendify {args.command}: error: --{name} must be >= 1, got {value}", file=sys.stderr)
+            return 2
+    try:
+        return int(args.func(args))
+    except BlendifyError as exc:
+        print(f"blendify {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"blendify {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except OSError as exc:
+        print(f"blendify {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+
+
+def _entry() -> Any:  # pragma: no cover - used by `python -m blendify_core`
+    raise SystemExit(main())
