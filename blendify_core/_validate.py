@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import functools
+import inspect
 import math
-from collections.abc import Iterable, Sequence
-from typing import Any
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -171,3 +173,23 @@ def reject_unknown(where: str, kwargs: dict[str, Any], allowed: Iterable[str] = 
     unknown = sorted(set(kwargs) - set(allowed))
     if unknown:
         raise InvalidSceneError(f"{where}: unknown keyword argument(s) {unknown}")
+
+
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def strict_arguments(func: _F) -> _F:
+    """Decorator: a call with unknown keyword arguments (or missing / surplus arguments) raises
+    InvalidSceneError naming them, instead of Python's bare TypeError. The signature is unchanged
+    (``inspect.signature`` follows ``__wrapped__``)."""
+    sig = inspect.signature(func)
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            sig.bind(*args, **kwargs)
+        except TypeError as exc:
+            raise InvalidSceneError(f"{func.__qualname__}: {exc}") from None
+        return func(*args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]

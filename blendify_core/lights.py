@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_bool, as_choice, as_float, check_tag, frozen
+from ._validate import _describe, as_array, as_bool, as_choice, as_float, check_tag, frozen, strict_arguments
 from .colors import COLOR_SPACES, _check_image, _to_linear, load_image
 from .errors import InvalidSceneError
 from .transforms import Positionable
@@ -381,6 +381,7 @@ class LightsCollection:
         self.revision += 1
         return light
 
+    @strict_arguments
     def add_point(
         self,
         strength: float = 100.0,
@@ -405,6 +406,7 @@ class LightsCollection:
         )
         return self._add(light, tag)  # type: ignore[return-value]
 
+    @strict_arguments
     def add_sun(
         self,
         strength: float = 10.0,
@@ -429,6 +431,7 @@ class LightsCollection:
         )
         return self._add(light, tag)  # type: ignore[return-value]
 
+    @strict_arguments
     def add_spot(
         self,
         strength: float = 100.0,
@@ -457,6 +460,7 @@ class LightsCollection:
         )
         return self._add(light, tag)  # type: ignore[return-value]
 
+    @strict_arguments
     def add_area(
         self,
         shape: str,
@@ -483,6 +487,7 @@ class LightsCollection:
         )
         return self._add(light, tag)  # type: ignore[return-value]
 
+    @strict_arguments
     def set_background_light(
         self, strength: float = 1.0, color: Any = (1.0, 1.0, 1.0), color_space: str = "srgb"
     ) -> BackgroundLight:
@@ -494,6 +499,7 @@ class LightsCollection:
         self.background = None
         self.revision += 1
 
+    @strict_arguments
     def set_environment_map(
         self,
         image_or_path: Any,

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_choice, as_float, reject_unknown
+from ._validate import _describe, as_array, as_choice, as_float, reject_unknown, strict_arguments
 from .colors import COLOR_SPACES, NormalMap, TextureMap, _to_linear
 from .errors import InvalidSceneError
 
@@ -427,6 +427,7 @@ class GlossyBSDFMaterial(Material):
     )
     kind = "glossy"
 
+    @strict_arguments
     def __init__(
         self, roughness: float = 0.4, distribution: str = "GGX", alpha: float = 1.0, color_space: str = "srgb"
     ):

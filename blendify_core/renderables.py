@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_bool, as_choice, as_float, as_int, check_tag, frozen
+from ._validate import _describe, as_array, as_bool, as_choice, as_float, as_int, check_tag, frozen, strict_arguments
 from .colors import (
     Colors,
     FacesUV,
@@ -874,6 +874,7 @@ class RenderablesCollection:
         self.revision += 1
         return obj
 
+    @strict_arguments
     def add_mesh(
         self,
         vertices: Any,
@@ -904,6 +905,7 @@ class RenderablesCollection:
             tag,
         )
 
+    @strict_arguments
     def add_pointcloud(
         self,
         vertices: Any,
@@ -932,6 +934,7 @@ class RenderablesCollection:
             tag,
         )
 
+    @strict_arguments
     def add_cube_mesh(
         self,
         size: float,
@@ -956,6 +959,7 @@ class RenderablesCollection:
             tag,
         )
 
+    @strict_arguments
     def add_circle_mesh(
         self,
         radius: float,
@@ -984,6 +988,7 @@ class RenderablesCollection:
             tag,
         )
 
+    @strict_arguments
     def add_cylinder_mesh(
         self,
         radius: float,
@@ -1014,6 +1019,7 @@ class RenderablesCollection:
             tag,
         )
 
+    @strict_arguments
     def add_plane_mesh(
         self,
         size: float,
@@ -1040,6 +1046,7 @@ class RenderablesCollection:
             tag,
         )
 
+    @strict_arguments
     def add_sphere_nurbs(
         self,
         radius: float,
@@ -1057,6 +1064,7 @@ class RenderablesCollection:
             tag,
         )
 
+    @strict_arguments
     def add_ellipsoid_nurbs(
         self,
         radius: Any,
@@ -1074,6 +1082,7 @@ class RenderablesCollection:
             tag,
         )
 
+    @strict_arguments
     def add_curve_nurbs(
         self,
         keypoints: Any,

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from ._validate import strict_arguments
 from .cameras import Camera, OrthographicCamera, PerspectiveCamera, camera_from_opencv
 from .errors import InvalidSceneError
 from .lights import LightsCollection
@@ -36,6 +37,7 @@ class Scene:
             raise InvalidSceneError(f"camera: expected a PerspectiveCamera or OrthographicCamera, got {type(value)}")
         self._camera = value
 
+    @strict_arguments
     def set_perspective_camera(
         self,
         resolution: Any,
@@ -73,6 +75,7 @@ class Scene:
         self._camera = cam
         return cam
 
+    @strict_arguments
     def set_orthographic_camera(
         self,
         resolution: Any,
@@ -102,6 +105,7 @@ class Scene:
         self._camera = cam
         return cam
 
+    @strict_arguments
     def set_camera_from_opencv(
         self,
         K: Any,
