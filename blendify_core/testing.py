@@ -325,3 +325,190 @@ def every_feature_scene(resolution: tuple[int, int] = (96, 72)) -> Scene:
     lights.add_area("rectangle", (0.5, 0.3), 50.0, translation=(-2, -2, 2), rotation_mode="look_at", rotation=(0, 0, 0))
     lights.add_area("circle", 0.4, 30.0, translation=(0, 2, 2), rotation_mode="look_at", rotation=(0, 0, 0))
     return scene
+
+
+# ---------------------------------------------------------------------------------------------------
+# Hard cases: numerically awkward scenes every backend must render finitely and deterministically
+# ---------------------------------------------------------------------------------------------------
+
+_HC_RES = (32, 32)
+
+
+def _hc_base(
+    offset: Any = (0.0, 0.0, 0.0), scale: float = 1.0, resolution: tuple[int, int] = _HC_RES, lights: bool = True
+) -> Scene:
+    """A 1-unit cube and a sphere (times ``scale``) at ``offset``, camera 4 units away (times ``scale``)."""
+    off = np.asarray(offset, dtype=np.float64)
+    scene = Scene()
+    scene.renderables.add_cube_mesh(
+        0.8 * scale,
+        DiffuseMaterial(),
+        UniformColors((0.8, 0.3, 0.2)),
+        translation=off + np.array([-0.5, 0, 0]) * scale,
+        tag="cube",
+    )
+    scene.renderables.add_sphere_nurbs(
+        0.4 * scale,
+        DiffuseMaterial(),
+        UniformColors((0.2, 0.5, 0.8)),
+        translation=off + np.array([0.6, 0, 0]) * scale,
+        tag="sphere",
+    )
+    cam_pos = off + np.array([0.0, -3.0, 2.0]) * scale
+    scene.set_perspective_camera(
+        resolution,
+        fov_x=np.deg2rad(45),
+        rotation_mode="look_at",
+        rotation=off,
+        translation=cam_pos,
+        near=0.05 * scale,
+        far=100.0 * scale,
+    )
+    if lights:
+        scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(30, 20, 0))
+        scene.lights.set_background_light(0.3)
+    return scene
+
+
+def _hc_mesh(vertices: Any, faces: Any, **kwargs: Any) -> Scene:
+    scene = _hc_base()
+    scene.renderables.clear()
+    scene.renderables.add_mesh(
+        np.asarray(vertices, float), faces, DiffuseMaterial(), UniformColors((0.7, 0.7, 0.7)), tag="mesh", **kwargs
+    )
+    return scene
+
+
+def _hc_points(points: Any, size: float = 0.05) -> Scene:
+    scene = _hc_base()
+    scene.renderables.clear()
+    pts = np.asarray(points, float)
+    scene.renderables.add_pointcloud(
+        pts, DiffuseMaterial(), VertexColors(np.full((len(pts), 3), 0.6)), point_size=size, tag="points"
+    )
+    return scene
+
+
+def _hc_camera(scene: Scene, **kwargs: Any) -> Scene:
+    old = scene.camera
+    kwargs.setdefault("rotation_mode", "look_at")
+    kwargs.setdefault("rotation", np.zeros(3))
+    kwargs.setdefault("translation", old.translation)  # type: ignore[union-attr]
+    kwargs.setdefault("resolution", _HC_RES)
+    if "ortho_scale" in kwargs:
+        scene.set_orthographic_camera(**kwargs)
+    else:
+        if not any(k in kwargs for k in ("fov_x", "fov_y", "focal_dist", "K")):
+            kwargs["fov_x"] = np.deg2rad(45)
+        scene.set_perspective_camera(**kwargs)
+    return scene
+
+
+def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
+    """Builders of numerically awkward scenes, by name -> zero-argument callable returning a Scene.
+
+    Each is tiny (32x32) except the heavy ones (2M triangles, 1M points), which are included only with
+    ``include_heavy``. ``HARD_CASE_REFERENCE`` says which cases must render like another one."""
+    rng = np.random.default_rng(7)
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    cases: dict[str, Any] = {
+        "origin": lambda: _hc_base(),
+        "far_from_origin_1e6": lambda: _hc_base(offset=(1e6, -1e6, 1e6)),
+        "tiny_scale_1e-4": lambda: _hc_base(scale=1e-4),
+        "huge_scale_1e4": lambda: _hc_base(scale=1e4),
+        "look_straight_down": lambda: _hc_camera(_hc_base(), translation=(0, 0, 4.0)),
+        "look_straight_up": lambda: _hc_camera(_hc_base(), translation=(0, 0, -4.0)),
+        "camera_at_target": lambda: _hc_camera(_hc_base(), translation=(0, 0, 0.0)),
+        "roll_180": lambda: _hc_camera(_hc_base(), rotation=(np.zeros(3), 180.0)),
+        "unnormalised_quaternion": lambda: _hc_camera(
+            _hc_base(), rotation_mode="quaternionWXYZ", rotation=(5.0, 5.0, 0.0, 0.0), translation=(0, 4.0, 0)
+        ),
+        "near_singular_rotmat": lambda: _hc_camera(
+            _hc_base(),
+            rotation_mode="rotmat",
+            translation=(0, 4.0, 0),
+            rotation=np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]) + 1e-4 * rng.standard_normal((3, 3)),
+        ),
+        "euler_gimbal_lock": lambda: _hc_camera(
+            _hc_base(), rotation_mode="eulerXYZ", rotation=(90, 90, 0), translation=(4.0, 0, 0)
+        ),
+        "fov_near_0": lambda: _hc_camera(_hc_base(), fov_x=1e-3, translation=(0, -4000.0, 0), near=1.0, far=1e4),
+        "fov_near_180": lambda: _hc_camera(_hc_base(), fov_x=np.deg2rad(179.0)),
+        "aspect_4096x16": lambda: _hc_camera(_hc_base(), resolution=(4096, 16), fov_x=np.deg2rad(120)),
+        "principal_point_outside": lambda: _hc_camera(_hc_base(), K=[[30, 0, -20.0], [0, 30, 50.0], [0, 0, 1]]),
+        "ortho_tiny": lambda: _hc_camera(_hc_base(), ortho_scale=1e-3),
+        "ortho_huge": lambda: _hc_camera(_hc_base(), ortho_scale=1e4, far=1e5),
+        "degenerate_triangles": lambda: _hc_mesh(
+            [[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 2, 0], [2, 2, 0], [3, 3, 0]],
+            [[0, 1, 2], [3, 4, 5], [0, 0, 0], [1, 1, 2]],
+        ),
+        "non_manifold_inconsistent": lambda: _hc_mesh(
+            [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0], [-1, 0, 0]],
+            [[0, 1, 2], [0, 1, 3], [1, 0, 4], [0, 2, 5], [5, 2, 0]],
+        ),
+        "unreferenced_vertices": lambda: _hc_mesh(np.vstack([tri, rng.normal(size=(50, 3)) * 100]), [[0, 1, 2]]),
+        "single_triangle": lambda: _hc_mesh(tri - 0.3, [[0, 1, 2]]),
+        "coincident_points": lambda: _hc_points(np.zeros((100, 3))),
+        "single_point": lambda: _hc_points(np.zeros((1, 3)), size=0.3),
+        "colinear_points": lambda: _hc_points(np.stack([np.linspace(-1, 1, 50), np.zeros(50), np.zeros(50)], 1)),
+        "colors_0_and_1": lambda: _hc_colors(),
+        "texture_1x1_and_odd": lambda: _hc_textures(),
+        "very_bright_light": lambda: _hc_light(1e6),
+        "very_dim_light": lambda: _hc_light(1e-6),
+        "light_inside_object": lambda: _hc_light(100.0, inside=True),
+        "no_lights": lambda: _hc_base(lights=False),
+        "empty_scene": lambda: _hc_empty(),
+    }
+    if include_heavy:
+        cases["mesh_2M_triangles"] = lambda: _hc_big_mesh()
+        cases["pointcloud_1M"] = lambda: _hc_points(rng.normal(size=(1_000_000, 3)) * 0.5, size=0.005)
+    return cases
+
+
+#: cases whose colour image must match another case's (same picture, different numbers)
+HARD_CASE_REFERENCE = {"far_from_origin_1e6": "origin", "tiny_scale_1e-4": "origin", "huge_scale_1e4": "origin"}
+
+
+def _hc_colors() -> Scene:
+    scene = _hc_base()
+    scene.renderables["cube"].update_colors(UniformColors((0.0, 0.0, 0.0)))
+    scene.renderables["sphere"].update_colors(UniformColors((1.0, 1.0, 1.0)))
+    return scene
+
+
+def _hc_textures() -> Scene:
+    scene = _hc_base()
+    quad = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], float)
+    uv = VertexUV([[0, 0], [1, 0], [1, 1], [0, 1]])
+    scene.renderables.add_mesh(
+        quad * 0.5 + [0, -0.6, 0],
+        [[0, 1, 2, 3]],
+        DiffuseMaterial(),
+        TextureColors(np.array([[[200, 30, 30]]], np.uint8), uv),
+        tag="tex1x1",
+    )
+    odd = (np.random.default_rng(3).uniform(size=(5, 17, 3))).astype(np.float32)
+    scene.renderables.add_mesh(
+        quad * 0.4 + [0, -0.7, 1.0], [[0, 1, 2, 3]], DiffuseMaterial(), TextureColors(odd, uv), tag="tex_odd"
+    )
+    return scene
+
+
+def _hc_light(strength: float, inside: bool = False) -> Scene:
+    scene = _hc_base(lights=False)
+    pos = scene.renderables["sphere"].translation if inside else np.array([0.0, -2.0, 2.0])
+    scene.lights.add_point(strength, shadow_soft_size=0.0, translation=pos)
+    return scene
+
+
+def _hc_empty() -> Scene:
+    scene = _hc_base()
+    scene.renderables.clear()
+    return scene
+
+
+def _hc_big_mesh() -> Scene:
+    from .geometry import uv_sphere
+
+    m = uv_sphere(1.0, 1000, 1000)
+    return _hc_mesh(m.vertices, m.faces)
