@@ -8,6 +8,8 @@ import time
 import warnings
 from typing import Any
 
+import numpy as np
+
 from .backend import Backend, available_backends, shared_backend
 from .effects import analyse_effects
 from .errors import BackendUnavailableError, InvalidSceneError, UnsupportedFeatureError
@@ -133,6 +135,9 @@ def render(
         warnings.warn(
             "scene has no lights, no background and no emissive material: the colour image will be black", stacklevel=2
         )
+    clip_warning = _clip_check(scene)
+    if clip_warning:
+        warnings.warn(clip_warning, stacklevel=2)
     approximations = check_capabilities(inst, scene, settings)
     effects = analyse_effects(scene)
 
@@ -162,8 +167,32 @@ def render(
     if fallback_notes:
         meta["backend_fallback"] = fallback_notes
     meta.setdefault("samples", settings.samples)
+    if clip_warning:
+        meta.setdefault("warnings", []).append(clip_warning)
     meta["scene_fingerprint"] = scene.fingerprint()
     if not result.instance_tags:
         result.instance_tags = [r.tag for r in scene.renderables]
     meta.setdefault("timings", {})["total"] = time.perf_counter() - t_start
     return result
+
+
+def _clip_check(scene: Any) -> str | None:
+    """A warning when the scene's geometry lies entirely outside the camera's [near, far] depth range."""
+    cam = scene.camera
+    bounds = scene.bounds()
+    if bounds is None:
+        return None
+    lo, hi = bounds
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    depth = cam.world_to_camera_cv(corners)[:, 2]
+    if depth.max() < cam.near:
+        return (
+            f"camera.near: every object is nearer than the near clip ({cam.near:g}; nearest depth "
+            f"{depth.min():.3g}): the image will be empty; lower `near`"
+        )
+    if depth.min() > cam.far:
+        return (
+            f"camera.far: every object is beyond the far clip ({cam.far:g}; nearest depth {depth.min():.3g}): "
+            "the image will be empty; raise `far`"
+        )
+    return None

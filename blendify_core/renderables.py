@@ -352,6 +352,14 @@ class Mesh(Renderable):
         self._vertices = v
         self._bump("geometry")
 
+    def world_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        if len(self._vertices) == 0:
+            return self.translation.copy(), self.translation.copy()
+        lo, hi = self._vertices.min(axis=0), self._vertices.max(axis=0)
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        v = corners @ self.rotation_matrix.T + self.translation
+        return v.min(axis=0), v.max(axis=0)
+
     def to_mesh(self) -> TriMesh:
         return TriMesh(
             vertices=self._vertices,
