@@ -12,9 +12,9 @@ Rotation modes (blendify's vocabulary; all resolve to a unit quaternion in WXYZ 
                      lower-case extrinsic (scipy's convention); 1 to 3 axes
 ``look_at``          a target point, a positionable object (its translation), or ``(target, roll_deg)``.
                      The object's local -Z points at the target and local +Y is as close to world +Z as
-                     possible; when the view direction is parallel to +Z, world +Y is used instead (looking
-                     straight down: image up = +Y; straight up: image up = -Y). A position equal to the
-                     target gives the identity rotation.
+                     possible; when the view direction is parallel to the Z axis, world +Y is used instead
+                     (looking straight down or straight up: image up = +Y, as blendify). A position equal
+                     to the target gives the identity rotation.
 ===================  ==========================================================================
 """
 
@@ -141,7 +141,7 @@ def quaternion_from_rotation(
         from scipy.spatial.transform import Rotation
 
         v = as_array(name, rotation, shape=(3,))
-        return matrix_to_quaternion(Rotation.from_rotvec(v).as_matrix())
+        return matrix_to_quaternion(Rotation.from_rotvec(np.array(v)).as_matrix())  # scipy rejects read-only
     if mode == "rotmat":
         m = as_array(name, rotation, shape=(3, 3))
         return matrix_to_quaternion(_orthonormalise(name, m))
@@ -155,7 +155,7 @@ def quaternion_from_rotation(
                 f"lower-case (extrinsic), e.g. 'eulerXYZ', got {rotation_mode!r}"
             )
         angles = as_array(name, np.atleast_1d(rotation), shape=(len(seq),))
-        m = Rotation.from_euler(seq, angles, degrees=True).as_matrix()
+        m = Rotation.from_euler(seq, np.array(angles), degrees=True).as_matrix()
         return matrix_to_quaternion(m)
     if mode in ("look_at", "lookat"):
         roll = 0.0
