@@ -27,6 +27,7 @@ from .colors import (
     VertexColors,
     VertexUV,
 )
+from .compare import CompareReport, CrosscheckReport, compare, crosscheck
 from .effects import Effects, analyse_effects
 from .errors import (
     BackendUnavailableError,
@@ -76,6 +77,10 @@ __all__ = [
     "__version__",
     "Scene",
     "render",
+    "compare",
+    "crosscheck",
+    "CompareReport",
+    "CrosscheckReport",
     "RenderResult",
     "RenderSettings",
     "resolve_settings",

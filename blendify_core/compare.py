@@ -1,0 +1,951 @@
+"""Compare two renders (``bf.compare``) and cross-check one scene across backends (``bf.crosscheck``).
+
+``compare(a, b)`` treats ``b`` as the reference and returns a :class:`CompareReport`: per-output metrics,
+a verdict against a named tolerance tier (:data:`TIERS`), human-readable failures and a heat-map diff
+image per output. ``crosscheck(scene)`` renders one scene with every available backend at comparable
+settings (box filter, no denoiser, no clamping, fixed seed) and compares every pair at the tier that fits
+the pair (path tracer vs path tracer, rasteriser vs path tracer) and the scene (delta lights or not).
+
+Metrics (``report.metrics[output][metric]``):
+
+- ``rgb`` (premultiplied linear colour, over pixels with alpha > 0 in both): ``mean_rel_error`` and
+  ``max_rel_error`` of ``|a - r| / max(|r|, 0.02)`` per channel (Mitsuba's error with its 2e-2 floor),
+  ``rel_mse`` = mean ``(a - r)^2 / (r^2 + 0.01)``, ``mean_ratio`` (sum a / sum r: a units check),
+  ``alpha_mean_abs_error`` (all pixels), and on the sRGB-encoded images composited over black: ``ssim``
+  (scikit-image), ``flip`` (NVIDIA ꟻLIP, LDR, mean error) and ``psnr`` (dB).
+- ``depth`` (where both hit): quantiles ``rel_diff_q50``/``rel_diff_q99``/``rel_diff_q999`` and
+  ``rel_diff_max`` of ``|a - r| / r``.
+- ``mask`` (hit masks: from depth, else instance, else alpha >= 0.5): ``iou``, ``n_disagree``,
+  ``n_disagree_interior`` (disagreeing pixels farther than 1 px from both masks' boundaries, i.e. not an
+  anti-aliasing/tessellation edge) and ``edge_disagree_fraction`` (``n_disagree`` / boundary pixels).
+- ``normal`` (where both hit): ``angle_mean_deg``, ``angle_q50_deg``, ``angle_q99_deg``,
+  ``angle_max_deg``, ``flipped_fraction`` (angle > 90 degrees: opposite sidedness conventions).
+- ``instance`` (where both hit, ids matched by tag name through ``instance_tags``): ``agreement``,
+  ``n_disagree``.
+- ``albedo`` (where both hit): ``mean_rel_error``, ``max_rel_error``.
+
+scikit-image, flip-evaluator and Pillow are imported inside the functions that need them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .colorspace import linear_to_srgb
+from .errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
+from .result import RenderResult, depth_to_image, instance_to_image
+
+__all__ = [
+    "TIERS",
+    "PATH_TRACERS",
+    "CompareReport",
+    "CrosscheckReport",
+    "compare",
+    "crosscheck",
+    "crosscheck_main",
+    "choose_tier",
+    "alpha_centroids",
+    "heat_map",
+]
+
+#: the error floor of the relative error (Mitsuba's test_ad_integrators uses 2e-2)
+REL_FLOOR = 0.02
+#: backends that are unbiased path tracers (the others are rasterisers)
+PATH_TRACERS = frozenset({"cycles", "mitsuba"})
+COMPARED_OUTPUTS = ("rgb", "depth", "mask", "normal", "albedo", "instance")
+#: metrics where larger is better (thresholds are minimums); every other metric is an upper bound
+HIGHER_IS_BETTER = frozenset({"ssim", "psnr", "iou", "agreement"})
+
+# ---------------------------------------------------------------------------------------------------
+# Tolerance tiers: output -> metric -> threshold (upper bound, or lower bound for HIGHER_IS_BETTER).
+# Every number cites the measurement behind it. "CONV" = /shared/docs/CONVENTIONS.md sections 11/13,
+# measured by the lead with the same engine versions; "XC" = benchmarks/crosscheck_report.py, whose
+# measured table is in docs/crosscheck.md (re-run it after changing a backend, then revisit the numbers).
+# ---------------------------------------------------------------------------------------------------
+_GEOMETRY: dict[str, dict[str, float]] = {
+    # CONV §11: depth <= 1e-3 relative with identical tessellation and the Mitsuba near-clip correction.
+    # The q99 (not the max) because silhouette pixels whose centre ray grazes an edge may hit different
+    # surfaces in different engines (float precision of the ray/triangle test).
+    "depth": {"rel_diff_q99": 1e-3},
+    # CONV §13: pyrender/OSMesa and Cycles matched an exact ray cast pixel for pixel on the marker scene;
+    # the pixel-centre masks therefore agree except for pixels whose centre lies on an edge.
+    # (IoU is reported but not thresholded: one edge pixel moves the IoU of a 30-pixel marker by 3 %.)
+    "mask": {"n_disagree_interior": 0, "edge_disagree_fraction": 0.05},
+    # shading normals of one shared tessellation: 99 % within 2 degrees (smooth-normal interpolation and
+    # float32 differences only; a wrong-handedness/flip shows as flipped_fraction ~1)
+    "normal": {"angle_q99_deg": 2.0, "flipped_fraction": 0.01},
+    "instance": {"agreement": 0.999},
+}
+
+TIERS: dict[str, dict[str, dict[str, float]]] = {
+    # Two results of the same deterministic computation (golden tests of a raster backend, unit tests).
+    "identical": {
+        "rgb": {"max_rel_error": 1e-6, "alpha_mean_abs_error": 1e-6},
+        "depth": {"rel_diff_max": 1e-6},
+        "mask": {"n_disagree": 0},
+        "normal": {"angle_max_deg": 1e-2},
+        "instance": {"agreement": 1.0},
+        "albedo": {"max_rel_error": 1e-6},
+    },
+    # Geometric outputs only (colour unchecked): camera, depth, masks, normals, instance ids.
+    "geometry": dict(_GEOMETRY),
+    # Cycles vs Mitsuba, diffuse materials lit by delta lights (point/sun/spot without radius/angle):
+    # CONV §11: mean rel <= 0.5 % (noise-free cases measured at 0.03 %); CONV §13 light-unit planes
+    # 1.0005 / 0.9995. albedo is noise-free: 1 % covers colour-space rounding of 8-bit inputs.
+    "pathtracer_delta": {
+        **_GEOMETRY,
+        "rgb": {"mean_rel_error": 0.005, "rel_mse": 1e-3},
+        "albedo": {"mean_rel_error": 0.01},
+    },
+    # Cycles vs Mitsuba with area lights, background/environment light or non-Lambertian materials:
+    # CONV §11: area/world lights mean rel <= 2 % at 256 spp (Monte-Carlo noise dominates).
+    "pathtracer": {
+        **_GEOMETRY,
+        "rgb": {"mean_rel_error": 0.02, "ssim": 0.9},
+        "albedo": {"mean_rel_error": 0.01},
+    },
+    # pyrender vs a path tracer: CONV §11 measured <= 6 % mean rel on diffuse, unshadowed scenes (its BRDF,
+    # 8-bit output, no shadows / GI). Geometry keeps the tight tier: CONV §13 (pixel-exact under OSMesa).
+    "raster": {
+        **_GEOMETRY,
+        "rgb": {"mean_rel_error": 0.06},
+        "albedo": {"mean_rel_error": 0.02},
+    },
+}
+
+# the heat-map scales (log10 range for relative errors, linear degrees for normals)
+_REL_LOG_RANGE = (-4.0, 0.0)
+_DEPTH_LOG_RANGE = (-6.0, -1.0)
+_ANGLE_RANGE_DEG = 20.0
+
+# inferno-like anchors (position, RGB) for the heat maps
+_CMAP = np.array(
+    [
+        [0.00, 0, 0, 4],
+        [0.14, 40, 11, 84],
+        [0.29, 101, 21, 110],
+        [0.43, 159, 42, 99],
+        [0.57, 212, 72, 66],
+        [0.71, 245, 125, 21],
+        [0.86, 250, 193, 39],
+        [1.00, 252, 255, 164],
+    ]
+)
+
+
+def heat_map(values: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) values in [0, 1] -> (H, W, 3) uint8 inferno-like colours; ``~valid`` pixels are dark grey."""
+    v = np.clip(np.nan_to_num(np.asarray(values, dtype=np.float64), nan=1.0, posinf=1.0), 0.0, 1.0)
+    out = np.stack([np.interp(v, _CMAP[:, 0], _CMAP[:, c]) for c in (1, 2, 3)], axis=-1)
+    out = np.round(out).astype(np.uint8)
+    if valid is not None:
+        out[~valid] = (40, 40, 40)
+    return out
+
+
+def _log_scale(values: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lv = np.log10(np.maximum(values, 10.0**lo))
+    return (lv - lo) / (hi - lo)
+
+
+# ---------------------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------------------
+def hit_mask(result: RenderResult) -> np.ndarray | None:
+    """Pixel-centre hit mask: from depth, else instance, else alpha >= 0.5 (None without any of them)."""
+    if result.depth is not None:
+        return np.isfinite(result.depth)
+    if result.instance is not None:
+        return result.instance >= 0
+    if result.rgba is not None:
+        return result.rgba[..., 3] >= 0.5
+    return None
+
+
+def _edge_zone(mask: np.ndarray) -> np.ndarray:
+    """Pixels within 1 px (8-neighbourhood) of the mask's boundary, on either side."""
+    from scipy import ndimage
+
+    st = np.ones((3, 3), dtype=bool)
+    dil = ndimage.binary_dilation(mask, structure=st, border_value=0)
+    ero = ndimage.binary_erosion(mask, structure=st, border_value=1)
+    return dil & ~ero
+
+
+def _inner_boundary(mask: np.ndarray) -> np.ndarray:
+    from scipy import ndimage
+
+    return mask & ~ndimage.binary_erosion(mask, structure=np.ones((3, 3), dtype=bool), border_value=1)
+
+
+def _quantiles(values: np.ndarray, prefix: str, suffix: str = "") -> dict[str, float]:
+    if values.size == 0:
+        return {f"{prefix}_{q}{suffix}": math.nan for q in ("q50", "q99", "q999")} | {f"{prefix}_max{suffix}": math.nan}
+    q = np.quantile(values, [0.5, 0.99, 0.999])
+    return {
+        f"{prefix}_q50{suffix}": float(q[0]),
+        f"{prefix}_q99{suffix}": float(q[1]),
+        f"{prefix}_q999{suffix}": float(q[2]),
+        f"{prefix}_max{suffix}": float(values.max()),
+    }
+
+
+def _srgb_over_black(rgb: np.ndarray) -> np.ndarray:
+    return linear_to_srgb(np.clip(rgb, 0.0, 1.0).astype(np.float32)).astype(np.float32)
+
+
+def _ssim(a: np.ndarray, b: np.ndarray) -> float:
+    from skimage.metrics import structural_similarity
+
+    h, w = a.shape[:2]
+    win = min(7, h, w)
+    if win % 2 == 0:
+        win -= 1
+    if win < 3:
+        return math.nan
+    return float(structural_similarity(a, b, channel_axis=-1, data_range=1.0, win_size=win))
+
+
+def _flip(test: np.ndarray, reference: np.ndarray) -> tuple[float, np.ndarray]:
+    import flip_evaluator
+
+    err_map, mean, _ = flip_evaluator.evaluate(
+        np.ascontiguousarray(reference, dtype=np.float32),
+        np.ascontiguousarray(test, dtype=np.float32),
+        "LDR",
+        inputsRGB=True,
+        applyMagma=False,
+    )
+    return float(mean), np.asarray(err_map)[..., 0]
+
+
+def _psnr(test: np.ndarray, reference: np.ndarray) -> float:
+    mse = float(np.mean((test.astype(np.float64) - reference.astype(np.float64)) ** 2))
+    return math.inf if mse == 0 else float(10.0 * np.log10(1.0 / mse))
+
+
+# ---------------------------------------------------------------------------------------------------
+# per-output metrics: each returns (metrics, diff image, legend)
+# ---------------------------------------------------------------------------------------------------
+def _rgb_metrics(a: RenderResult, b: RenderResult) -> tuple[dict[str, float], np.ndarray, str]:
+    ra = a.rgba[..., :3].astype(np.float64)  # type: ignore[index]
+    rb = b.rgba[..., :3].astype(np.float64)  # type: ignore[index]
+    aa = a.rgba[..., 3].astype(np.float64)  # type: ignore[index]
+    ab = b.rgba[..., 3].astype(np.float64)  # type: ignore[index]
+    covered = (aa > 0) & (ab > 0)
+    rel = np.abs(ra - rb) / np.maximum(np.abs(rb), REL_FLOOR)
+    m: dict[str, float] = {"n_covered": float(covered.sum())}
+    if covered.any():
+        rc = rel[covered]
+        m["mean_rel_error"] = float(rc.mean())
+        m["max_rel_error"] = float(rc.max())
+        m["rel_mse"] = float(np.mean((ra[covered] - rb[covered]) ** 2 / (rb[covered] ** 2 + 0.01)))
+        sb = float(rb[covered].sum())
+        m["mean_ratio"] = float(ra[covered].sum() / sb) if sb > 0 else math.nan
+    else:
+        for k in ("mean_rel_error", "max_rel_error", "rel_mse", "mean_ratio"):
+            m[k] = math.nan
+    m["alpha_mean_abs_error"] = float(np.abs(aa - ab).mean())
+    sa, sb8 = _srgb_over_black(ra), _srgb_over_black(rb)
+    m["ssim"] = _ssim(sa, sb8)
+    m["flip"], _ = _flip(sa, sb8)
+    m["psnr"] = _psnr(sa, sb8)
+    per_pixel = rel.mean(axis=-1)
+    alpha_only = (aa > 0) ^ (ab > 0)
+    img = heat_map(_log_scale(per_pixel, *_REL_LOG_RANGE), covered | alpha_only)
+    img[alpha_only] = np.maximum(img[alpha_only], heat_map(_log_scale(np.abs(aa - ab), *_REL_LOG_RANGE))[alpha_only])
+    return m, img, f"relative error, log10 scale {_REL_LOG_RANGE[0]:g}..{_REL_LOG_RANGE[1]:g}"
+
+
+def _depth_metrics(a: RenderResult, b: RenderResult) -> tuple[dict[str, float], np.ndarray, str]:
+    da = a.depth.astype(np.float64)  # type: ignore[union-attr]
+    db = b.depth.astype(np.float64)  # type: ignore[union-attr]
+    both = np.isfinite(da) & np.isfinite(db)
+    rel = np.zeros(da.shape)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel[both] = np.abs(da[both] - db[both]) / np.maximum(np.abs(db[both]), 1e-12)
+    m = {"n_both": float(both.sum())}
+    m.update(_quantiles(rel[both], "rel_diff"))
+    img = heat_map(_log_scale(rel, *_DEPTH_LOG_RANGE), both)
+    return m, img, f"relative depth difference, log10 scale {_DEPTH_LOG_RANGE[0]:g}..{_DEPTH_LOG_RANGE[1]:g}"
+
+
+def _mask_metrics(ma: np.ndarray, mb: np.ndarray) -> tuple[dict[str, float], np.ndarray, str]:
+    union = ma | mb
+    inter = ma & mb
+    dis = ma ^ mb
+    zone = _edge_zone(ma) | _edge_zone(mb)
+    interior = dis & ~zone
+    n_boundary = int((_inner_boundary(ma) | _inner_boundary(mb)).sum())
+    m = {
+        "iou": float(inter.sum() / union.sum()) if union.any() else 1.0,
+        "n_disagree": float(dis.sum()),
+        "n_disagree_interior": float(interior.sum()),
+        "edge_disagree_fraction": float(dis.sum() / n_boundary) if n_boundary else float(dis.any()),
+        "n_boundary": float(n_boundary),
+    }
+    img = np.zeros(ma.shape + (3,), dtype=np.uint8)
+    img[inter] = (110, 110, 110)
+    img[ma & ~mb] = (220, 60, 60)
+    img[mb & ~ma] = (60, 110, 230)
+    img[interior] = (255, 255, 0)
+    return m, img, "grey both, red only A, blue only B, yellow interior disagreement"
+
+
+def _normal_metrics(a: RenderResult, b: RenderResult, both: np.ndarray) -> tuple[dict[str, float], np.ndarray, str]:
+    na = a.normal.astype(np.float64)  # type: ignore[union-attr]
+    nb = b.normal.astype(np.float64)  # type: ignore[union-attr]
+    la = np.linalg.norm(na, axis=-1)
+    lb = np.linalg.norm(nb, axis=-1)
+    valid = both & (la > 0.5) & (lb > 0.5)
+    ang = np.zeros(both.shape)
+    cos = np.sum(na[valid] * nb[valid], axis=-1) / (la[valid] * lb[valid])
+    ang[valid] = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    vals = ang[valid]
+    m = {
+        "n_valid": float(valid.sum()),
+        "angle_mean_deg": float(vals.mean()) if vals.size else math.nan,
+        "flipped_fraction": float((vals > 90).mean()) if vals.size else math.nan,
+    }
+    m.update(_quantiles(vals, "angle", "_deg"))
+    img = heat_map(ang / _ANGLE_RANGE_DEG, valid)
+    return m, img, f"angular error, 0..{_ANGLE_RANGE_DEG:g} degrees"
+
+
+def _instance_metrics(a: RenderResult, b: RenderResult) -> tuple[dict[str, float], np.ndarray, str]:
+    ia, ib = a.instance, b.instance
+    names: dict[str, int] = {}
+    for t in list(a.instance_tags) + list(b.instance_tags):
+        names.setdefault(str(t), len(names))
+
+    def remap(ids: np.ndarray, tags: Sequence[str]) -> np.ndarray:
+        table = np.array([names[str(t)] for t in tags] + [-1], dtype=np.int64)
+        ids = ids.astype(np.int64)
+        bad = (ids >= len(tags)) | (ids < -1)
+        if bad.any():
+            raise InvalidSceneError(
+                f"instance: ids up to {int(ids.max())} but only {len(tags)} instance_tags (ids must index them)"
+            )
+        return table[np.where(ids < 0, len(tags), ids)]
+
+    ga = remap(ia, a.instance_tags)  # type: ignore[arg-type]
+    gb = remap(ib, b.instance_tags)  # type: ignore[arg-type]
+    both = (ga >= 0) & (gb >= 0)
+    agree = both & (ga == gb)
+    n = int(both.sum())
+    m = {
+        "agreement": float(agree.sum() / n) if n else 1.0,
+        "n_disagree": float(n - agree.sum()),
+        "n_both": float(n),
+    }
+    img = np.zeros(ga.shape + (3,), dtype=np.uint8)
+    img[agree] = (110, 110, 110)
+    img[both & ~agree] = (255, 40, 40)
+    return m, img, "grey same instance, red different instance"
+
+
+def _albedo_metrics(a: RenderResult, b: RenderResult, both: np.ndarray) -> tuple[dict[str, float], np.ndarray, str]:
+    xa = a.albedo.astype(np.float64)  # type: ignore[union-attr]
+    xb = b.albedo.astype(np.float64)  # type: ignore[union-attr]
+    rel = np.abs(xa - xb) / np.maximum(np.abs(xb), REL_FLOOR)
+    m: dict[str, float] = {"n_both": float(both.sum())}
+    if both.any():
+        m["mean_rel_error"] = float(rel[both].mean())
+        m["max_rel_error"] = float(rel[both].max())
+    else:
+        m["mean_rel_error"] = m["max_rel_error"] = math.nan
+    img = heat_map(_log_scale(rel.mean(axis=-1), *_REL_LOG_RANGE), both)
+    return m, img, f"relative error, log10 scale {_REL_LOG_RANGE[0]:g}..{_REL_LOG_RANGE[1]:g}"
+
+
+# ---------------------------------------------------------------------------------------------------
+# the report
+# ---------------------------------------------------------------------------------------------------
+def _fmt(v: float) -> str:
+    if isinstance(v, float) and math.isnan(v):
+        return "nan"
+    if isinstance(v, float) and math.isinf(v):
+        return "inf"
+    if float(v).is_integer() and abs(v) < 1e9:
+        return str(int(v))
+    return f"{v:.4g}"
+
+
+@dataclass
+class CompareReport:
+    """Result of :func:`compare` (``b`` is the reference).
+
+    ``metrics``: output -> metric -> float; ``tier``: the tier's name; ``thresholds``: output -> metric ->
+    threshold actually applied; ``passed``; ``failures``: readable strings; ``checks``: every applied
+    check as (output, metric, value, op, threshold, ok); ``diff_images``: output -> (H, W, 3) uint8 heat
+    map; ``legends``: output -> what the colours mean; ``names``: labels of a and b.
+    """
+
+    metrics: dict[str, dict[str, float]]
+    tier: str
+    thresholds: dict[str, dict[str, float]]
+    passed: bool
+    failures: list[str]
+    checks: list[tuple[str, str, float, str, float, bool]]
+    diff_images: dict[str, np.ndarray] = field(repr=False)
+    legends: dict[str, str] = field(default_factory=dict, repr=False)
+    names: tuple[str, str] = ("a", "b")
+    notes: list[str] = field(default_factory=list)
+
+    def summary(self) -> str:
+        """Markdown: verdict, failures, and a table of every metric with its threshold."""
+        a, b = self.names
+        lines = [
+            f"### {a} vs {b} (reference): {'PASS' if self.passed else 'FAIL'} at tier `{self.tier}`",
+            "",
+        ]
+        for f in self.failures:
+            lines.append(f"- FAIL: {f}")
+        for n in self.notes:
+            lines.append(f"- note: {n}")
+        if self.failures or self.notes:
+            lines.append("")
+        lines += ["| output | metric | value | threshold |", "|---|---|---|---|"]
+        limits = {(o, k): (op, t, ok) for o, k, _, op, t, ok in self.checks}
+        for out, ms in self.metrics.items():
+            for k, v in ms.items():
+                lim = limits.get((out, k))
+                th = "" if lim is None else f"{lim[0]} {_fmt(lim[1])}{'' if lim[2] else ' **FAIL**'}"
+                lines.append(f"| {out} | {k} | {_fmt(v)} | {th} |")
+        return "\n".join(lines) + "\n"
+
+    def save(self, folder: str | os.PathLike[str]) -> Path:
+        """Write ``diff_<output>.png`` for every output, ``report.md`` and ``metrics.json`` into ``folder``
+        (created if needed); returns the folder."""
+        from PIL import Image
+
+        out = Path(folder)
+        out.mkdir(parents=True, exist_ok=True)
+        for name, img in self.diff_images.items():
+            Image.fromarray(img).save(out / f"diff_{name}.png")
+        legend = "\n".join(f"- `diff_{k}.png`: {v}" for k, v in self.legends.items())
+        (out / "report.md").write_text(self.summary() + "\nDiff images:\n\n" + legend + "\n")
+        (out / "metrics.json").write_text(
+            json.dumps(
+                {"tier": self.tier, "passed": self.passed, "failures": self.failures, "metrics": _json(self.metrics)},
+                indent=1,
+            )
+        )
+        return out
+
+    def __repr__(self) -> str:
+        head = f"CompareReport({self.names[0]} vs {self.names[1]}: {'PASS' if self.passed else 'FAIL'}"
+        key = []
+        for out, metric in (
+            ("rgb", "mean_rel_error"),
+            ("depth", "rel_diff_q99"),
+            ("mask", "iou"),
+            ("normal", "angle_q99_deg"),
+            ("instance", "agreement"),
+            ("albedo", "mean_rel_error"),
+        ):
+            if metric in self.metrics.get(out, {}):
+                key.append(f"{out}.{metric}={_fmt(self.metrics[out][metric])}")
+        text = f"{head} at tier {self.tier!r}; " + ", ".join(key)
+        if self.failures:
+            text += "; failures: " + "; ".join(self.failures)
+        return text + ")"
+
+
+def _json(metrics: Mapping[str, Mapping[str, float]]) -> dict[str, dict[str, Any]]:
+    return {
+        o: {k: (v if isinstance(v, float) and math.isfinite(v) else str(v)) for k, v in ms.items()}
+        for o, ms in metrics.items()
+    }
+
+
+def _backend_of(result: RenderResult) -> str | None:
+    name = result.meta.get("backend") if isinstance(result.meta, dict) else None
+    return str(name) if name else None
+
+
+def choose_tier(backend_a: str | None, backend_b: str | None, scene: Any = None) -> str:
+    """The tier for a backend pair: "raster" when either is not a path tracer; for two path tracers
+    "pathtracer_delta" when ``scene`` is given and uses only delta lights and Lambertian materials,
+    else "pathtracer"."""
+    if backend_a is None or backend_b is None:
+        return "pathtracer"
+    pt_a, pt_b = backend_a in PATH_TRACERS, backend_b in PATH_TRACERS
+    if not (pt_a and pt_b):
+        return "raster" if (pt_a or pt_b) else "identical"
+    if scene is not None and _delta_diffuse(scene):
+        return "pathtracer_delta"
+    return "pathtracer"
+
+
+_NON_DELTA = ("light.point.soft", "light.sun.soft", "light.area", "light.area.disk")
+_NON_DELTA += ("light.background", "light.environment")
+_NON_DIFFUSE = (
+    "material.principled",
+    "material.metallic",
+    "material.glossy",
+    "material.transmission",
+    "material.coat",
+    "material.sheen",
+    "material.subsurface",
+    "material.emission",
+    "material.alpha",
+    "material.wireframe",
+    "pointcloud.emission",
+    "shadow_catcher",
+)
+
+
+def _delta_diffuse(scene: Any) -> bool:
+    from .features import scene_features
+
+    used = scene_features(scene, ("rgb",))
+    return not any(f in used for f in _NON_DELTA + _NON_DIFFUSE)
+
+
+def _resolve_tier(tier: Any, a: RenderResult, b: RenderResult) -> tuple[str, dict[str, dict[str, float]]]:
+    if tier is None or tier == "auto":
+        name = choose_tier(_backend_of(a), _backend_of(b))
+        return name, TIERS[name]
+    if isinstance(tier, str):
+        if tier not in TIERS:
+            raise InvalidSceneError(f"tier: unknown tier {tier!r}; expected one of {sorted(TIERS)}, 'auto' or a dict")
+        return tier, TIERS[tier]
+    if isinstance(tier, Mapping):
+        th: dict[str, dict[str, float]] = {}
+        for out, ms in tier.items():
+            if out not in COMPARED_OUTPUTS or not isinstance(ms, Mapping):
+                raise InvalidSceneError(
+                    f"tier: expected a dict output -> {{metric: threshold}} with outputs from "
+                    f"{list(COMPARED_OUTPUTS)}, got key {out!r} -> {ms!r}"
+                )
+            th[out] = {str(k): float(v) for k, v in ms.items()}
+        return "custom", th
+    raise InvalidSceneError(f"tier: expected a tier name from {sorted(TIERS)}, 'auto' or a dict, got {tier!r}")
+
+
+def _check_shapes(a: RenderResult, b: RenderResult) -> None:
+    ra, rb = a.resolution, b.resolution
+    if ra is None or rb is None:
+        raise InvalidSceneError("compare: both results need at least one output")
+    if ra != rb:
+        raise InvalidSceneError(f"compare: resolutions differ ({ra} vs {rb}); render both at the same resolution")
+
+
+def compare(
+    a: RenderResult,
+    b: RenderResult,
+    tier: str | Mapping[str, Mapping[str, float]] | None = "auto",
+    outputs: Iterable[str] | None = None,
+    names: tuple[str, str] | None = None,
+) -> CompareReport:
+    """Compare render ``a`` with reference ``b``; see the module docstring for the metrics.
+
+    ``tier``: a name from :data:`TIERS`, "auto" (from ``meta["backend"]`` of both results:
+    :func:`choose_tier`) or a dict output -> metric -> threshold. ``outputs``: the outputs to compare
+    (from "rgb", "depth", "mask", "normal", "albedo", "instance"); default: every output present in
+    both ("mask" whenever a hit mask can be derived from both). Requesting an output one of the
+    results lacks raises :class:`InvalidSceneError`.
+    """
+    if not isinstance(a, RenderResult) or not isinstance(b, RenderResult):
+        raise InvalidSceneError(
+            f"compare: expected two RenderResult, got {type(a).__name__} and {type(b).__name__}"
+        )
+    _check_shapes(a, b)
+    tier_name, thresholds = _resolve_tier(tier, a, b)
+    attr = {"rgb": "rgba", "depth": "depth", "normal": "normal", "albedo": "albedo", "instance": "instance"}
+    ma, mb = hit_mask(a), hit_mask(b)
+
+    def has(r: RenderResult, out: str, m: np.ndarray | None) -> bool:
+        return m is not None if out == "mask" else getattr(r, attr[out]) is not None
+
+    if outputs is None:
+        wanted = [o for o in COMPARED_OUTPUTS if has(a, o, ma) and has(b, o, mb)]
+    else:
+        if isinstance(outputs, str):
+            outputs = (outputs,)
+        wanted = []
+        for o in outputs:
+            o = "rgb" if o == "rgba" else o
+            if o not in COMPARED_OUTPUTS:
+                raise InvalidSceneError(f"outputs: unknown output {o!r}; expected names from {list(COMPARED_OUTPUTS)}")
+            for label, r, m in (("a", a, ma), ("b", b, mb)):
+                if not has(r, o, m):
+                    raise InvalidSceneError(f"outputs: result {label} has no {o!r} output")
+            if o not in wanted:
+                wanted.append(o)
+    if not wanted:
+        raise InvalidSceneError("compare: the two results have no output in common")
+
+    both = (ma & mb) if (ma is not None and mb is not None) else None
+    if both is None:
+        both = np.ones(a.resolution[::-1], dtype=bool)  # type: ignore[index]
+    metrics: dict[str, dict[str, float]] = {}
+    diffs: dict[str, np.ndarray] = {}
+    legends: dict[str, str] = {}
+    for o in wanted:
+        if o == "rgb":
+            res = _rgb_metrics(a, b)
+        elif o == "depth":
+            res = _depth_metrics(a, b)
+        elif o == "mask":
+            res = _mask_metrics(ma, mb)  # type: ignore[arg-type]
+        elif o == "normal":
+            res = _normal_metrics(a, b, both)
+        elif o == "instance":
+            res = _instance_metrics(a, b)
+        else:
+            res = _albedo_metrics(a, b, both)
+        metrics[o], diffs[o], legends[o] = res
+
+    failures: list[str] = []
+    notes: list[str] = []
+    checks: list[tuple[str, str, float, str, float, bool]] = []
+    applied: dict[str, dict[str, float]] = {}
+    for out, ms in thresholds.items():
+        if out not in metrics:
+            if outputs is not None and out in wanted:
+                notes.append(f"{out}: not compared")
+            continue
+        for metric, limit in ms.items():
+            if metric not in metrics[out]:
+                raise InvalidSceneError(
+                    f"tier: unknown metric {out}.{metric}; known: {sorted(metrics[out])}"
+                )
+            value = metrics[out][metric]
+            higher = metric in HIGHER_IS_BETTER
+            op = ">=" if higher else "<="
+            ok = (value >= limit) if higher else (value <= limit)
+            if isinstance(value, float) and math.isnan(value):
+                ok = False
+            checks.append((out, metric, value, op, limit, bool(ok)))
+            applied.setdefault(out, {})[metric] = limit
+            if not ok:
+                failures.append(f"{out}.{metric} = {_fmt(value)}, expected {op} {_fmt(limit)} (tier {tier_name!r})")
+    la = names[0] if names else (_backend_of(a) or "a")
+    lb = names[1] if names else (_backend_of(b) or "b")
+    if la == lb and names is None:
+        la, lb = f"{la} (a)", f"{lb} (b)"
+    return CompareReport(
+        metrics=metrics,
+        tier=tier_name,
+        thresholds=applied,
+        passed=not failures,
+        failures=failures,
+        checks=checks,
+        diff_images=diffs,
+        legends=legends,
+        names=(la, lb),
+        notes=notes,
+    )
+
+
+# ---------------------------------------------------------------------------------------------------
+# marker centroids (camera self-test)
+# ---------------------------------------------------------------------------------------------------
+def alpha_centroids(result: RenderResult, expected: np.ndarray, window: int = 7) -> np.ndarray:
+    """Alpha-weighted centroids (OpenCV pixel coordinates, pixel (i, j) centre at (i, j)) of the blobs
+    near each ``expected`` (N, 2) pixel position, inside a (2 * window + 1)^2 window. Rows are NaN when
+    the window holds no coverage. Uses the alpha of ``rgba`` (anti-aliased coverage: binary masks are
+    biased by up to 0.14 px, CONVENTIONS §13), falling back to the hit mask."""
+    exp = np.asarray(expected, dtype=np.float64)
+    if exp.ndim != 2 or exp.shape[1] != 2:
+        raise InvalidSceneError(f"expected: expected an (N, 2) array of pixel positions, got shape {exp.shape}")
+    if result.rgba is not None:
+        weight = result.rgba[..., 3].astype(np.float64)
+    else:
+        m = hit_mask(result)
+        if m is None:
+            raise InvalidSceneError("result: needs an 'rgb' output (alpha) or a depth/instance output")
+        weight = m.astype(np.float64)
+    h, w = weight.shape
+    out = np.full(exp.shape, np.nan)
+    for i, (u, v) in enumerate(exp):
+        x0, x1 = max(int(round(u)) - window, 0), min(int(round(u)) + window + 1, w)
+        y0, y1 = max(int(round(v)) - window, 0), min(int(round(v)) + window + 1, h)
+        if x0 >= x1 or y0 >= y1:
+            continue
+        wt = weight[y0:y1, x0:x1]
+        s = wt.sum()
+        if s <= 0:
+            continue
+        ys, xs = np.mgrid[y0:y1, x0:x1]
+        out[i] = (float((wt * xs).sum() / s), float((wt * ys).sum() / s))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------
+# crosscheck
+# ---------------------------------------------------------------------------------------------------
+@dataclass
+class CrosscheckReport:
+    """Result of :func:`crosscheck`: ``results`` backend -> RenderResult, ``pairs`` (a, b) ->
+    CompareReport (b is the reference), ``skipped`` backend -> reason, ``errors`` backend -> message of
+    a failed render, ``notes`` free-form remarks (outputs dropped because a backend lacks them, ...)."""
+
+    results: dict[str, RenderResult]
+    pairs: dict[tuple[str, str], CompareReport]
+    skipped: dict[str, str]
+    errors: dict[str, str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    settings: dict[str, Any] = field(default_factory=dict)
+    scene_name: str = "scene"
+
+    @property
+    def passed(self) -> bool:
+        """Every pair passed its tier and no available backend failed to render."""
+        return not self.errors and all(r.passed for r in self.pairs.values())
+
+    def summary(self) -> str:
+        """Markdown report: settings, per-backend timings, skipped backends, pair verdicts and metrics."""
+        lines = [f"## Crosscheck of {self.scene_name}: {'PASS' if self.passed else 'FAIL'}", ""]
+        if self.settings:
+            lines.append("Settings: " + ", ".join(f"`{k}={v}`" for k, v in self.settings.items()))
+            lines.append("")
+        lines += ["| backend | status | render time (s) |", "|---|---|---|"]
+        for name, r in self.results.items():
+            t = r.meta.get("timings", {}) if isinstance(r.meta, dict) else {}
+            total = sum(v for v in t.values() if isinstance(v, (int, float)))
+            lines.append(f"| {name} | rendered | {total:.2f} |")
+        for name, why in self.skipped.items():
+            lines.append(f"| {name} | skipped: {why} | |")
+        for name, why in self.errors.items():
+            lines.append(f"| {name} | ERROR: {why} | |")
+        lines.append("")
+        for n in self.notes:
+            lines.append(f"- {n}")
+        if self.notes:
+            lines.append("")
+        for rep in self.pairs.values():
+            lines.append(rep.summary())
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        pairs = ", ".join(f"{a}/{b}: {'PASS' if r.passed else 'FAIL'}" for (a, b), r in self.pairs.items())
+        skipped = ", ".join(self.skipped) or "none"
+        return f"CrosscheckReport({self.scene_name}: {pairs or 'no pairs'}; skipped: {skipped})"
+
+    def contact_sheet(self, tile: int = 160) -> np.ndarray:
+        """(H, W, 3) uint8 labelled sheet: one row per backend (colour, depth, normal, instance) and one
+        row per pair (diff maps of every compared output). Tiles are scaled (nearest) to ``tile`` px wide."""
+        from PIL import Image, ImageDraw
+
+        rows: list[list[tuple[str, np.ndarray]]] = []
+        for name, r in self.results.items():
+            row = []
+            if r.rgba is not None:
+                row.append((f"{name} rgb", _over_checker(r)))
+            if r.depth is not None:
+                row.append((f"{name} depth", np.repeat(depth_to_image(r.depth)[..., None], 3, axis=-1)))
+            if r.normal is not None:
+                row.append((f"{name} normal", np.round(np.clip(r.normal * 0.5 + 0.5, 0, 1) * 255).astype(np.uint8)))
+            if r.albedo is not None:
+                row.append((f"{name} albedo", np.round(linear_to_srgb(r.albedo) * 255).astype(np.uint8)))
+            if r.instance is not None:
+                row.append((f"{name} instance", instance_to_image(r.instance)))
+            rows.append(row)
+        for (a, b), rep in self.pairs.items():
+            row = []
+            for out, img in rep.diff_images.items():
+                row.append((f"{a}-{b} {out} {'ok' if _output_ok(rep, out) else 'FAIL'}", img))
+            rows.append(row)
+        if not rows or not any(rows):
+            return np.zeros((32, 32, 3), dtype=np.uint8)
+        h0, w0 = next(img for row in rows for _, img in row).shape[:2]
+        scale = max(1, int(round(tile / max(w0, 1))))
+        tw, th = w0 * scale, h0 * scale
+        label_h = 14
+        ncols = max(len(r) for r in rows)
+        pad = 4
+        sheet = Image.new("RGB", (ncols * (tw + pad) + pad, len(rows) * (th + label_h + pad) + pad), (255, 255, 255))
+        draw = ImageDraw.Draw(sheet)
+        for ri, row in enumerate(rows):
+            for ci, (label, img) in enumerate(row):
+                x = pad + ci * (tw + pad)
+                y = pad + ri * (th + label_h + pad)
+                im = Image.fromarray(np.ascontiguousarray(img[..., :3])).resize((tw, th), Image.NEAREST)
+                sheet.paste(im, (x, y + label_h))
+                draw.text((x + 1, y + 1), label[: max(tw // 6, 8)], fill=(0, 0, 0))
+        return np.asarray(sheet)
+
+    def save(self, folder: str | os.PathLike[str], name: str = "crosscheck") -> Path:
+        """Write ``<name>.png`` (contact sheet), ``<name>.md`` (report) and per-pair diff folders."""
+        from PIL import Image
+
+        out = Path(folder)
+        out.mkdir(parents=True, exist_ok=True)
+        Image.fromarray(self.contact_sheet()).save(out / f"{name}.png")
+        (out / f"{name}.md").write_text(f"![contact sheet]({name}.png)\n\n" + self.summary())
+        for (a, b), rep in self.pairs.items():
+            rep.save(out / f"{a}_vs_{b}")
+        return out
+
+
+def _output_ok(rep: CompareReport, out: str) -> bool:
+    return all(ok for o, _, _, _, _, ok in rep.checks if o == out)
+
+
+def _over_checker(r: RenderResult) -> np.ndarray:
+    """sRGB of a premultiplied render over a light checkerboard (so transparency is visible)."""
+    rgba = r.rgba.astype(np.float64)  # type: ignore[union-attr]
+    h, w = rgba.shape[:2]
+    cb = ((np.indices((h, w)) // 4).sum(axis=0) % 2) * 0.15 + 0.6
+    lin = rgba[..., :3] + (1 - rgba[..., 3:4]) * cb[..., None] ** 2.2
+    return np.round(linear_to_srgb(lin) * 255).astype(np.uint8)
+
+
+def crosscheck(
+    scene: Any,
+    backends: Sequence[str] = ("cycles", "mitsuba", "pyrender"),
+    outputs: Sequence[str] = ("rgb", "depth", "normal", "albedo", "instance"),
+    samples: int | None = 256,
+    tier: str | Mapping[str, Mapping[str, float]] | None = None,
+    seed: int = 0,
+    backend_options: Mapping[str, Mapping[str, Any]] | None = None,
+    scene_name: str = "scene",
+    **settings: Any,
+) -> CrosscheckReport:
+    """Render ``scene`` with each of ``backends`` and compare every pair.
+
+    Comparable settings are forced: box pixel filter, no denoiser, no clamping, no adaptive sampling,
+    seed ``seed``, ``samples`` samples per pixel; ``settings`` may override other RenderSettings fields
+    (e.g. ``max_bounces``). ``backend_options``: per-backend options (``{"mitsuba": {"variant": ...}}``).
+    ``tier``: None = per pair by :func:`choose_tier` (path tracer pair on delta lights and diffuse
+    materials -> "pathtracer_delta", other path tracer pairs -> "pathtracer", with a rasteriser ->
+    "raster"), or a tier name / dict for every pair. Unavailable backends are skipped with their reason;
+    outputs a backend does not support are dropped for that backend (noted in ``report.notes``); a
+    backend whose render raises is reported in ``report.errors`` (and the report does not pass).
+    Pairs (a, b) follow the order of ``backends``; the later backend is the reference b.
+    """
+    from .backend import available_backends
+    from .render import render
+    from .scene import Scene
+
+    if not isinstance(scene, Scene):
+        raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
+    if isinstance(backends, str):
+        backends = (backends,)
+    if not backends or len(set(backends)) != len(backends):
+        raise InvalidSceneError(f"backends: expected a non-empty sequence of distinct names, got {backends!r}")
+    forbidden = {"pixel_filter", "denoise", "clamp_direct", "clamp_indirect", "adaptive"} & set(settings)
+    if forbidden:
+        raise InvalidSceneError(
+            f"crosscheck: {sorted(forbidden)} are fixed by crosscheck (box filter, no denoiser/clamping/adaptive)"
+        )
+    backend_options = dict(backend_options or {})
+    status = available_backends()
+    results: dict[str, RenderResult] = {}
+    skipped: dict[str, str] = {}
+    errors: dict[str, str] = {}
+    notes: list[str] = []
+    fixed = dict(pixel_filter="box", denoise=False, clamp_direct=0.0, clamp_indirect=0.0, adaptive=False)
+    for name in backends:
+        st = status.get(name)
+        if st is None:
+            skipped[name] = f"not registered (registered: {sorted(status)})"
+            continue
+        if not st.available:
+            skipped[name] = st.reason or "unavailable"
+            continue
+        outs = list(outputs)
+        while True:
+            try:
+                results[name] = render(
+                    scene,
+                    backend=name,
+                    samples=samples,
+                    seed=seed,
+                    outputs=tuple(outs),
+                    **fixed,
+                    **settings,
+                    **dict(backend_options.get(name, {})),
+                )
+                break
+            except UnsupportedFeatureError as exc:
+                feat = getattr(exc, "feature", None) or ""
+                if feat.startswith("output.") and feat[7:] in outs and len(outs) > 1:
+                    outs.remove(feat[7:])
+                    notes.append(f"{name}: output {feat[7:]!r} unsupported, not compared ({exc})")
+                    continue
+                skipped[name] = f"unsupported: {exc}"
+                break
+            except BackendUnavailableError as exc:
+                skipped[name] = str(exc)
+                break
+            except (RenderError, InvalidSceneError) as exc:
+                errors[name] = f"{type(exc).__name__}: {exc}"
+                break
+    pairs: dict[tuple[str, str], CompareReport] = {}
+    names = list(results)
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            a, b = names[i], names[j]
+            t = tier if tier is not None else choose_tier(a, b, scene)
+            pairs[(a, b)] = compare(results[a], results[b], tier=t, names=(a, b))
+    used_settings = {"samples": samples, "seed": seed, **fixed, **settings}
+    return CrosscheckReport(
+        results=results,
+        pairs=pairs,
+        skipped=skipped,
+        errors=errors,
+        notes=notes,
+        settings=used_settings,
+        scene_name=scene_name,
+    )
+
+
+def crosscheck_main(argv: Sequence[str] | None = None) -> int:
+    """``blendify crosscheck SCENE [-o FOLDER] [--backends ...] [--samples N] ...``: render a scene file
+    with every available backend, write the contact sheet and the markdown report into FOLDER. Returns
+    0 when every pair passed, 1 when one failed, 2 on bad usage."""
+    from .scene import Scene
+
+    p = argparse.ArgumentParser(
+        prog="blendify crosscheck",
+        description="Render a scene file with several backends and compare them pairwise.",
+    )
+    p.add_argument("scene", help="scene file written by Scene.save (.npz)")
+    p.add_argument("-o", "--output", default="crosscheck_out", help="folder for the sheet and report")
+    p.add_argument("--backends", default="cycles,mitsuba,pyrender", help="comma-separated backend names")
+    p.add_argument("--outputs", default="rgb,depth,normal,albedo,instance", help="comma-separated outputs")
+    p.add_argument("--samples", type=int, default=256, help="samples per pixel (default 256)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--tier", default=None, help=f"tier for every pair (default: per pair); one of {sorted(TIERS)}")
+    p.add_argument("--max-bounces", type=int, default=None)
+    try:
+        args = p.parse_args(list(argv) if argv is not None else None)
+    except SystemExit as exc:  # argparse exits on --help / errors; turn that into a return code
+        return int(exc.code or 0)
+    try:
+        scene = Scene.load(args.scene)
+        extra = {} if args.max_bounces is None else {"max_bounces": args.max_bounces}
+        t0 = time.perf_counter()
+        report = crosscheck(
+            scene,
+            backends=tuple(b.strip() for b in args.backends.split(",") if b.strip()),
+            outputs=tuple(o.strip() for o in args.outputs.split(",") if o.strip()),
+            samples=args.samples,
+            seed=args.seed,
+            tier=args.tier,
+            scene_name=Path(args.scene).name,
+            **extra,
+        )
+        folder = report.save(args.output)
+    except (InvalidSceneError, FileNotFoundError, BackendUnavailableError) as exc:
+        sys.stderr.write(f"blendify crosscheck: {exc}\n")
+        return 2
+    sys.stdout.write(f"{report!r}\n")
+    sys.stdout.write(f"wrote {folder / 'crosscheck.png'} and {folder / 'crosscheck.md'} ({time.perf_counter() - t0:.1f} s)\n")
+    return 0 if report.passed else 1
