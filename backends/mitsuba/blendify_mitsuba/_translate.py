@@ -1,0 +1,633 @@
+"""IR -> Mitsuba 3 scene dictionary (for ``mi.load_dict``), built in memory.
+
+Conventions (measured, see shared/docs/CONVENTIONS.md): camera ``to_world = T_cv . diag(-1, -1, 1, 1)``,
+``fov`` along x from fx, principal-point offsets ``((W/2 - cx') / W, (H/2 - cy') / H)`` with
+``cx' = cx + 0.5``; orthographic principal points by translating the camera; lights in Blender's units
+converted to Mitsuba's radiometry; every BSDF wrapped in ``twosided``; texture ``v -> 1 - v``.
+
+Every renderable becomes one or more shapes whose dictionary keys start with ``r{index:05d}_`` so that
+hits can be mapped back to the renderable (instance output). Shapes never share a BSDF object, which
+keeps Mitsuba from merging them.
+
+This module imports mitsuba: import it only after the variant is set.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import mitsuba as mi
+import numpy as np
+
+from blendify_core.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
+from blendify_core.errors import InvalidSceneError, UnsupportedFeatureError
+from blendify_core.geometry import TriMesh
+from blendify_core.lights import AreaLight, PointLight, SpotLight, SunLight
+from blendify_core.renderables import CurveBezier, Mesh, PlaneMesh, PointCloud, SphereNURBS
+
+__all__ = ["ShapeInfo", "Translation", "translate_scene", "camera_dict", "light_dicts"]
+
+#: camera frame change OpenCV (+Z forward, +Y down, +X right) -> Mitsuba (+Z forward, +Y up, +X left)
+MI_FROM_CV = np.diag([-1.0, -1.0, 1.0, 1.0])
+#: Blender lights emit along local -Z; Mitsuba spots along local +Z: rotate 180 deg about X
+_FLIP_Z = np.diag([1.0, -1.0, -1.0, 1.0])
+
+
+@dataclass
+class ShapeInfo:
+    """What a Mitsuba shape stands for: the renderable's index, its albedo (constant or a texture)."""
+
+    renderable: int
+    albedo: np.ndarray | None  # (3,) constant linear albedo, or None when ``albedo_texture`` varies
+    albedo_texture: Any = None  # a mitsuba Texture evaluated at hits (vertex colours, textures)
+
+
+@dataclass
+class Translation:
+    """The result of :func:`translate_scene`."""
+
+    scene_dict: dict[str, Any]
+    shapes: dict[str, ShapeInfo]
+    emission_dict: dict[str, Any] | None  # the emissive shapes alone (camera-visible emission pass)
+    n_analytic_spheres: int = 0
+    notes: list[str] = field(default_factory=list)
+
+
+def _mat(m: np.ndarray) -> Any:
+    return mi.ScalarTransform4f(np.asarray(m, dtype=np.float64).tolist())
+
+
+def _rgb(c: Any) -> dict[str, Any]:
+    return {"type": "rgb", "value": [float(x) for x in np.asarray(c, dtype=np.float64)[:3]]}
+
+
+# ---------------------------------------------------------------------------------------------------
+# camera
+# ---------------------------------------------------------------------------------------------------
+
+
+def camera_to_world_cv(camera: Any) -> np.ndarray:
+    """``T_cv``: 4x4 camera-to-world of the OpenCV camera frame."""
+    r, t = camera.opencv_extrinsics()
+    m = np.eye(4)
+    m[:3, :3] = r.T
+    m[:3, 3] = -r.T @ t
+    return m
+
+
+def camera_dict(camera: Any, film: dict[str, Any], sampler: dict[str, Any]) -> dict[str, Any]:
+    """The sensor dictionary of a pinhole (square pixels) or orthographic camera."""
+    w, h = camera.width, camera.height
+    t_cv = camera_to_world_cv(camera)
+    cxp, cyp = camera.cx + 0.5, camera.cy + 0.5
+    if camera.kind == "perspective":
+        if not math.isclose(camera.fx, camera.fy, rel_tol=1e-9):
+            raise UnsupportedFeatureError(
+                "camera: Mitsuba's perspective sensor has square pixels only; fx != fy is rendered by "
+                "the backend through a resampled square-pixel camera, not by camera_dict",
+                feature="camera.anisotropic",
+                backend="mitsuba",
+            )
+        return {
+            "type": "perspective",
+            "fov_axis": "x",
+            "fov": math.degrees(2.0 * math.atan(w / (2.0 * camera.fx))),
+            "principal_point_offset_x": (w / 2.0 - cxp) / w,
+            "principal_point_offset_y": (h / 2.0 - cyp) / h,
+            "near_clip": float(camera.near),
+            "far_clip": float(camera.far),
+            "to_world": _mat(t_cv @ MI_FROM_CV),
+            "film": film,
+            "sampler": sampler,
+        }
+    if camera.kind == "orthographic":
+        s = camera.pixel_size
+        shift = np.array([(w / 2.0 - cxp) * s, (h / 2.0 - cyp) * s, 0.0])
+        m = t_cv.copy()
+        m[:3, 3] = m[:3, 3] + m[:3, :3] @ shift
+        half = camera.ortho_scale / 2.0
+        return {
+            "type": "orthographic",
+            "near_clip": float(camera.near),
+            "far_clip": float(camera.far),
+            "to_world": _mat(m @ MI_FROM_CV @ np.diag([half, half, 1.0, 1.0])),
+            "film": film,
+            "sampler": sampler,
+        }
+    raise InvalidSceneError(f"camera: unsupported camera kind {camera.kind!r}")
+
+
+# ---------------------------------------------------------------------------------------------------
+# lights
+# ---------------------------------------------------------------------------------------------------
+
+
+def light_dicts(scene: Any) -> dict[str, dict[str, Any]]:
+    """Emitters for the positioned lights, the background and the environment map."""
+    out: dict[str, dict[str, Any]] = {}
+    for i, light in enumerate(scene.lights):
+        if light.strength <= 0:
+            continue
+        key = f"light{i:04d}"
+        col = light.linear_color
+        m = light.matrix_world
+        if isinstance(light, SpotLight):
+            half = light.spot_size / 2.0
+            b = light.spot_blend
+            beam = math.acos(min(1.0, b + (1.0 - b) * math.cos(half)))
+            out[key] = {
+                "type": "spot",
+                "intensity": _rgb(col * light.strength / (4.0 * math.pi)),
+                "cutoff_angle": math.degrees(half),
+                "beam_width": max(math.degrees(beam), 1e-4),
+                "to_world": _mat(m @ _FLIP_Z),
+            }
+        elif isinstance(light, PointLight):
+            out[key] = {
+                "type": "point",
+                "intensity": _rgb(col * light.strength / (4.0 * math.pi)),
+                "position": [float(x) for x in light.translation],
+            }
+        elif isinstance(light, SunLight):
+            out[key] = {
+                "type": "directional",
+                "irradiance": _rgb(col * light.strength),
+                "direction": [float(x) for x in light.direction],
+            }
+        elif isinstance(light, AreaLight):
+            a, b = light.size
+            disk = light.shape in ("circle", "ellipse")
+            out[key] = {
+                "type": "disk" if disk else "rectangle",
+                "to_world": _mat(m @ np.diag([a / 2.0, b / 2.0, 1.0, 1.0])),
+                "flip_normals": True,
+                "bsdf": {"type": "null"},
+                "emitter": {"type": "area", "radiance": _rgb(light.radiance)},
+            }
+        else:  # pragma: no cover - the IR has no other light kinds
+            raise UnsupportedFeatureError(f"light {light.tag!r}: unknown light kind {light.kind!r}")
+    bg = scene.lights.background
+    env = scene.lights.environment
+    if env is not None and env.strength > 0:
+        out["environment"] = environment_dict(env)
+        if bg is not None and bg.strength > 0:
+            raise UnsupportedFeatureError(
+                "lights: a background light and an environment map at the same time (Blender's world has one "
+                "of them); remove one",
+                feature="light.background",
+                backend="mitsuba",
+            )
+    elif bg is not None and bg.strength > 0:
+        out["background"] = {"type": "constant", "radiance": _rgb(bg.radiance)}
+    return out
+
+
+def environment_dict(env: Any) -> dict[str, Any]:
+    """An ``envmap`` reproducing :func:`blendify_core.lights.equirect_uv`.
+
+    Mitsuba's envmap looks up direction d (in its local frame) at u = (1 + atan2(d_x, -d_z) / pi) / 2,
+    v = acos(d_y) / pi (v = 0 at the top row). Blender's mapping for a world direction w is
+    u = 0.5 - atan2(w_y, w_x) / (2 pi), v_top = acos(w_z) / pi. With local = (-w_y, w_z, -w_x) both agree:
+    atan2(-w_y, w_x) = -atan2(w_y, w_x). So to_world maps local x -> -world y, y -> world z,
+    z -> -world x, composed with the map's own rotation."""
+    img = env.linear_rgb_image().astype(np.float32) * np.float32(env.strength)
+    local_to_world = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    m = np.eye(4)
+    m[:3, :3] = env.rotation_matrix @ local_to_world
+    return {
+        "type": "envmap",
+        "bitmap": mi.Bitmap(np.ascontiguousarray(img)),
+        "to_world": _mat(m),
+    }
+
+
+# ---------------------------------------------------------------------------------------------------
+# materials
+# ---------------------------------------------------------------------------------------------------
+
+
+def _effective_eta(ior: float, level: float) -> float:
+    """Blender's "Specular IOR Level" scales F0 by 2 * level; return the IOR with that F0."""
+    f0 = ((ior - 1.0) / (ior + 1.0)) ** 2 * 2.0 * level
+    f0 = min(max(f0, 1e-6), 0.99)
+    s = math.sqrt(f0)
+    return (1.0 + s) / (1.0 - s)
+
+
+def bsdf_dict(material: Any, color: Any) -> tuple[dict[str, Any], str]:
+    """The (two-sided) BSDF for one material and its colour texture/value; returns (dict, kind)."""
+    v = material.parameters()
+    if material.kind == "glossy":
+        r = float(v["roughness"])
+        inner: dict[str, Any] = {"type": "conductor", "material": "none", "specular_reflectance": color}
+        if r > 0:
+            inner = {
+                "type": "roughconductor",
+                "material": "none",
+                "distribution": "beckmann" if v["distribution"] == "BECKMANN" else "ggx",
+                "alpha": max(r * r, 1e-4),
+                "specular_reflectance": color,
+            }
+        kind = "glossy"
+    elif material.is_diffuse_only:
+        inner = {"type": "diffuse", "reflectance": color}
+        kind = "diffuse"
+    else:
+        for key in ("roughness_map", "metallic_map", "normal_map"):
+            if v.get(key) is not None:
+                raise UnsupportedFeatureError(
+                    f"material: {key} is not translated by the mitsuba backend",
+                    feature=f"material.{key}",
+                    backend="mitsuba",
+                )
+        rough = float(v["roughness"])
+        eta = _effective_eta(float(v["ior"]), float(v["specular_ior"]))
+        plain = (
+            float(v["metallic"]) == 0.0
+            and float(v["transmission_weight"]) == 0.0
+            and float(v["coat_weight"]) == 0.0
+            and float(v["sheen_weight"]) == 0.0
+            and float(v["anisotropic"]) == 0.0
+        )
+        if plain:
+            inner = {
+                "type": "roughplastic",
+                "distribution": "ggx",
+                "alpha": max(rough * rough, 1e-3),
+                "int_ior": eta,
+                "ext_ior": 1.0,
+                "diffuse_reflectance": color,
+            }
+            kind = "plastic"
+        else:
+            inner = {
+                "type": "principled",
+                "base_color": color,
+                "metallic": float(v["metallic"]),
+                "roughness": rough,
+                "eta": max(eta, 1.0001),
+                "anisotropic": float(v["anisotropic"]),
+                "spec_trans": float(v["transmission_weight"]),
+                "clearcoat": float(v["coat_weight"]),
+                "clearcoat_gloss": 1.0 - float(v["coat_roughness"]),
+                "sheen": float(v["sheen_weight"]),
+            }
+            kind = "principled"
+    if kind == "principled" and float(v["transmission_weight"]) > 0:
+        return inner, kind  # transmission needs both sides to be distinct
+    return {"type": "twosided", "bsdf": inner}, kind
+
+
+# ---------------------------------------------------------------------------------------------------
+# geometry
+# ---------------------------------------------------------------------------------------------------
+
+
+def _world(vertices: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    return np.asarray(vertices, dtype=np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def build_mesh(
+    name: str,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    normals: np.ndarray | None = None,
+    uv: np.ndarray | None = None,
+    attributes: dict[str, np.ndarray] | None = None,
+    bsdf: Any = None,
+    emitter: Any = None,
+) -> Any:
+    """A ``mi.Mesh`` from numpy buffers (world-space vertices; ``uv`` per vertex, already v-flipped)."""
+    props = mi.Properties()
+    if bsdf is not None:
+        props["bsdf"] = bsdf
+    if emitter is not None:
+        props["emitter"] = emitter
+    mesh = mi.Mesh(name, len(vertices), len(faces), props, normals is not None, uv is not None)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = np.ascontiguousarray(vertices, dtype=np.float32).ravel()
+    params["faces"] = np.ascontiguousarray(faces, dtype=np.uint32).ravel()
+    if normals is not None:
+        params["vertex_normals"] = np.ascontiguousarray(normals, dtype=np.float32).ravel()
+    if uv is not None:
+        params["vertex_texcoords"] = np.ascontiguousarray(uv, dtype=np.float32).ravel()
+    params.update()
+    for attr_name, values in (attributes or {}).items():
+        arr = np.ascontiguousarray(values, dtype=np.float32)
+        mesh.add_attribute(attr_name, 1 if arr.ndim == 1 else arr.shape[1], arr.ravel())
+    return mesh
+
+
+def _texture_dict(colors: Any, channel: str = "rgb") -> dict[str, Any]:
+    """A ``bitmap`` for texture colours (``channel`` "rgb" or "alpha")."""
+    filt = "nearest" if colors.interpolation == "closest" else "bilinear"
+    if channel == "rgb" and isinstance(colors, FileTextureColors):
+        suffix = Path(colors.texture_path).suffix.lower()
+        if suffix in (".png", ".jpg", ".jpeg") and colors.image().dtype == np.uint8:
+            # Mitsuba decodes 8-bit sRGB itself unless raw=True (same meaning as the IR's colour space)
+            return {
+                "type": "bitmap",
+                "filename": colors.texture_path,
+                "raw": colors.color_space == "linear",
+                "filter_type": filt,
+            }
+    img = colors.linear_rgba_image()
+    data = img[..., :3] if channel == "rgb" else img[..., 3:4]
+    return {
+        "type": "bitmap",
+        "data": mi.TensorXf(np.ascontiguousarray(data, dtype=np.float32)),
+        "raw": True,
+        "filter_type": filt,
+    }
+
+
+@dataclass
+class _Part:
+    """One Mitsuba mesh (a material slot of a renderable), in world space."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray | None
+    uv: np.ndarray | None
+    vertex_rgba: np.ndarray | None
+
+
+def _split(tm: TriMesh, matrix: np.ndarray, faces_material: np.ndarray | None, n_mat: int, vcol: Any) -> list[Any]:
+    """Split a TriMesh by material; de-index per corner when UVs are per corner."""
+    rot = matrix[:3, :3]
+    v_world = _world(tm.vertices, matrix)
+    n_world = None if tm.normals is None or not tm.smooth else np.asarray(tm.normals, dtype=np.float64) @ rot.T
+    parts: list[Any] = []
+    for k in range(n_mat):
+        sel = np.arange(len(tm.faces)) if faces_material is None else np.nonzero(faces_material == k)[0]
+        if len(sel) == 0:
+            parts.append(None)
+            continue
+        f = np.asarray(tm.faces)[sel]
+        if tm.uv is not None:
+            # per-corner UVs: one vertex per corner
+            idx = f.ravel()
+            uv = np.asarray(tm.uv, dtype=np.float64)[sel].reshape(-1, 2).copy()
+            uv[:, 1] = 1.0 - uv[:, 1]
+            parts.append(
+                _Part(
+                    v_world[idx],
+                    np.arange(len(idx)).reshape(-1, 3),
+                    None if n_world is None else n_world[idx],
+                    uv,
+                    None if vcol is None else vcol[idx],
+                )
+            )
+        else:
+            used, inv = np.unique(f.ravel(), return_inverse=True)
+            parts.append(
+                _Part(
+                    v_world[used],
+                    inv.reshape(-1, 3),
+                    None if n_world is None else n_world[used],
+                    None,
+                    None if vcol is None else vcol[used],
+                )
+            )
+    return parts
+
+
+# ---------------------------------------------------------------------------------------------------
+# the scene
+# ---------------------------------------------------------------------------------------------------
+
+
+def _emission(material: Any) -> np.ndarray | None:
+    if not material.is_emissive:
+        return None
+    return material.linear("emission_color")[:3] * float(material.get("emission_strength"))
+
+
+def _color_source(colors: Any, key: str) -> tuple[Any, np.ndarray | None, Any]:
+    """(Mitsuba reflectance value/texture, constant albedo or None, evaluable texture or None) and alpha."""
+    if isinstance(colors, UniformColors):
+        c = colors.linear_rgba[:3]
+        return _rgb(c), c, None
+    if isinstance(colors, VertexColors):
+        tex = mi.load_dict({"type": "mesh_attribute", "name": "vertex_color"})
+        return tex, None, tex
+    if isinstance(colors, (TextureColors, FileTextureColors)):
+        tex = mi.load_dict(_texture_dict(colors))
+        return tex, None, tex
+    raise InvalidSceneError(f"colors: unsupported colour source {type(colors).__name__} on {key}")
+
+
+def _opacity(material: Any, colors: Any) -> tuple[Any, bool]:
+    """Opacity value or texture for a ``mask`` wrapper, and whether one is needed."""
+    alpha = float(material.parameters().get("alpha", 1.0))
+    if isinstance(colors, UniformColors):
+        a = alpha * float(colors.linear_rgba[3])
+        return a, a < 1.0
+    if isinstance(colors, VertexColors) and colors.has_alpha:
+        return {"type": "mesh_attribute", "name": "vertex_alpha", "scale": alpha}, True
+    if isinstance(colors, (TextureColors, FileTextureColors)) and colors.has_alpha:
+        d = _texture_dict(colors, "alpha")
+        if alpha < 1.0:
+            data = np.array(d["data"]) * np.float32(alpha)
+            d["data"] = mi.TensorXf(data.astype(np.float32))
+        return d, True
+    return alpha, alpha < 1.0
+
+
+def translate_scene(
+    scene: Any,
+    film: dict[str, Any],
+    sampler: dict[str, Any],
+    integrator: dict[str, Any],
+    max_analytic_spheres: int,
+    camera: Any = None,
+) -> Translation:
+    """Build the ``mi.load_dict`` dictionary of ``scene`` (camera replaced by ``camera`` if given)."""
+    cam = scene.camera if camera is None else camera
+    d: dict[str, Any] = {
+        "type": "scene",
+        "integrator": integrator,
+        "sensor": camera_dict(cam, film, sampler),
+    }
+    shapes: dict[str, ShapeInfo] = {}
+    emissive: dict[str, Any] = {}
+    n_spheres = 0
+    for ri, r in enumerate(scene.renderables):
+        prefix = f"r{ri:05d}"
+        if isinstance(r, PlaneMesh) and r.shadow_catcher:
+            raise UnsupportedFeatureError(
+                f"renderable {r.tag!r}: shadow catchers are not supported by the mitsuba backend",
+                feature="shadow_catcher",
+                backend="mitsuba",
+            )
+        if not r.emit_shadows:
+            raise UnsupportedFeatureError(
+                f"renderable {r.tag!r}: emit_shadows=False has no Mitsuba equivalent",
+                feature="object.no_shadow",
+                backend="mitsuba",
+            )
+        for m in r.materials:
+            if m.has_wireframe:
+                raise UnsupportedFeatureError(
+                    f"renderable {r.tag!r}: wireframe materials have no faithful Mitsuba translation",
+                    feature="material.wireframe",
+                    backend="mitsuba",
+                )
+        matrix = r.matrix_world
+        if isinstance(r, PointCloud):
+            n_spheres += _add_pointcloud(d, shapes, emissive, r, ri, prefix, matrix, max_analytic_spheres)
+            continue
+        if isinstance(r, SphereNURBS):
+            mat, colors = r.materials[0], r.colors_list[0]
+            refl, const, tex = _color_source(colors, prefix)
+            bsdf, _ = bsdf_dict(mat, refl)
+            bsdf = _wrap_mask(bsdf, mat, colors)
+            key = f"{prefix}_sphere"
+            shape = {
+                "type": "sphere",
+                "center": [float(x) for x in r.translation],
+                "radius": float(r.radius),
+                "bsdf": bsdf,
+            }
+            em = _emission(mat)
+            if em is not None:
+                shape["emitter"] = {"type": "area", "radiance": _rgb(em)}
+                emissive[key] = shape
+            d[key] = shape
+            shapes[key] = ShapeInfo(ri, const, tex)
+            continue
+        # meshes, mesh primitives, ellipsoids and curves: the IR's tessellation
+        tm = r.to_mesh()
+        if tm.is_empty:
+            continue
+        if isinstance(r, Mesh):
+            fm = r.faces_material
+        elif isinstance(r, CurveBezier) or not hasattr(r, "faces_material"):
+            fm = None
+        else:
+            fm = r.faces_material
+        vcol = None
+        for c in r.colors_list:
+            if isinstance(c, VertexColors):
+                vcol = c.linear_rgba
+        parts = _split(tm, matrix, fm, len(r.materials), vcol)
+        for k, (mat, colors, part) in enumerate(zip(r.materials, r.colors_list, parts, strict=True)):
+            if part is None:
+                continue
+            key = f"{prefix}_m{k:03d}"
+            refl, const, tex = _color_source(colors, key)
+            if isinstance(colors, (TextureColors, FileTextureColors)) and part.uv is None:
+                raise InvalidSceneError(f"renderable {r.tag!r}: texture colours need a UV map")
+            bsdf_d, _ = bsdf_dict(mat, refl)
+            bsdf = mi.load_dict(_wrap_mask(bsdf_d, mat, colors))
+            em = _emission(mat)
+            emitter = mi.load_dict({"type": "area", "radiance": _rgb(em)}) if em is not None else None
+            attrs: dict[str, np.ndarray] = {}
+            if isinstance(colors, VertexColors) and part.vertex_rgba is not None:
+                attrs["vertex_color"] = part.vertex_rgba[:, :3]
+                if colors.has_alpha:
+                    attrs["vertex_alpha"] = part.vertex_rgba[:, 3]
+            mesh = build_mesh(key, part.vertices, part.faces, part.normals, part.uv, attrs, bsdf, emitter)
+            d[key] = mesh
+            if emitter is not None:
+                emissive[key] = mesh
+            shapes[key] = ShapeInfo(ri, const, tex)
+    d.update(light_dicts(scene))
+    emission_dict = None
+    if emissive:
+        emission_dict = {
+            "type": "scene",
+            "integrator": {"type": "path", "max_depth": 1, "hide_emitters": False},
+            "sensor": camera_dict(cam, film, sampler),
+            **emissive,
+        }
+        # everything else still occludes the emitters
+        for key, value in d.items():
+            if key.startswith("r") and key not in emissive:
+                emission_dict[key] = value
+    return Translation(d, shapes, emission_dict, n_spheres)
+
+
+def _wrap_mask(bsdf: dict[str, Any], material: Any, colors: Any) -> dict[str, Any]:
+    opacity, needed = _opacity(material, colors)
+    if not needed:
+        return bsdf
+    return {"type": "mask", "opacity": opacity, "bsdf": bsdf}
+
+
+def _add_pointcloud(
+    d: dict[str, Any],
+    shapes: dict[str, ShapeInfo],
+    emissive: dict[str, Any],
+    r: PointCloud,
+    ri: int,
+    prefix: str,
+    matrix: np.ndarray,
+    max_analytic: int,
+) -> int:
+    """Analytic spheres (one shape and BSDF per point) up to ``max_analytic`` points, else one merged
+    icosphere mesh with per-vertex colours. Returns the number of analytic spheres added."""
+    mat, colors = r.materials[0], r.colors_list[0]
+    centres = _world(r.vertices, matrix)
+    radii = r.radii()
+    n = len(centres)
+    if n == 0:
+        return 0
+    per_point = colors.linear_rgba[:, :3] if isinstance(colors, VertexColors) else None
+    uniform = None if per_point is not None else colors.linear_rgba[:3]
+    strength = r.particle_emission_strength
+    if n <= max_analytic:
+        for i in range(n):
+            c = per_point[i] if per_point is not None else uniform
+            bsdf, _ = bsdf_dict(mat, _rgb(c))
+            bsdf = _wrap_mask(bsdf, mat, colors if per_point is None else UniformColors((1, 1, 1)))
+            key = f"{prefix}_p{i:07d}"
+            shape = {"type": "sphere", "center": centres[i].tolist(), "radius": float(radii[i]), "bsdf": bsdf}
+            em = _emission(mat)
+            if strength > 0:
+                em = (em if em is not None else 0.0) + np.asarray(c) * strength
+            if em is not None:
+                shape["emitter"] = {"type": "area", "radiance": _rgb(em)}
+                emissive[key] = shape
+            d[key] = shape
+            shapes[key] = ShapeInfo(ri, np.asarray(c, dtype=np.float64))
+        return n
+    tm = r.to_mesh()
+    # to_mesh works in object space around the raw vertices: move to world space
+    verts = _world(tm.vertices, matrix)
+    normals = np.asarray(tm.normals, dtype=np.float64) @ matrix[:3, :3].T
+    nv = len(tm.vertices) // n
+    key = f"{prefix}_mesh"
+    attrs: dict[str, np.ndarray] = {}
+    if per_point is not None:
+        refl: Any = mi.load_dict({"type": "mesh_attribute", "name": "vertex_color"})
+        attrs["vertex_color"] = np.repeat(per_point, nv, axis=0)
+        const, tex = None, refl
+    else:
+        refl, const, tex = _rgb(uniform), np.asarray(uniform, dtype=np.float64), None
+    bsdf = mi.load_dict(_wrap_mask(bsdf_dict(mat, refl)[0], mat, colors))
+    emitter = None
+    em = _emission(mat)
+    if strength > 0:
+        if per_point is not None:
+            rad: Any = {"type": "mesh_attribute", "name": "vertex_color", "scale": strength}
+            if em is not None:
+                raise UnsupportedFeatureError(
+                    "pointcloud: material emission combined with per-point particle emission",
+                    feature="pointcloud.emission",
+                    backend="mitsuba",
+                )
+        else:
+            rad = _rgb((em if em is not None else 0.0) + uniform * strength)
+        emitter = mi.load_dict({"type": "area", "radiance": rad})
+    elif em is not None:
+        emitter = mi.load_dict({"type": "area", "radiance": _rgb(em)})
+    mesh = build_mesh(key, verts, tm.faces, normals, None, attrs, bsdf, emitter)
+    d[key] = mesh
+    if emitter is not None:
+        emissive[key] = mesh
+    shapes[key] = ShapeInfo(ri, const, tex)
+    return 0
