@@ -560,9 +560,7 @@ def compare(
     results lacks raises :class:`InvalidSceneError`.
     """
     if not isinstance(a, RenderResult) or not isinstance(b, RenderResult):
-        raise InvalidSceneError(
-            f"compare: expected two RenderResult, got {type(a).__name__} and {type(b).__name__}"
-        )
+        raise InvalidSceneError(f"compare: expected two RenderResult, got {type(a).__name__} and {type(b).__name__}")
     _check_shapes(a, b)
     tier_name, thresholds = _resolve_tier(tier, a, b)
     attr = {"rgb": "rgba", "depth": "depth", "normal": "normal", "albedo": "albedo", "instance": "instance"}
@@ -621,9 +619,7 @@ def compare(
             continue
         for metric, limit in ms.items():
             if metric not in metrics[out]:
-                raise InvalidSceneError(
-                    f"tier: unknown metric {out}.{metric}; known: {sorted(metrics[out])}"
-                )
+                raise InvalidSceneError(f"tier: unknown metric {out}.{metric}; known: {sorted(metrics[out])}")
             value = metrics[out][metric]
             higher = metric in HIGHER_IS_BETTER
             op = ">=" if higher else "<="
@@ -947,5 +943,6 @@ def crosscheck_main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.write(f"blendify crosscheck: {exc}\n")
         return 2
     sys.stdout.write(f"{report!r}\n")
-    sys.stdout.write(f"wrote {folder / 'crosscheck.png'} and {folder / 'crosscheck.md'} ({time.perf_counter() - t0:.1f} s)\n")
+    elapsed = time.perf_counter() - t0
+    sys.stdout.write(f"wrote {folder / 'crosscheck.png'} and {folder / 'crosscheck.md'} ({elapsed:.1f} s)\n")
     return 0 if report.passed else 1
