@@ -60,6 +60,9 @@ class Backend(abc.ABC):
     engine: ClassVar[str | None] = None
     #: quality modes this backend serves well, best first (used by the automatic choice)
     qualities: ClassVar[tuple[str, ...]] = ("preview", "draft", "final")
+    #: True for Monte Carlo renderers: ``target_error`` renders independent passes until the estimated
+    #: error is low enough (see ``blendify_core.render.render_to_target``)
+    path_tracer: ClassVar[bool] = False
 
     def __init__(self, **options: Any) -> None:
         if options:

@@ -150,7 +150,15 @@ def render(
         render_cam, src = margin_camera(out_cam)  # type: ignore[arg-type]
     view = scene if render_cam is cam else scene.with_camera(render_cam)
 
-    result = inst.render_scene(view, settings)
+    if settings.target_error is not None and getattr(inst, "path_tracer", False):
+        result = render_to_target(inst, view, settings)
+    else:
+        result = inst.render_scene(view, settings)
+        if settings.target_error is not None:
+            result.meta.setdefault("warnings", []).append(
+                f"target_error: backend {inst.name!r} is not a path tracer; rendered once (its error is bias, "
+                "not noise)"
+            )
 
     if src is not None:
         from .distortion import remap_result
@@ -196,3 +204,79 @@ def _clip_check(scene: Any) -> str | None:
             "the image will be empty; raise `far`"
         )
     return None
+
+
+def relative_error_estimate(passes: np.ndarray, samples: np.ndarray | None = None) -> float:
+    """Estimated relative RMS error of the sample-weighted mean of independent passes (K, H, W, C), K >= 2.
+
+    With ``samples`` n_i per pass (default: equal), the per pixel-channel variance of one sample is
+    estimated as sum(n_i (x_i - mean)^2) / (K - 1) and the variance of the mean is that / sum(n_i). The
+    result is the RMS over pixel-channels of sqrt(var / (mean^2 + 0.01)) (Mitsuba's relative-MSE floor):
+    its square is the relative MSE."""
+    k = passes.shape[0]
+    n = np.ones(k) if samples is None else np.asarray(samples, dtype=np.float64)
+    w = (n / n.sum()).reshape((k,) + (1,) * (passes.ndim - 1))
+    mean = (passes * w).sum(axis=0)
+    var_one = (n.reshape(w.shape) * (passes - mean) ** 2).sum(axis=0) / (k - 1)
+    var_mean = var_one / n.sum()
+    rel = var_mean / (mean * mean + 1e-2)
+    return float(np.sqrt(rel.mean()))
+
+
+MAX_PASSES = 24
+MAX_SAMPLES = 1 << 16
+
+
+def render_to_target(inst: Backend, scene: Any, settings: RenderSettings) -> RenderResult:
+    """Render independent passes (different seeds) until the estimated relative RMS error of their
+    sample-weighted mean is <= ``settings.target_error``, the ``time_limit`` is reached, or the pass or
+    sample cap is hit.
+
+    The first 4 passes use ``settings.samples`` each; later passes are sized from the current estimate
+    (error falls as 1/sqrt(samples)). Geometric outputs come from the first pass. ``meta`` records the
+    estimate, the passes, the total samples and whether the target was reached."""
+    t0 = time.perf_counter()
+    target = float(settings.target_error)  # type: ignore[arg-type]
+    base = settings.samples
+    pass_settings = settings.replace(target_error=None, time_limit=None, denoise=False)
+    first = inst.render_scene(scene, pass_settings)
+    if first.rgba is None:
+        return first
+    colours = [first.rgba[..., :3].astype(np.float64)]
+    alphas = [first.rgba[..., 3:4].astype(np.float64)]
+    counts = [base]
+    estimate = float("inf")
+    while len(colours) < MAX_PASSES and sum(counts) < MAX_SAMPLES:
+        if settings.time_limit is not None and time.perf_counter() - t0 >= settings.time_limit:
+            break
+        if len(colours) >= 4:
+            estimate = relative_error_estimate(np.stack(colours), np.array(counts))
+            if estimate <= target:
+                break
+            total = sum(counts)
+            needed = total * (estimate / target) ** 2 * 1.1 - total
+            n = int(np.clip(np.ceil(needed / 2), base, MAX_SAMPLES - total))
+        else:
+            n = base
+        seed = (settings.seed + 7919 * len(colours)) % (2**31 - 1)
+        r = inst.render_scene(scene, pass_settings.replace(seed=seed, samples=max(1, n)))
+        colours.append(r.rgba[..., :3].astype(np.float64))  # type: ignore[index]
+        alphas.append(r.rgba[..., 3:4].astype(np.float64))  # type: ignore[index]
+        counts.append(max(1, n))
+    n_arr = np.array(counts, dtype=np.float64)
+    w = (n_arr / n_arr.sum()).reshape(-1, 1, 1, 1)
+    if len(colours) >= 2:
+        estimate = relative_error_estimate(np.stack(colours), n_arr)
+    rgb = (np.stack(colours) * w).sum(axis=0)
+    alpha = (np.stack(alphas) * w).sum(axis=0)
+    first.rgba = np.concatenate([rgb, alpha], axis=-1).astype(np.float32)
+    meta = first.meta
+    meta["passes"] = len(colours)
+    meta["samples"] = int(n_arr.sum())
+    meta["estimated_error"] = estimate
+    meta["estimated_error_kind"] = (
+        "relative RMS error (its square is the relative MSE), from the variance between passes"
+    )
+    meta["target_reached"] = bool(estimate <= target)
+    meta.setdefault("timings", {})["render"] = time.perf_counter() - t0
+    return first
