@@ -174,13 +174,17 @@ class MitsubaBackend(Backend):
         return self.variant_choice.variant
 
     def _set_variant(self) -> Any:
+        variant = self.variant  # resolve (and probe) before the first import of mitsuba/drjit
+        from ._variant import before_engine_import
+
+        before_engine_import()
         import mitsuba as mi
 
-        if mi.variant() != self.variant:
+        if mi.variant() != variant:
             try:
-                mi.set_variant(self.variant)
+                mi.set_variant(variant)
             except Exception as exc:  # e.g. a variant missing from this build
-                raise RenderError(f"mitsuba: cannot set variant {self.variant!r}: {exc}") from exc
+                raise RenderError(f"mitsuba: cannot set variant {variant!r}: {exc}") from exc
         return mi
 
     # -- work --------------------------------------------------------------------------------------

@@ -245,37 +245,19 @@ def bsdf_dict(material: Any, color: Any) -> tuple[dict[str, Any], str]:
                 )
         rough = float(v["roughness"])
         eta = _effective_eta(float(v["ior"]), float(v["specular_ior"]))
-        plain = (
-            float(v["metallic"]) == 0.0
-            and float(v["transmission_weight"]) == 0.0
-            and float(v["coat_weight"]) == 0.0
-            and float(v["sheen_weight"]) == 0.0
-            and float(v["anisotropic"]) == 0.0
-        )
-        if plain:
-            inner = {
-                "type": "roughplastic",
-                "distribution": "ggx",
-                "alpha": max(rough * rough, 1e-3),
-                "int_ior": eta,
-                "ext_ior": 1.0,
-                "diffuse_reflectance": color,
-            }
-            kind = "plastic"
-        else:
-            inner = {
-                "type": "principled",
-                "base_color": color,
-                "metallic": float(v["metallic"]),
-                "roughness": rough,
-                "eta": max(eta, 1.0001),
-                "anisotropic": float(v["anisotropic"]),
-                "spec_trans": float(v["transmission_weight"]),
-                "clearcoat": float(v["coat_weight"]),
-                "clearcoat_gloss": 1.0 - float(v["coat_roughness"]),
-                "sheen": float(v["sheen_weight"]),
-            }
-            kind = "principled"
+        inner = {
+            "type": "principled",
+            "base_color": color,
+            "metallic": float(v["metallic"]),
+            "roughness": rough,
+            "eta": max(eta, 1.0001),
+            "anisotropic": float(v["anisotropic"]),
+            "spec_trans": float(v["transmission_weight"]),
+            "clearcoat": float(v["coat_weight"]),
+            "clearcoat_gloss": 1.0 - float(v["coat_roughness"]),
+            "sheen": float(v["sheen_weight"]),
+        }
+        kind = "principled"
     if kind == "principled" and float(v["transmission_weight"]) > 0:
         return inner, kind  # transmission needs both sides to be distinct
     return {"type": "twosided", "bsdf": inner}, kind

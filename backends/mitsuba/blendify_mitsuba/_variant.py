@@ -127,8 +127,20 @@ _cache: dict[tuple[str | None, str | None], VariantChoice] = {}
 _lock = threading.Lock()
 
 
+_UNKNOWN = object()
+#: DRJIT_LIBLLVM_PATH as it was when this backend first imported drjit (_UNKNOWN: not imported by us)
+_loaded_with: object = _UNKNOWN
+
+
 def _drjit_loaded() -> bool:
     return "drjit" in sys.modules
+
+
+def before_engine_import() -> None:
+    """Call right before importing mitsuba: remembers which libLLVM Dr.Jit is about to load."""
+    global _loaded_with
+    if not _drjit_loaded() and _loaded_with is _UNKNOWN:
+        _loaded_with = os.environ.get("DRJIT_LIBLLVM_PATH")
 
 
 def choose_variant(requested: str | None) -> VariantChoice:
@@ -142,6 +154,9 @@ def choose_variant(requested: str | None) -> VariantChoice:
             return _cache[key]
         choice = _choose(requested, user_llvm)
         _cache[key] = choice
+        env_now = os.environ.get("DRJIT_LIBLLVM_PATH")
+        if env_now != user_llvm:  # we chose the library: later calls see it in the environment
+            _cache[(requested, env_now)] = choice
     if choice.variant != (requested or choice.variant) or requested is None:
         log.info("blendify-mitsuba: variant %s (%s)", choice.variant, choice.reason)
     return choice
@@ -164,8 +179,11 @@ def _choose(requested: str | None, user_llvm: str | None) -> VariantChoice:
             continue
         # LLVM variants
         if user_llvm is not None or _drjit_loaded():
-            # the library is fixed: the user chose it, or Dr.Jit is already loaded in this process
+            # the library is fixed: the user chose it, or Dr.Jit is already loaded in this process (then
+            # with the library named by DRJIT_LIBLLVM_PATH at the time it was imported)
             lib = user_llvm
+            if _drjit_loaded() and _loaded_with is not _UNKNOWN:
+                lib = _loaded_with  # type: ignore[assignment]
             ok, msg = probe_variant(variant, lib)
             where = f"DRJIT_LIBLLVM_PATH={lib}" if lib else "Dr.Jit's default libLLVM search"
             if ok:
