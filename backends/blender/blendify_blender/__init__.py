@@ -1,27 +1,221 @@
-"""blendify-core backend `cycles` (engine: bpy). The engine is imported lazily, on first use."""
+"""blendify-core backend ``cycles``: Blender Cycles through the ``bpy`` wheel.
+
+Importing this module does not import ``bpy``: the translator (:mod:`.translate`), the renderer
+(:mod:`.engine`), the worker (:mod:`.worker`) and the .blend helpers (:mod:`.blendfile`) are imported
+on first use.
+
+Options (``bf.render(scene, backend="cycles", verbose=True)`` or ``CyclesBackend(...)``):
+
+- ``verbose`` (False): print Blender's progress/log lines to stderr (always logged at DEBUG level on
+  the ``blendify_blender`` logger).
+- ``isolate`` (False): render in a persistent worker subprocess (the scene travels as a portable scene
+  file); Blender keeps some memory it never frees, so long runs should use it.
+- ``worker_max_renders`` (100): with ``isolate``, restart the worker after this many renders.
+- ``device`` ("CPU"): "CPU" or "GPU" (GPU falls back to CPU with a logged reason when none is found).
+"""
 
 from __future__ import annotations
 
+import importlib.util
+import logging
+import time
 from typing import Any
 
 from blendify_core.backend import Backend, BackendStatus
-from blendify_core.errors import BackendUnavailableError
+from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.features import ALL_FEATURES, Capability
+from blendify_core.result import RenderResult
+from blendify_core.settings import RenderSettings
 
 __all__ = ["CyclesBackend"]
 
+log = logging.getLogger("blendify_blender")
+
+_NOTES: dict[str, Capability] = {
+    "primitive.sphere": Capability("exact", "the IR's shared tessellation (64x32 UV sphere, exact normals)"),
+    "primitive.ellipsoid": Capability("exact", "the IR's shared tessellation (64x32, exact normals)"),
+    "primitive.curve": Capability("exact", "Blender curve: POLY spline bevelled to the radius, filled caps"),
+    "pointcloud": Capability("exact", "native Cycles points (Geometry Nodes Mesh to Points)"),
+    "light.point.soft": Capability("exact", "sphere light, soft falloff off (matches a sphere emitter)"),
+    "light.spot.blend": Capability("exact", "Blender's own smoothstep cone edge"),
+    "camera.anisotropic": Capability("exact", "pixel aspect ratio"),
+    "output.albedo": Capability("exact", "material colour input through a shader AOV"),
+    "output.depth": Capability("exact", "Cycles Z pass (one sample per pixel, not anti-aliased)"),
+    "output.instance": Capability("exact", "object index pass (not anti-aliased)"),
+}
+
 
 class CyclesBackend(Backend):
-    """Skeleton: registered, reports itself unavailable until its translator lands."""
+    """The reference path tracer: Blender Cycles (CPU, or GPU when asked and present)."""
 
     name = "cycles"
     engine = "bpy"
+    qualities = ("final", "draft", "preview")
 
+    def __init__(
+        self,
+        verbose: bool = False,
+        isolate: bool = False,
+        worker_max_renders: int = 100,
+        device: str = "CPU",
+        **options: Any,
+    ) -> None:
+        super().__init__(**options)
+        if not isinstance(verbose, bool):
+            raise InvalidSceneError(f"verbose: expected True or False, got {verbose!r}")
+        if not isinstance(isolate, bool):
+            raise InvalidSceneError(f"isolate: expected True or False, got {isolate!r}")
+        if isinstance(worker_max_renders, bool) or not isinstance(worker_max_renders, int) or worker_max_renders < 1:
+            raise InvalidSceneError(f"worker_max_renders: expected a positive integer, got {worker_max_renders!r}")
+        if not isinstance(device, str) or device.upper() not in ("CPU", "GPU"):
+            raise InvalidSceneError(f"device: expected 'CPU' or 'GPU', got {device!r}")
+        self.verbose = verbose
+        self.isolate = isolate
+        self.worker_max_renders = worker_max_renders
+        self.device = device.upper()
+        self._translator: Any = None
+        self._worker: Any = None
+        self._compute_type = ""
+
+    # -- discovery ---------------------------------------------------------------------------------
     @classmethod
     def probe(cls) -> BackendStatus:
-        return BackendStatus(False, "the cycles translator is not implemented yet", cls.engine_version())
+        """Cheap: checks that ``bpy`` and ``OpenEXR`` are installed, without importing bpy."""
+        try:
+            if importlib.util.find_spec("bpy") is None:
+                return BackendStatus(False, "the 'bpy' package is not installed (pip install bpy==5.0.1)", None)
+            if importlib.util.find_spec("OpenEXR") is None:
+                return BackendStatus(False, "the 'openexr' package is not installed (pip install openexr)", None)
+        except (ImportError, ValueError) as exc:
+            return BackendStatus(False, f"cannot look up bpy: {exc}", None)
+        return BackendStatus(True, None, cls.engine_version())
 
-    def translate(self, scene: Any, settings: Any) -> Any:
-        raise BackendUnavailableError("the cycles translator is not implemented yet")
+    @classmethod
+    def capabilities(cls) -> dict[str, Capability]:
+        return {name: _NOTES.get(name, Capability("exact")) for name in ALL_FEATURES}
 
-    def render(self, native: Any, settings: Any) -> Any:
-        raise BackendUnavailableError("the cycles translator is not implemented yet")
+    # -- .blend helpers (part B lives in blendfile.py) --------------------------------------------
+    @classmethod
+    def export_blend(cls, scene: Any, path: Any, **kwargs: Any) -> Any:
+        """Write a .blend file that renders ``scene`` in Blender (see :mod:`blendify_blender.blendfile`)."""
+        from . import blendfile
+
+        return blendfile.export_blend(scene, path, **kwargs)
+
+    @classmethod
+    def attach_blend(cls, scene: Any, path: Any, with_camera: bool = False, **kwargs: Any) -> Any:
+        """Import a .blend file's content into ``scene`` (see :mod:`blendify_blender.blendfile`)."""
+        from . import blendfile
+
+        return blendfile.attach_blend(scene, path, with_camera=with_camera, **kwargs)
+
+    # -- work --------------------------------------------------------------------------------------
+    def _ensure_translator(self) -> Any:
+        if self._translator is None:
+            from . import _runtime
+            from .translate import Translator
+
+            _runtime.bpy_module()
+            if self.device == "GPU":
+                self._compute_type = _enable_gpu()
+            device = "GPU" if self._compute_type else "CPU"
+            self._translator = Translator(device=device, compute_device_type=self._compute_type)
+        return self._translator
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise BackendUnavailableError(f"{self.name}: this backend instance was closed")
+
+    def translate(self, scene: Any, settings: RenderSettings) -> Any:
+        """Translate (or update) the scene in the bpy session; returns the BuiltScene."""
+        self._check_open()
+        from . import _runtime
+
+        translator = self._ensure_translator()
+        with _runtime.BPY_LOCK:
+            with _runtime.capture_output("translate", self.verbose) as cap, _runtime.engine_errors("translating", cap):
+                return translator.sync(scene, settings)
+
+    def render(self, native: Any, settings: RenderSettings) -> RenderResult:
+        """Render a BuiltScene returned by :meth:`translate`."""
+        self._check_open()
+        from . import _runtime
+        from .engine import render_built
+
+        with _runtime.BPY_LOCK:
+            if native.generation != _runtime.generation():
+                raise InvalidSceneError("native: this translated scene was reset since; translate the scene again")
+            return render_built(native, settings, self.verbose)
+
+    def render_scene(self, scene: Any, settings: RenderSettings) -> RenderResult:
+        """Translate (incrementally) and render, holding the bpy lock for both; or hand the scene to the
+        worker subprocess when ``isolate=True``."""
+        self._check_open()
+        if self.isolate:
+            if self._worker is None:
+                from .worker import WorkerClient
+
+                self._worker = WorkerClient(
+                    max_renders=self.worker_max_renders, verbose=self.verbose, device=self.device
+                )
+            return self._worker.render(scene, settings)
+        from . import _runtime
+
+        t0 = time.perf_counter()
+        with _runtime.BPY_LOCK:
+            built = self.translate(scene, settings)
+            t1 = time.perf_counter()
+            result = self.render(built, settings)
+        t2 = time.perf_counter()
+        timings = result.meta.setdefault("timings", {})
+        timings["translate"] = t1 - t0
+        timings["render"] = t2 - t1
+        result.meta["translation"] = dict(self._translator.last_stats)
+        if self._compute_type:
+            result.meta["device"] = f"GPU ({self._compute_type})"
+        return result
+
+    def clear(self) -> None:
+        """Remove every datablock this backend created in the bpy session (keeps the backend usable)."""
+        if self._translator is not None:
+            from . import _runtime
+
+            with _runtime.BPY_LOCK:
+                self._translator.clear()
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        try:
+            self.clear()
+            if self._worker is not None:
+                self._worker.close()
+                self._worker = None
+        finally:
+            self._translator = None
+            super().close()
+
+
+def _enable_gpu() -> str:
+    """Enable the first available GPU compute backend; '' (CPU fallback, logged) when there is none."""
+    from . import _runtime
+
+    bpy = _runtime.bpy_module()
+    try:
+        prefs = bpy.context.preferences.addons["cycles"].preferences
+    except Exception as exc:  # pragma: no cover - depends on the build
+        log.warning("cycles: GPU requested but the Cycles preferences are unavailable (%s); using the CPU", exc)
+        return ""
+    for kind in ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI"):
+        try:
+            prefs.compute_device_type = kind
+            prefs.get_devices()
+        except Exception:
+            continue
+        devices = [d for d in prefs.devices if d.type == kind]
+        if devices:
+            for d in prefs.devices:
+                d.use = d.type == kind
+            return kind
+    log.warning("cycles: GPU requested but no GPU compute device was found; rendering on the CPU")
+    return ""

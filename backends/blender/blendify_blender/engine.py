@@ -1,0 +1,149 @@
+"""Rendering a translated scene and reading the passes back.
+
+The passes are written by a compositor File Output node as one single-layer 32-bit EXR per pass into
+a private temporary directory (removed afterwards), then read with ``openexr``. Single-layer files are
+used because Blender 5.0's multilayer EXR writer fails whenever the pixel aspect is not 1 (fx != fy,
+CONVENTIONS.md section 13); with square pixels both ways give bit-identical values.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import shutil
+import tempfile
+import time
+
+import numpy as np
+
+from blendify_core.errors import RenderError
+from blendify_core.result import RenderResult
+from blendify_core.settings import RenderSettings
+
+from . import _runtime
+from .materials import ALBEDO_AOV
+from .translate import BuiltScene
+
+__all__ = ["render_built", "PASSES"]
+
+#: output name -> (view-layer flag, Render Layers socket, file item name, item socket type)
+PASSES: dict[str, tuple[str | None, str, str, str]] = {
+    "rgb": (None, "Image", "rgba", "RGBA"),
+    "depth": ("use_pass_z", "Depth", "depth", "FLOAT"),
+    "normal": ("use_pass_normal", "Normal", "normal", "VECTOR"),
+    "instance": ("use_pass_object_index", "Object Index", "instance", "FLOAT"),
+    "albedo": (None, ALBEDO_AOV, "albedo", "RGBA"),
+}
+_BACKGROUND_DEPTH = 1e9  # Cycles writes 1e10 where nothing was hit
+
+
+def _setup_passes(built: BuiltScene, outputs: tuple[str, ...], directory: str) -> None:
+    bpy = _runtime.bpy_module()
+    sc = built.bscene
+    vl = sc.view_layers[0]
+    vl.use_pass_combined = True
+    vl.use_pass_z = "depth" in outputs
+    vl.use_pass_normal = "normal" in outputs
+    vl.use_pass_object_index = "instance" in outputs
+    for aov in list(vl.aovs):
+        vl.aovs.remove(aov)
+    if "albedo" in outputs:
+        aov = vl.aovs.add()
+        aov.name = ALBEDO_AOV
+        aov.type = "COLOR"
+    built.compositor.remove()
+    ng = built.compositor.add("node_groups", bpy.data.node_groups.new("bf_outputs", "CompositorNodeTree"))
+    sc.compositing_node_group = ng
+    sc.render.use_compositing = True
+    sc.render.use_sequencer = False
+    rl = ng.nodes.new("CompositorNodeRLayers")
+    rl.scene = sc
+    rl.layer = vl.name
+    fo = ng.nodes.new("CompositorNodeOutputFile")
+    fo.directory = directory + os.sep
+    fo.file_name = "bf_"
+    fo.save_as_render = False
+    f = fo.format
+    f.media_type = "IMAGE"
+    f.file_format = "OPEN_EXR"
+    f.color_depth = "32"
+    f.exr_codec = "ZIP"
+    # the Image socket is always written: Blender needs one output to run the compositor
+    wanted = ["rgb", *[o for o in outputs if o != "rgb"]]
+    for out in wanted:
+        _, socket, item, stype = PASSES[out]
+        fo.file_output_items.new(stype, item)
+        ng.links.new(rl.outputs[socket], fo.inputs[item])
+    sc.render.filepath = os.path.join(directory, "unused_")
+
+
+def _read_exr(path: str) -> dict[str, np.ndarray]:
+    import OpenEXR
+
+    out: dict[str, np.ndarray] = {}
+    with OpenEXR.File(path, separate_channels=True) as f:
+        for part in f.parts:
+            for name, ch in part.channels.items():
+                out[name.rsplit(".", 1)[-1]] = np.asarray(ch.pixels, dtype=np.float32)
+    return out
+
+
+def _find(directory: str, item: str) -> str:
+    hits = sorted(glob.glob(os.path.join(directory, f"bf_{item}*.exr")))
+    if not hits:
+        raise RenderError(f"cycles: Blender did not write the {item!r} pass (files: {os.listdir(directory)})")
+    return hits[0]
+
+
+def render_built(built: BuiltScene, settings: RenderSettings, verbose: bool = False) -> RenderResult:
+    """Render the translated scene with Cycles; return the requested outputs as a RenderResult."""
+    bpy = _runtime.bpy_module()
+    outputs = tuple(settings.outputs)
+    timings: dict[str, float] = {}
+    directory = tempfile.mkdtemp(prefix="blendify_cycles_")
+    try:
+        t0 = time.perf_counter()
+        with _runtime.capture_output("render", verbose) as cap:
+            with _runtime.engine_errors("setting up the render passes", cap):
+                _setup_passes(built, outputs, directory)
+            t1 = time.perf_counter()
+            with _runtime.engine_errors("rendering", cap):
+                res = bpy.ops.render.render(write_still=False, scene=built.bscene.name)
+                if "FINISHED" not in res:
+                    raise RuntimeError(f"render operator returned {sorted(res)}")
+        t2 = time.perf_counter()
+        timings["passes_setup"] = t1 - t0
+        timings["cycles"] = t2 - t1
+        result = RenderResult()
+        rgba = _read_exr(_find(directory, "rgba"))
+        if "rgb" in outputs:
+            result.rgba = np.stack([rgba["R"], rgba["G"], rgba["B"], rgba["A"]], axis=-1)
+        if "depth" in outputs:
+            z = _read_exr(_find(directory, "depth"))
+            d = z.get("R", z.get("Z", z.get("V")))
+            if d is None:
+                raise RenderError(f"cycles: unexpected depth channels {sorted(z)}")
+            result.depth = np.where(d >= _BACKGROUND_DEPTH, np.inf, d).astype(np.float32)
+        if "normal" in outputs:
+            n = _read_exr(_find(directory, "normal"))
+            nrm = np.stack([n["X"], n["Y"], n["Z"]], axis=-1)
+            length = np.linalg.norm(nrm, axis=-1, keepdims=True)
+            result.normal = np.divide(nrm, length, out=np.zeros_like(nrm), where=length > 1e-6).astype(np.float32)
+        if "instance" in outputs:
+            ix = _read_exr(_find(directory, "instance"))
+            idx = ix.get("R", ix.get("X", ix.get("V")))
+            if idx is None:
+                raise RenderError(f"cycles: unexpected object-index channels {sorted(ix)}")
+            result.instance = (np.rint(idx).astype(np.int32) - 1).astype(np.int32)
+        if "albedo" in outputs:
+            a = _read_exr(_find(directory, "albedo"))
+            result.albedo = np.stack([a["R"], a["G"], a["B"]], axis=-1).astype(np.float32)
+        timings["read_outputs"] = time.perf_counter() - t2
+        result.instance_tags = list(built.instance_tags)
+        result.meta["timings"] = timings
+        result.meta["engine_settings"] = dict(built.engine_settings)
+        result.meta["samples"] = int(built.engine_settings.get("samples", settings.samples))
+        result.meta["log_tail"] = cap.lines[-5:]
+        return result
+    finally:
+        shutil.rmtree(directory, ignore_errors=True)
