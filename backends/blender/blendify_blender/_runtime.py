@@ -133,7 +133,7 @@ def capture_output(what: str, verbose: bool | None = None) -> Iterator[_Capture]
         for line in cap.lines:
             log.debug("blender[%s]: %s", what, line)
             if verbose:
-                print(f"[blender] {line}", file=sys.stderr)
+                sys.stderr.write(f"[blender] {line}\n")
 
 
 _local = threading.local()
