@@ -7,13 +7,23 @@ are imported by the functions that need them.
 
 from __future__ import annotations
 
+from .animation import FramesReport, render_frames, write_video
+from .colors import approximate_colors_from_camera
 from .image import blend_with_background, contact_sheet, crop_to_content, to_display_uint8
 from .normals import estimate_normals, normals_from_mesh, orient_normals
+from .trajectory import Pose, Trajectory, apply_pose
 
 __all__ = [
     "estimate_normals",
     "normals_from_mesh",
     "orient_normals",
+    "approximate_colors_from_camera",
+    "Trajectory",
+    "Pose",
+    "apply_pose",
+    "render_frames",
+    "write_video",
+    "FramesReport",
     "blend_with_background",
     "contact_sheet",
     "crop_to_content",

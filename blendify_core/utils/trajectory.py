@@ -382,7 +382,8 @@ def _modes(interpolation: str, rotation_interpolation: str | None) -> tuple[str,
     if rotation_interpolation is not None:
         if rotation_interpolation not in ROTATION_INTERPOLATIONS:
             raise InvalidSceneError(
-                f"rotation_interpolation: expected one of {list(ROTATION_INTERPOLATIONS)}, got {rotation_interpolation!r}"
+                f"rotation_interpolation: expected one of {list(ROTATION_INTERPOLATIONS)}, "
+                f"got {rotation_interpolation!r}"
             )
         rot = rotation_interpolation
     return pos, rot

@@ -1,0 +1,382 @@
+"""``bf.render_frames``: render a sequence (camera path or per-frame scene updates) to PNG frames and/or
+an MP4, with a progress bar, backend reuse between frames, and resumption of interrupted runs."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._validate import _describe, as_float
+from ..errors import BackendUnavailableError, InvalidSceneError
+
+__all__ = ["render_frames", "FramesReport", "MANIFEST_NAME", "write_video"]
+
+MANIFEST_NAME = "frames_manifest.json"
+_MANIFEST_VERSION = 1
+
+
+@dataclass
+class FramesReport:
+    """What :func:`render_frames` did.
+
+    ``frames``: PNG paths (one per frame, when ``frames_dir`` was given); ``video``: the MP4 path or
+    None; ``rendered`` / ``skipped``: frame indices rendered now / reused from an earlier run;
+    ``seconds``: render time per rendered frame; ``results``: the RenderResults when kept
+    (``keep_results=True``, or when neither frames_dir nor video_path was given)."""
+
+    frames: list[Path] = field(default_factory=list)
+    video: Path | None = None
+    rendered: list[int] = field(default_factory=list)
+    skipped: list[int] = field(default_factory=list)
+    seconds: list[float] = field(default_factory=list)
+    results: list[Any] = field(default_factory=list)
+    backend: str | None = None
+
+    def __len__(self) -> int:
+        return len(self.rendered) + len(self.skipped)
+
+
+def _jsonable(value: Any) -> Any:
+    from ..result import _jsonable as core_jsonable
+
+    return core_jsonable(value)
+
+
+def _read_manifest(path: Path) -> dict[str, Any]:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    if (
+        not isinstance(data, dict)
+        or data.get("version") != _MANIFEST_VERSION
+        or not isinstance(data.get("frames"), dict)
+    ):
+        return {}
+    return data
+
+
+def _write_json(path: Path, data: dict[str, Any]) -> None:
+    from ..result import atomic_write
+
+    text = json.dumps(data, indent=1, sort_keys=True)
+
+    def writer(tmp: str) -> None:
+        with open(tmp, "w") as f:
+            f.write(text)
+
+    atomic_write(path, writer)
+
+
+def _even_rgb(frame: np.ndarray) -> np.ndarray:
+    """Pad an (H, W, 3) uint8 frame to even dimensions (H.264 4:2:0 needs them) by edge replication."""
+    h, w = frame.shape[:2]
+    if h % 2 or w % 2:
+        frame = np.pad(frame, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+    return frame
+
+
+def _video_frame(result_or_png: Any, background: np.ndarray) -> np.ndarray:
+    from .image import blend_with_background
+
+    if isinstance(result_or_png, (str, Path)):
+        from PIL import Image
+
+        with Image.open(result_or_png) as im:
+            arr = np.asarray(im.convert("RGBA"))
+        rgb = blend_with_background(arr, background)
+    else:
+        rgb = blend_with_background(result_or_png.to_srgb8(), background)
+    return _even_rgb(rgb)
+
+
+class _VideoWriter:
+    """Writes frames to a temporary file next to ``path``; :meth:`finish` renames it into place."""
+
+    def __init__(self, path: Path, fps: float, quality: float | None, codec: str) -> None:
+        try:
+            import imageio.v2 as imageio
+            import imageio_ffmpeg  # noqa: F401  (the packaged ffmpeg binary)
+        except ImportError:
+            raise BackendUnavailableError(
+                "video_path: writing an MP4 needs the 'video' extra: pip install 'blendify-core[video]' "
+                "(imageio and imageio-ffmpeg)"
+            ) from None
+        if not path.parent.is_dir():
+            raise InvalidSceneError(f"video_path: the folder {str(path.parent)!r} does not exist")
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix or ".mp4", dir=path.parent)
+        os.close(fd)
+        self.tmp = Path(tmp)
+        self.path = path
+        kwargs: dict[str, Any] = {"fps": fps, "codec": codec, "macro_block_size": 1, "pixelformat": "yuv420p"}
+        if quality is not None:
+            kwargs["quality"] = quality
+        self._writer = imageio.get_writer(str(self.tmp), format="FFMPEG", mode="I", **kwargs)
+        self.shape: tuple[int, ...] | None = None
+
+    def append(self, frame: np.ndarray) -> None:
+        if self.shape is None:
+            self.shape = frame.shape
+        elif frame.shape != self.shape:
+            raise InvalidSceneError(
+                f"video_path: every frame of a video must have the same size; frame of shape {frame.shape} "
+                f"after frames of shape {self.shape} (did the camera resolution change?)"
+            )
+        self._writer.append_data(frame)
+
+    def finish(self) -> Path:
+        self._writer.close()
+        os.replace(self.tmp, self.path)
+        return self.path
+
+    def abort(self) -> None:
+        try:
+            self._writer.close()
+        except Exception:  # noqa: BLE001 - the original error matters more
+            pass
+        if self.tmp.exists():
+            self.tmp.unlink()
+
+
+def write_video(
+    frames: Sequence[Any],
+    video_path: str | os.PathLike[str],
+    fps: float = 30.0,
+    background: Any = (1.0, 1.0, 1.0),
+    quality: float | None = 8.0,
+    codec: str = "libx264",
+) -> Path:
+    """Encode PNG paths, uint8 images or RenderResults into an MP4 (H.264, yuv420p), atomically.
+    Transparent pixels are composited over ``background`` (sRGB); odd sizes are padded to even."""
+    from .image import _color3, blend_with_background, to_display_uint8
+
+    bg = _color3("background", background)
+    fps = as_float("fps", fps, min_value=0.0, exclusive_min=True)
+    if len(frames) == 0:
+        raise InvalidSceneError("frames: expected at least one frame")
+    writer = _VideoWriter(Path(video_path), fps, quality, codec)
+    try:
+        for f in frames:
+            if isinstance(f, (str, Path)) or hasattr(f, "to_srgb8"):
+                writer.append(_video_frame(f, bg))
+            else:
+                img = to_display_uint8(f)
+                writer.append(_even_rgb(blend_with_background(img, bg) if img.shape[2] == 4 else img))
+        return writer.finish()
+    except BaseException:
+        writer.abort()
+        raise
+
+
+def _frame_plan(
+    trajectory_or_callback: Any, fps: float, n_frames: int | None, interpolation: str, smoothness: float
+) -> tuple[list[Any] | None, Callable[[Any, int], Any] | None, int]:
+    from .trajectory import Pose, Trajectory
+
+    if isinstance(trajectory_or_callback, Trajectory):
+        poses = trajectory_or_callback.refine(1.0 / fps, interpolation=interpolation, smoothness=smoothness)
+        if n_frames is not None:
+            poses = poses[:n_frames]
+        return poses, None, len(poses)
+    if isinstance(trajectory_or_callback, (list, tuple)) and all(
+        isinstance(p, (Pose, dict)) for p in trajectory_or_callback
+    ):
+        poses = list(trajectory_or_callback)
+        if n_frames is not None:
+            poses = poses[:n_frames]
+        return poses, None, len(poses)
+    if callable(trajectory_or_callback):
+        if n_frames is None or isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)):
+            raise InvalidSceneError(
+                f"n_frames: a per-frame callback needs the number of frames (a positive integer), got {n_frames!r}"
+            )
+        return None, trajectory_or_callback, int(n_frames)
+    raise InvalidSceneError(
+        "trajectory_or_callback: expected a Trajectory, a list of poses, or a callable "
+        f"callback(scene, frame_index), got {_describe(trajectory_or_callback)}"
+    )
+
+
+def render_frames(
+    scene: Any,
+    trajectory_or_callback: Any,
+    backend: Any = None,
+    quality: str = "final",
+    frames_dir: str | os.PathLike[str] | None = None,
+    video_path: str | os.PathLike[str] | None = None,
+    fps: float = 30.0,
+    resume: bool = True,
+    progress: bool = True,
+    n_frames: int | None = None,
+    interpolation: str = "cubic",
+    smoothness: float = 0.0,
+    background: Any = (1.0, 1.0, 1.0),
+    video_quality: float | None = 8.0,
+    keep_results: bool = False,
+    restore_camera: bool = True,
+    **render_kwargs: Any,
+) -> FramesReport:
+    """Render a sequence of frames of ``scene`` with :func:`blendify_core.render`.
+
+    ``trajectory_or_callback``:
+      - a :class:`~blendify_core.utils.Trajectory`: refined every ``1 / fps`` seconds (``interpolation``,
+        ``smoothness``, see :meth:`Trajectory.refine`) and applied to ``scene.camera`` per frame;
+      - a list of poses (e.g. ``trajectory.refine(...)``);
+      - a callable ``callback(scene, frame_index)`` that updates any IR object (move a mesh, recolour a
+        point cloud, change a light) for frame ``frame_index`` in ``range(n_frames)``; it is called for
+        every frame in order, including frames skipped on resume.
+
+    Output: ``frames_dir`` gets ``frame_00000.png``... (8-bit sRGB, straight alpha, written atomically;
+    other requested ``outputs`` as ``depth_00000.png`` etc.) and a ``frames_manifest.json`` recording each
+    frame's provenance (scene fingerprint + settings); ``video_path`` gets an H.264 MP4 (needs the
+    ``video`` extra: imageio + imageio-ffmpeg) with transparent pixels over ``background``.
+    With neither, the RenderResults are returned in the report.
+
+    ``resume=True`` (with ``frames_dir``): a frame whose PNG exists and whose manifest entry matches the
+    current scene fingerprint and settings is not rendered again, so an interrupted run continues where it
+    stopped, and changing the scene or settings re-renders only the frames that changed.
+
+    The backend instance is resolved once and reused for every frame (``bf.render``'s shared instance),
+    so backends that cache the translated scene only update what changed. ``progress=True`` shows a
+    tqdm progress bar with ETA. The camera pose is restored afterwards (``restore_camera``).
+    Remaining keyword arguments go to :func:`blendify_core.render` (``samples``, ``outputs``, ``seed``,
+    backend options...).
+    """
+    from ..render import choose_backend
+    from ..render import render as bf_render
+    from ..scene import Scene
+
+    if not isinstance(scene, Scene):
+        raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {_describe(scene)}")
+    fps = as_float("fps", fps, min_value=0.0, exclusive_min=True)
+    if n_frames is not None and (
+        isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or n_frames < 1
+    ):
+        raise InvalidSceneError(f"n_frames: expected a positive integer, got {n_frames!r}")
+    poses, callback, count = _frame_plan(trajectory_or_callback, fps, n_frames, interpolation, smoothness)
+    if poses is not None and scene.camera is None:
+        raise InvalidSceneError("scene.camera: a trajectory moves the scene camera; set a camera first")
+    from .image import _color3
+
+    bg = _color3("background", background)
+
+    # resolve the backend once (a name stays a name so bf.render reuses its shared instance)
+    from ..backend import Backend
+
+    if backend is None:
+        backend_name, _notes = choose_backend(quality)
+        backend_arg: Any = backend_name
+    elif isinstance(backend, Backend):
+        backend_name, backend_arg = backend.name, backend
+    elif isinstance(backend, str):
+        backend_name, backend_arg = backend, backend
+    else:
+        raise InvalidSceneError(f"backend: expected a backend name or instance, got {_describe(backend)}")
+
+    outputs = render_kwargs.get("outputs", ("rgb",))
+    outputs = (outputs,) if isinstance(outputs, str) else tuple(outputs)
+    outputs = tuple("rgb" if o == "rgba" else o for o in outputs)
+    settings_key = _jsonable(
+        {
+            "backend": backend_name,
+            "quality": quality,
+            "render_kwargs": {k: render_kwargs[k] for k in sorted(render_kwargs)},
+        }
+    )
+
+    fdir: Path | None = None
+    manifest: dict[str, Any] = {"version": _MANIFEST_VERSION, "frames": {}}
+    manifest_path: Path | None = None
+    if frames_dir is not None:
+        fdir = Path(frames_dir)
+        fdir.mkdir(parents=True, exist_ok=True)
+        manifest_path = fdir / MANIFEST_NAME
+        if resume:
+            old = _read_manifest(manifest_path)
+            if old:
+                manifest["frames"] = old["frames"]
+    if video_path is not None and "rgb" not in outputs:
+        raise InvalidSceneError("video_path: a video needs the 'rgb' output; add 'rgb' to outputs")
+    keep = keep_results or (fdir is None and video_path is None)
+
+    report = FramesReport(backend=backend_name)
+    from ..transforms import Positionable  # noqa: F401  (type of scene.camera)
+    from .trajectory import apply_pose
+
+    cam = scene.camera
+    saved_pose = None if cam is None else (cam.quaternion.copy(), cam.translation.copy())
+    writer = _VideoWriter(Path(video_path), fps, video_quality, "libx264") if video_path is not None else None
+
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=count, unit="frame", desc="render_frames", dynamic_ncols=True)
+    try:
+        for i in range(count):
+            if poses is not None:
+                apply_pose(scene.camera, poses[i])
+            else:
+                callback(scene, i)  # type: ignore[misc]
+            names = {o: (f"frame_{i:05d}.png" if o == "rgb" else f"{o}_{i:05d}.png") for o in outputs}
+            done = False
+            fingerprint = None
+            if fdir is not None:
+                fingerprint = scene.fingerprint()
+                entry = manifest["frames"].get(f"{i:05d}")
+                done = (
+                    resume
+                    and isinstance(entry, dict)
+                    and entry.get("fingerprint") == fingerprint
+                    and entry.get("settings") == settings_key
+                    and all((fdir / n).is_file() for n in names.values())
+                )
+            if done:
+                report.skipped.append(i)
+                if writer is not None:
+                    writer.append(_video_frame(fdir / names["rgb"], bg))  # type: ignore[operator]
+            else:
+                t0 = time.perf_counter()
+                result = bf_render(scene, backend=backend_arg, quality=quality, **render_kwargs)
+                report.seconds.append(time.perf_counter() - t0)
+                report.rendered.append(i)
+                if fdir is not None:
+                    for o, n in names.items():
+                        result.save(fdir / n, output=o)
+                    manifest["frames"][f"{i:05d}"] = {
+                        "fingerprint": fingerprint,
+                        "settings": settings_key,
+                        "files": sorted(names.values()),
+                        "seconds": report.seconds[-1],
+                        "backend": result.meta.get("backend"),
+                        "engine_version": result.meta.get("engine_version"),
+                    }
+                    _write_json(manifest_path, manifest)  # type: ignore[arg-type]
+                if writer is not None:
+                    writer.append(_video_frame(result, bg))
+                if keep:
+                    report.results.append(result)
+            if fdir is not None:
+                report.frames.append(fdir / names.get("rgb", next(iter(names.values()))))
+            if bar is not None:
+                bar.set_postfix(rendered=len(report.rendered), skipped=len(report.skipped), refresh=False)
+                bar.update(1)
+        if writer is not None:
+            report.video = writer.finish()
+            writer = None
+    finally:
+        if bar is not None:
+            bar.close()
+        if writer is not None:
+            writer.abort()
+        if restore_camera and poses is not None and saved_pose is not None and scene.camera is cam:
+            cam.set_position(rotation_mode="quaternionWXYZ", rotation=saved_pose[0], translation=saved_pose[1])
+    return report
