@@ -70,6 +70,7 @@ from .renderables import (
 from .result import RenderResult
 from .scene import Scene
 from .settings import RenderSettings, resolve_settings
+from .utils.animation import render_frames as render_frames
 
 __version__ = "0.1.0"
 
