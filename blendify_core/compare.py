@@ -16,8 +16,9 @@ Metrics (``report.metrics[output][metric]``):
 - ``depth`` (where both hit): quantiles ``rel_diff_q50``/``rel_diff_q99``/``rel_diff_q999`` and
   ``rel_diff_max`` of ``|a - r| / r``.
 - ``mask`` (hit masks: from depth, else instance, else alpha >= 0.5): ``iou``, ``n_disagree``,
-  ``n_disagree_interior`` (disagreeing pixels farther than 1 px from both masks' boundaries, i.e. not an
-  anti-aliasing/tessellation edge) and ``edge_disagree_fraction`` (``n_disagree`` / boundary pixels).
+  ``n_disagree_interior`` (disagreeing pixels that are not within 1 px of both masks' boundaries, i.e.
+  not explained by a silhouette moved by <= 1 px: holes, specks, shifts of >= 2 px) and
+  ``edge_disagree_fraction`` (``n_disagree`` / boundary pixels).
 - ``normal`` (where both hit): ``angle_mean_deg``, ``angle_q50_deg``, ``angle_q99_deg``,
   ``angle_max_deg``, ``flipped_fraction`` (angle > 90 degrees: opposite sidedness conventions).
 - ``instance`` (where both hit, ids matched by tag name through ``instance_tags``): ``agreement``,
@@ -55,6 +56,7 @@ __all__ = [
     "crosscheck",
     "crosscheck_main",
     "choose_tier",
+    "is_path_tracer",
     "alpha_centroids",
     "heat_map",
 ]
@@ -286,7 +288,9 @@ def _mask_metrics(ma: np.ndarray, mb: np.ndarray) -> tuple[dict[str, float], np.
     union = ma | mb
     inter = ma & mb
     dis = ma ^ mb
-    zone = _edge_zone(ma) | _edge_zone(mb)
+    # an anti-aliasing / tessellation disagreement lies on a silhouette moved by at most 1 px: within 1 px
+    # of BOTH masks' boundaries. A hole, a speck or a silhouette moved by >= 2 px is an interior disagreement.
+    zone = _edge_zone(ma) & _edge_zone(mb)
     interior = dis & ~zone
     n_boundary = int((_inner_boundary(ma) | _inner_boundary(mb)).sum())
     m = {
@@ -476,15 +480,28 @@ def _backend_of(result: RenderResult) -> str | None:
     return str(name) if name else None
 
 
+def is_path_tracer(backend: str | None) -> bool:
+    """Whether backend ``backend`` is a path tracer (:data:`PATH_TRACERS` or its class's ``path_tracer``)."""
+    if backend is None:
+        return False
+    if backend in PATH_TRACERS:
+        return True
+    from .backend import get_backend_class
+
+    try:
+        return bool(getattr(get_backend_class(backend), "path_tracer", False))
+    except (BackendUnavailableError, InvalidSceneError):
+        return False
+
+
 def choose_tier(backend_a: str | None, backend_b: str | None, scene: Any = None) -> str:
     """The tier for a backend pair: "raster" when either is not a path tracer; for two path tracers
     "pathtracer_delta" when ``scene`` is given and uses only delta lights and Lambertian materials,
-    else "pathtracer"."""
-    if backend_a is None or backend_b is None:
-        return "pathtracer"
-    pt_a, pt_b = backend_a in PATH_TRACERS, backend_b in PATH_TRACERS
+    else "pathtracer". Unknown backends (None) count as path tracers."""
+    pt_a = backend_a is None or is_path_tracer(backend_a)
+    pt_b = backend_b is None or is_path_tracer(backend_b)
     if not (pt_a and pt_b):
-        return "raster" if (pt_a or pt_b) else "identical"
+        return "raster"
     if scene is not None and _delta_diffuse(scene):
         return "pathtracer_delta"
     return "pathtracer"
