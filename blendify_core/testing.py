@@ -94,8 +94,9 @@ def marker_scene(
         ]
     )
     depths = np.array([5.0, 5.5, 6.0, 6.5, 5.8, 6.2])
-    pts = marker_points(scene, pixels, depths)
-    if orthographic:
+    if not orthographic:
+        pts = marker_points(scene, pixels, depths)
+    else:
         cam = scene.camera
         r, t = cam.opencv_extrinsics()  # type: ignore[union-attr]
         s = cam.pixel_size  # type: ignore[union-attr]
