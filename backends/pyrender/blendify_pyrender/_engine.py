@@ -1,0 +1,334 @@
+"""The live side of the backend: one OpenGL context, one renderer and the cached pyrender scene.
+
+The cached scene is updated, not rebuilt: renderables are keyed by ``uid`` and rebuilt only when their
+geometry/appearance revisions (or their materials' revisions) change; a transform change only moves the
+node; the camera is updated every frame; lights are rebuilt when any of them changes.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from blendify_core.errors import RenderError
+from blendify_core.lights import AreaLight, SpotLight, SunLight
+from blendify_core.result import RenderResult
+from blendify_core.settings import RenderSettings
+
+from ._platform import GLContext
+
+__all__ = ["Engine", "Frame"]
+
+_GAMMA = 2.2
+_LIN8 = ((np.arange(256, dtype=np.float64) / 255.0) ** _GAMMA).astype(np.float32)
+
+
+def _translate_mod() -> Any:
+    from . import _translate
+
+    return _translate
+
+
+@dataclass
+class _Entry:
+    key: tuple[Any, ...]
+    transform_rev: int
+    node: Any
+    offset: np.ndarray
+    notes: list[str]
+    catcher: bool
+    casts_shadow: bool
+
+
+@dataclass
+class Frame:
+    """What :meth:`Engine.sync` returns and :meth:`Engine.render` consumes: the scene (IR), the mesh
+    nodes in ``scene.renderables`` order (None for empty renderables) and the notes collected."""
+
+    scene: Any
+    nodes: list[Any]
+    tags: list[str]
+    notes: list[str] = field(default_factory=list)
+    sync_seconds: float = 0.0
+    rebuilt: int = 0
+
+
+def _renderable_key(r: Any) -> tuple[Any, ...]:
+    return (
+        type(r).__name__,
+        r.revision("geometry"),
+        r.revision("appearance"),
+        tuple((id(m), m.revision) for m in r.materials),
+        tuple(id(c) for c in r.colors_list),
+    )
+
+
+def _lights_key(lights: Any) -> tuple[Any, ...]:
+    items = tuple(
+        (l.uid, l.revision("transform"), l.revision("appearance"), l.revision("geometry"), repr(l._params()))
+        for l in lights  # noqa: E741
+    )
+    bg = lights.background
+    env = lights.environment
+    return (
+        items,
+        None if bg is None else (bg.strength, tuple(bg.color), bg.color_space),
+        None if env is None else (id(env), env.strength),
+    )
+
+
+def linearise_rgba8(img: np.ndarray) -> np.ndarray:
+    """pyrender's 8-bit colour (gamma 1/2.2, premultiplied by coverage through the MSAA resolve) to linear
+    premultiplied float32: straight = C / A, linear = straight^2.2, times A."""
+    a8 = img[..., 3]
+    out = np.empty(img.shape, dtype=np.float32)
+    out[..., :3] = _LIN8[img[..., :3]]
+    out[..., 3] = a8.astype(np.float32) / 255.0
+    partial = (a8 > 0) & (a8 < 255)
+    if np.any(partial):
+        a = out[..., 3][partial][:, None]
+        c = img[..., :3][partial].astype(np.float32) / 255.0
+        straight = np.clip(c / a, 0.0, 1.0)
+        out[..., :3][partial] = (straight**_GAMMA) * a
+    out[..., :3][a8 == 0] = 0.0
+    return out
+
+
+def box_downsample(img: np.ndarray, k: int) -> np.ndarray:
+    if k == 1:
+        return img
+    h, w = img.shape[0] // k, img.shape[1] // k
+    return img.reshape(h, k, w, k, *img.shape[2:]).mean(axis=(1, 3), dtype=np.float64).astype(np.float32)
+
+
+class Engine:
+    """Context + renderer + cached pyrender scene of one backend instance."""
+
+    def __init__(self, platform: str, device: int = 0) -> None:
+        self.context = GLContext(platform, device)  # prepares the platform before OpenGL is imported
+        self.context.make_current()
+        import pyrender
+
+        from ._renderer import FrameRenderer
+
+        self.renderer = FrameRenderer()
+        self.pscene = pyrender.Scene(bg_color=np.zeros(4), ambient_light=np.zeros(3))
+        self.entries: dict[int, _Entry] = {}
+        self._lights_key: Any = None
+        self._light_nodes: list[tuple[Any, Any, bool]] = []  # (node, IR light, casts)
+        self._camera_node: Any = None
+        self.msaa_supported = self.renderer.max_samples >= 2
+
+    # -- scene sync --------------------------------------------------------------------------------
+    def sync(self, scene: Any) -> Frame:
+        t0 = time.perf_counter()
+        tr = _translate_mod()
+        self.context.make_current()
+        seen: set[int] = set()
+        nodes: list[Any] = []
+        notes: list[str] = []
+        rebuilt = 0
+        for r in scene.renderables:
+            seen.add(r.uid)
+            key = _renderable_key(r)
+            entry = self.entries.get(r.uid)
+            if entry is None or entry.key != key:
+                if entry is not None and entry.node is not None:
+                    self.pscene.remove_node(entry.node)
+                built = tr.build_renderable(r)
+                node = None
+                if built.mesh is not None:
+                    node = self.pscene.add(built.mesh, pose=self._pose(r, built.offset))
+                entry = _Entry(
+                    key, r.revision("transform"), node, built.offset, built.notes, tr.is_shadow_catcher(r),
+                    r.emit_shadows,
+                )
+                self.entries[r.uid] = entry
+                rebuilt += 1
+            elif entry.transform_rev != r.revision("transform"):
+                if entry.node is not None:
+                    self.pscene.set_pose(entry.node, self._pose(r, entry.offset))
+                entry.transform_rev = r.revision("transform")
+            nodes.append(entry.node)
+            notes += entry.notes
+        for uid in [u for u in self.entries if u not in seen]:
+            entry = self.entries.pop(uid)
+            if entry.node is not None:
+                self.pscene.remove_node(entry.node)
+        self._sync_lights(scene.lights)
+        self._sync_camera(scene.camera)
+        return Frame(
+            scene=scene,
+            nodes=nodes,
+            tags=[r.tag for r in scene.renderables],
+            notes=sorted(set(notes)),
+            sync_seconds=time.perf_counter() - t0,
+            rebuilt=rebuilt,
+        )
+
+    @staticmethod
+    def _pose(r: Any, offset: np.ndarray) -> np.ndarray:
+        t = np.eye(4)
+        t[:3, 3] = offset
+        return r.matrix_world @ t
+
+    def _sync_lights(self, lights: Any) -> None:
+        key = _lights_key(lights)
+        if key == self._lights_key:
+            return
+        tr = _translate_mod()
+        for node, _, _ in self._light_nodes:
+            self.pscene.remove_node(node)
+        self._light_nodes = []
+        for light, pl, pose, casts in tr.build_lights(lights):
+            node = self.pscene.add(pl, pose=pose)
+            self._light_nodes.append((node, light, casts))
+        # pyrender's ambient term has no 0.96 factor: scale it so base/0.96 x ambient = albedo x radiance
+        self.pscene.ambient_light = tr.ambient_radiance(lights) * tr.DIFFUSE_COMPENSATION
+        self._lights_key = key
+
+    def _sync_camera(self, cam: Any) -> None:
+        tr = _translate_mod()
+        proj = tr.projection_matrix(cam)
+        if self._camera_node is None:
+            self._camera_node = self.pscene.add(tr.MatrixCamera(proj, cam.near, cam.far), pose=cam.matrix_world)
+        else:
+            c = self._camera_node.camera
+            c.projection = proj
+            c.znear, c.zfar = cam.near, cam.far
+            self.pscene.set_pose(self._camera_node, cam.matrix_world)
+
+    # -- rendering ---------------------------------------------------------------------------------
+    def _shadow_flags(self, frame: Frame) -> int:
+        from pyrender.constants import RenderFlags
+
+        casters = any(
+            self.entries[r.uid].casts_shadow and self.entries[r.uid].node is not None for r in frame.scene.renderables
+        )
+        flags = 0
+        for node, light, casts in self._light_nodes:
+            if not casts:
+                continue
+            if isinstance(light, SunLight) and casters:
+                flags |= RenderFlags.SHADOWS_DIRECTIONAL
+            elif isinstance(light, (SpotLight, AreaLight)) and casters:
+                flags |= RenderFlags.SHADOWS_SPOT
+        return flags
+
+    def render(self, frame: Frame, settings: RenderSettings, msaa: int, supersample: int) -> RenderResult:
+        cam = frame.scene.camera
+        w, h = cam.width, cam.height
+        timings: dict[str, float] = {"sync": frame.sync_seconds}
+        approximations = list(frame.notes)
+        self.context.make_current()
+        renderer = self.renderer
+        renderer.no_shadow_nodes = {
+            self.entries[r.uid].node for r in frame.scene.renderables if not self.entries[r.uid].casts_shadow
+        }
+        renderer.no_shadow_lights = {node for node, _, casts in self._light_nodes if not casts}
+        catchers = [
+            (i, node)
+            for i, (r, node) in enumerate(zip(frame.scene.renderables, frame.nodes))
+            if node is not None and self.entries[r.uid].catcher
+        ]
+        want = set(settings.outputs)
+        kinds = [type(light).__name__ for _, light, _ in self._light_nodes]
+        if any(kinds.count(k) > 4 for k in set(kinds)):
+            approximations.append("lights: pyrender shades at most 4 lights of each type (the nearest are used)")
+        samples = 0
+        result = RenderResult(instance_tags=list(frame.tags))
+        flags = self._shadow_flags(frame)
+        try:
+            gbuf = None
+            if want & {"depth", "normal", "albedo", "instance"} or catchers:
+                t0 = time.perf_counter()
+                ids = {node: (i, None) for i, node in enumerate(frame.nodes) if node is not None}
+                gbuf = renderer.render_gbuffer(self.pscene, w, h, ids)
+                timings["gbuffer"] = time.perf_counter() - t0
+            if "rgb" in want:
+                t0 = time.perf_counter()
+                samples = min(msaa, renderer.max_samples) if msaa > 0 and self.msaa_supported else 0
+                k = max(1, supersample)
+                img8 = renderer.render_color(self.pscene, w * k, h * k, samples, flags)
+                rgba = box_downsample(linearise_rgba8(img8), k)
+                timings["color"] = time.perf_counter() - t0
+                if catchers:
+                    t0 = time.perf_counter()
+                    rgba = self._apply_catchers(frame, rgba, gbuf, catchers, w, h, samples, k, flags)
+                    timings["shadow_catcher"] = time.perf_counter() - t0
+                if not settings.transparent_background:
+                    bg = np.clip(_translate_mod().ambient_radiance(frame.scene.lights), 0, None).astype(np.float32)
+                    rgba[..., :3] += (1.0 - rgba[..., 3:4]) * bg
+                    rgba[..., 3] = 1.0
+                result.rgba = rgba
+        except RenderError:
+            raise
+        except Exception as exc:
+            raise RenderError(f"pyrender: rendering failed ({type(exc).__name__}: {exc})") from exc
+        if gbuf is not None:
+            if "depth" in want:
+                result.depth = gbuf.depth
+            if "normal" in want:
+                result.normal = gbuf.normal
+            if "albedo" in want:
+                result.albedo = gbuf.albedo
+            if "instance" in want:
+                result.instance = gbuf.instance
+        result.meta.update(
+            backend="pyrender",
+            platform=self.context.platform,
+            antialiasing={"msaa": samples if "rgb" in want else 0, "supersample": max(1, supersample)}
+            if "rgb" in want
+            else None,
+            approximations=sorted(set(approximations)),
+            timings=timings,
+            rebuilt_renderables=frame.rebuilt,
+        )
+        return result
+
+    def _apply_catchers(
+        self,
+        frame: Frame,
+        rgba: np.ndarray,
+        gbuf: Any,
+        catchers: list[tuple[int, Any]],
+        w: int,
+        h: int,
+        samples: int,
+        k: int,
+        flags: int,
+    ) -> np.ndarray:
+        """Shadow catchers: render the catchers alone (unoccluded light), then replace catcher pixels by
+        black with alpha = 1 - shadowed / unshadowed luminance (Cycles' shadow-catcher compositing)."""
+        catcher_nodes = {node for _, node in catchers}
+        hidden = [n for n in self.pscene.mesh_nodes if n not in catcher_nodes and n.mesh.is_visible]
+        for n in hidden:
+            n.mesh.is_visible = False
+        try:
+            alone = box_downsample(linearise_rgba8(self.renderer.render_color(self.pscene, w * k, h * k, samples, flags)), k)
+        finally:
+            for n in hidden:
+                n.mesh.is_visible = True
+        lum_w = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+        inst = gbuf.instance
+        mask = np.isin(inst, [i for i, _ in catchers])
+        with_occ = rgba[..., :3] @ lum_w
+        without = alone[..., :3] @ lum_w
+        ratio = np.divide(with_occ, without, out=np.ones_like(with_occ), where=without > 1e-6)
+        shadow_alpha = np.clip(1.0 - ratio, 0.0, 1.0)
+        out = rgba.copy()
+        out[mask, :3] = 0.0
+        out[mask, 3] = shadow_alpha[mask]
+        return out
+
+    def close(self) -> None:
+        if not self.context.alive:
+            return
+        try:
+            self.context.make_current()
+            self.renderer.delete()
+        finally:
+            self.context.release()

@@ -1,0 +1,378 @@
+"""The OpenGL side: a pyrender ``Renderer`` drawing into framebuffers chosen per frame.
+
+Import this module only after :func:`blendify_pyrender._platform.prepare_platform` (it imports OpenGL).
+
+Differences from pyrender's stock renderer (0.1.45):
+
+- colour pass into an RGBA8 framebuffer with ``samples`` MSAA samples (0 = none), alpha = coverage;
+  depth is not read back (geometric outputs come from the G-buffer pass);
+- a G-buffer pass without MSAA (our own shaders): planar view depth, world normal, albedo and instance id
+  in float32 framebuffers, exact at pixel centres, no face culling (two-sided), so the orthographic depth
+  bug of pyrender's depth linearisation does not arise;
+- pyrender's ``mesh.frag`` is used with one patch: back faces are shaded with the flipped normal
+  (two-sided shading, as Cycles);
+- shadow maps skip objects that cast no shadow and lights that cast none.
+"""
+
+from __future__ import annotations
+
+import atexit
+import ctypes
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyrender
+from OpenGL.GL import (
+    GL_BLEND,
+    GL_COLOR_ATTACHMENT0,
+    GL_COLOR_ATTACHMENT1,
+    GL_COLOR_BUFFER_BIT,
+    GL_CULL_FACE,
+    GL_DEPTH_ATTACHMENT,
+    GL_DEPTH_BUFFER_BIT,
+    GL_DEPTH_COMPONENT24,
+    GL_DEPTH_TEST,
+    GL_DRAW_FRAMEBUFFER,
+    GL_FILL,
+    GL_FLOAT,
+    GL_FRAMEBUFFER,
+    GL_FRAMEBUFFER_COMPLETE,
+    GL_FRONT_AND_BACK,
+    GL_LESS,
+    GL_MAX_SAMPLES,
+    GL_MULTISAMPLE,
+    GL_NEAREST,
+    GL_READ_FRAMEBUFFER,
+    GL_RENDERBUFFER,
+    GL_RGBA,
+    GL_RGBA8,
+    GL_RGBA32F,
+    GL_TRIANGLES,
+    GL_UNSIGNED_BYTE,
+    GL_UNSIGNED_INT,
+    glBindFramebuffer,
+    glBindRenderbuffer,
+    glBlitFramebuffer,
+    glCheckFramebufferStatus,
+    glClear,
+    glClearBufferfv,
+    glClearColor,
+    glDeleteFramebuffers,
+    glDeleteRenderbuffers,
+    glDepthFunc,
+    glDepthMask,
+    glDisable,
+    glDrawArraysInstanced,
+    glDrawBuffers,
+    glDrawElementsInstanced,
+    glEnable,
+    glFinish,
+    glFramebufferRenderbuffer,
+    glGenFramebuffers,
+    glGenRenderbuffers,
+    glGetIntegerv,
+    glPolygonMode,
+    glReadBuffer,
+    glReadPixels,
+    glRenderbufferStorage,
+    glRenderbufferStorageMultisample,
+    glViewport,
+)
+from pyrender.constants import BufFlags, RenderFlags
+
+from blendify_core.errors import RenderError
+
+__all__ = ["FrameRenderer", "GBuffer"]
+
+_SHADER_DIR = Path(__file__).resolve().parent / "shaders"
+_TWO_SIDED_ANCHOR = "vec3 n = normalize(get_normal());"
+_TWO_SIDED_PATCH = _TWO_SIDED_ANCHOR + "\n    if (!gl_FrontFacing) { n = -n; }"
+_patched_dir: str | None = None
+
+
+def _shader_dir() -> str:
+    """A per-process folder holding pyrender's shaders (mesh.frag patched for two-sided shading) and ours."""
+    global _patched_dir
+    if _patched_dir is not None and os.path.isdir(_patched_dir):
+        return _patched_dir
+    src = Path(pyrender.__file__).resolve().parent / "shaders"
+    dst = tempfile.mkdtemp(prefix="blendify_pyrender_shaders_")
+    for f in src.iterdir():
+        if f.is_file():
+            shutil.copyfile(f, os.path.join(dst, f.name))
+    mesh_frag = Path(dst) / "mesh.frag"
+    text = mesh_frag.read_text()
+    if _TWO_SIDED_ANCHOR not in text:
+        raise RenderError(
+            f"pyrender {pyrender.__version__}: mesh.frag changed (no {_TWO_SIDED_ANCHOR!r}); this backend "
+            "supports pyrender 0.1.45"
+        )
+    mesh_frag.write_text(text.replace(_TWO_SIDED_ANCHOR, _TWO_SIDED_PATCH, 1))
+    for f in _SHADER_DIR.iterdir():
+        if f.suffix in (".vert", ".frag"):
+            shutil.copyfile(f, os.path.join(dst, f.name))
+    atexit.register(shutil.rmtree, dst, True)
+    _patched_dir = dst
+    return dst
+
+
+def _buffer_defines(primitive: Any) -> dict[str, int]:
+    """Attribute locations of a pyrender primitive's vertex array (the order ``_add_to_context`` uses)."""
+    bf = primitive.buf_flags
+    defines: dict[str, int] = {}
+    loc = 1
+    for flag, name in (
+        (BufFlags.NORMAL, "NORMAL_LOC"),
+        (BufFlags.TANGENT, "TANGENT_LOC"),
+        (BufFlags.TEXCOORD_0, "TEXCOORD_0_LOC"),
+        (BufFlags.TEXCOORD_1, "TEXCOORD_1_LOC"),
+        (BufFlags.COLOR_0, "COLOR_0_LOC"),
+    ):
+        if bf & flag:
+            defines[name] = loc
+            loc += 1
+    defines["INST_M_LOC"] = loc
+    return defines
+
+
+class GBuffer:
+    """Float G-buffer of one frame (rows top to bottom): ``geom`` (H, W, 4) = world normal xyz + planar
+    depth, ``surface`` (H, W, 4) = albedo rgb + (instance id + 1); both 0 where nothing was hit."""
+
+    def __init__(self, geom: np.ndarray, surface: np.ndarray) -> None:
+        self.geom = geom
+        self.surface = surface
+
+    @property
+    def hit(self) -> np.ndarray:
+        return self.surface[..., 3] > 0.5
+
+    @property
+    def depth(self) -> np.ndarray:
+        return np.where(self.hit, self.geom[..., 3], np.inf).astype(np.float32)
+
+    @property
+    def normal(self) -> np.ndarray:
+        n = self.geom[..., :3]
+        length = np.linalg.norm(n, axis=-1, keepdims=True)
+        return np.divide(n, length, out=np.zeros_like(n), where=length > 0).astype(np.float32)
+
+    @property
+    def albedo(self) -> np.ndarray:
+        return np.ascontiguousarray(self.surface[..., :3], dtype=np.float32)
+
+    @property
+    def instance(self) -> np.ndarray:
+        return np.rint(self.surface[..., 3]).astype(np.int32) - 1
+
+
+class FrameRenderer(pyrender.Renderer):
+    """pyrender's renderer with per-frame framebuffers (see the module docstring)."""
+
+    def __init__(self) -> None:
+        super().__init__(1, 1)
+        self._program_cache = pyrender.shader_program.ShaderProgramCache(shader_dir=_shader_dir())
+        self.max_samples = int(glGetIntegerv(GL_MAX_SAMPLES))
+        self._targets: dict[tuple[str, int, int, int], dict[str, Any]] = {}
+        self._target: tuple[int, int, int] = (1, 1, 0)
+        self._shadow_light: Any = None
+        #: nodes that cast no shadow / lights that cast none / nodes hidden in the current pass
+        self.no_shadow_nodes: set[Any] = set()
+        self.no_shadow_lights: set[Any] = set()
+
+    # -- framebuffers ----------------------------------------------------------------------------
+    def _framebuffer(self, kind: str, width: int, height: int, samples: int) -> dict[str, Any]:
+        key = (kind, width, height, samples)
+        fb = self._targets.get(key)
+        if fb is not None:
+            return fb
+        # keep one size per kind: drop stale targets of this kind
+        for old in [k for k in self._targets if k[0] == kind]:
+            self._free_target(self._targets.pop(old))
+        fb = {"fbos": [], "rbs": []}
+        if kind == "color":
+            color_rb, depth_rb = glGenRenderbuffers(2)
+            glBindRenderbuffer(GL_RENDERBUFFER, color_rb)
+            if samples > 0:
+                glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_RGBA8, width, height)
+            else:
+                glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height)
+            glBindRenderbuffer(GL_RENDERBUFFER, depth_rb)
+            if samples > 0:
+                glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_DEPTH_COMPONENT24, width, height)
+            else:
+                glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, width, height)
+            draw = glGenFramebuffers(1)
+            glBindFramebuffer(GL_FRAMEBUFFER, draw)
+            glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color_rb)
+            glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb)
+            self._check_complete("colour")
+            fb["fbos"].append(draw)
+            fb["rbs"] += [color_rb, depth_rb]
+            fb["draw"] = draw
+            fb["read"] = draw
+            if samples > 0:
+                resolve_rb = glGenRenderbuffers(1)
+                glBindRenderbuffer(GL_RENDERBUFFER, resolve_rb)
+                glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height)
+                resolve = glGenFramebuffers(1)
+                glBindFramebuffer(GL_FRAMEBUFFER, resolve)
+                glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, resolve_rb)
+                self._check_complete("resolve")
+                fb["fbos"].append(resolve)
+                fb["rbs"].append(resolve_rb)
+                fb["read"] = resolve
+        else:  # G-buffer: two float attachments + depth, never multisampled
+            rbs = list(glGenRenderbuffers(3))
+            for rb, fmt in zip(rbs, (GL_RGBA32F, GL_RGBA32F, GL_DEPTH_COMPONENT24)):
+                glBindRenderbuffer(GL_RENDERBUFFER, rb)
+                glRenderbufferStorage(GL_RENDERBUFFER, fmt, width, height)
+            draw = glGenFramebuffers(1)
+            glBindFramebuffer(GL_FRAMEBUFFER, draw)
+            glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, rbs[0])
+            glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_RENDERBUFFER, rbs[1])
+            glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, rbs[2])
+            self._check_complete("G-buffer")
+            fb["fbos"].append(draw)
+            fb["rbs"] += rbs
+            fb["draw"] = fb["read"] = draw
+        glBindFramebuffer(GL_FRAMEBUFFER, 0)
+        self._targets[key] = fb
+        return fb
+
+    @staticmethod
+    def _check_complete(what: str) -> None:
+        status = glCheckFramebufferStatus(GL_FRAMEBUFFER)
+        if status != GL_FRAMEBUFFER_COMPLETE:
+            raise RenderError(f"pyrender: the {what} framebuffer is incomplete (status 0x{int(status):x})")
+
+    @staticmethod
+    def _free_target(fb: dict[str, Any]) -> None:
+        if fb["fbos"]:
+            glDeleteFramebuffers(len(fb["fbos"]), fb["fbos"])
+        if fb["rbs"]:
+            glDeleteRenderbuffers(len(fb["rbs"]), fb["rbs"])
+
+    # pyrender hooks: the forward pass binds self._main_fb_ms and reads through _read_main_framebuffer
+    def _configure_main_framebuffer(self) -> None:
+        w, h, samples = self._target
+        self._main_fb_ms = self._framebuffer("color", w, h, samples)["draw"]
+
+    def _delete_main_framebuffer(self) -> None:
+        for fb in self._targets.values():
+            self._free_target(fb)
+        self._targets = {}
+        self._main_fb_ms = None
+
+    def _read_main_framebuffer(self, scene: Any, flags: int) -> Any:
+        w, h, samples = self._target
+        fb = self._framebuffer("color", w, h, samples)
+        if samples > 0:
+            glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["draw"])
+            glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb["read"])
+            glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST)
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["read"])
+        glReadBuffer(GL_COLOR_ATTACHMENT0)
+        buf = glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE)
+        img = np.frombuffer(buf, dtype=np.uint8).reshape(h, w, 4)
+        return img[::-1], None
+
+    # -- shadow control --------------------------------------------------------------------------
+    def _shadow_mapping_pass(self, scene: Any, light_node: Any, flags: int) -> None:
+        self._shadow_light = light_node
+        try:
+            super()._shadow_mapping_pass(scene, light_node, flags)
+        finally:
+            self._shadow_light = None
+
+    def _sorted_mesh_nodes(self, scene: Any) -> list[Any]:
+        nodes = super()._sorted_mesh_nodes(scene)
+        if self._shadow_light is not None:
+            if self._shadow_light in self.no_shadow_lights:
+                return []  # an empty (cleared) shadow map: the light casts no shadow
+            return [n for n in nodes if n not in self.no_shadow_nodes]
+        return nodes
+
+    # -- passes ----------------------------------------------------------------------------------
+    def render_color(self, scene: Any, width: int, height: int, samples: int, flags: int) -> np.ndarray:
+        """Lit colour pass: (H, W, 4) uint8, gamma 1/2.2 encoded (pyrender's shader), alpha = coverage."""
+        self.viewport_width, self.viewport_height = width, height
+        self._target = (width, height, samples)
+        flags |= RenderFlags.OFFSCREEN | RenderFlags.RGBA | RenderFlags.SKIP_CULL_FACES
+        if samples == 0:
+            glDisable(GL_MULTISAMPLE)
+        color, _ = self.render(scene, flags)
+        return color
+
+    def render_gbuffer(self, scene: Any, width: int, height: int, ids: dict[Any, tuple[int, np.ndarray]]) -> GBuffer:
+        """Draw the mesh nodes in ``ids`` (node -> (instance id, linear albedo factor RGBA)) into the float
+        G-buffer, one sample per pixel centre, both faces."""
+        self._update_context(scene, RenderFlags.NONE)
+        fb = self._framebuffer("gbuffer", width, height, 0)
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb["draw"])
+        glDrawBuffers(2, [GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1])
+        glViewport(0, 0, width, height)
+        zero = np.zeros(4, dtype=np.float32)
+        glClearBufferfv(0x1800, 0, zero)  # GL_COLOR
+        glClearBufferfv(0x1800, 1, zero)
+        glClearColor(0.0, 0.0, 0.0, 0.0)
+        glClear(GL_DEPTH_BUFFER_BIT)
+        glEnable(GL_DEPTH_TEST)
+        glDepthMask(True)
+        glDepthFunc(GL_LESS)
+        glDisable(GL_CULL_FACE)
+        glDisable(GL_BLEND)
+        glDisable(GL_MULTISAMPLE)
+        glPolygonMode(GL_FRONT_AND_BACK, GL_FILL)
+        self.viewport_width, self.viewport_height = width, height
+        V, P = self._get_camera_matrices(scene)  # noqa: N806
+        program = None
+        for node in scene.mesh_nodes:
+            entry = ids.get(node)
+            if entry is None or not node.mesh.is_visible:
+                continue
+            inst_id, _ = entry
+            pose = scene.get_pose(node)
+            for prim in node.mesh.primitives:
+                defines = _buffer_defines(prim)
+                tex = getattr(prim.material, "baseColorTexture", None)
+                if tex is not None and "TEXCOORD_0_LOC" in defines:
+                    defines["HAS_BASE_COLOR_TEX"] = 1
+                program = self._program_cache.get_program(
+                    vertex_shader="blendify_gbuffer.vert", fragment_shader="blendify_gbuffer.frag", defines=defines
+                )
+                if not program._in_context():
+                    program._add_to_context()
+                program._bind()
+                program.set_uniform("V", V)
+                program.set_uniform("P", P)
+                program.set_uniform("M", pose)
+                program.set_uniform("instance_id", float(inst_id + 1))
+                program.set_uniform("albedo_factor", np.asarray(prim.albedo_factor, dtype=np.float32))
+                if "HAS_BASE_COLOR_TEX" in defines:
+                    self._bind_texture(tex, "base_color_texture", program)
+                prim._bind()
+                n_inst = 1 if prim.poses is None else len(prim.poses)
+                if prim.indices is not None:
+                    glDrawElementsInstanced(
+                        GL_TRIANGLES, prim.indices.size, GL_UNSIGNED_INT, ctypes.c_void_p(0), n_inst
+                    )
+                else:
+                    glDrawArraysInstanced(GL_TRIANGLES, 0, len(prim.positions), n_inst)
+                prim._unbind()
+                self._reset_active_textures()
+        if program is not None:
+            program._unbind()
+        glFinish()
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["read"])
+        out = []
+        for att in (GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1):
+            glReadBuffer(att)
+            buf = glReadPixels(0, 0, width, height, GL_RGBA, GL_FLOAT)
+            out.append(np.frombuffer(buf, dtype=np.float32).reshape(height, width, 4)[::-1])
+        glBindFramebuffer(GL_FRAMEBUFFER, 0)
+        return GBuffer(out[0], out[1])
