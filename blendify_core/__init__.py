@@ -16,6 +16,7 @@ from .backend import (
     get_backend_class,
     register_backend,
 )
+from .batch import BatchReport, RenderJob, render_many
 from .cameras import Camera, OrthographicCamera, PerspectiveCamera
 from .colors import (
     FacesUV,
@@ -78,6 +79,9 @@ __all__ = [
     "__version__",
     "Scene",
     "render",
+    "render_many",
+    "RenderJob",
+    "BatchReport",
     "compare",
     "crosscheck",
     "CompareReport",

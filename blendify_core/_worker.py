@@ -1,0 +1,180 @@
+"""The code that runs one batch job in a worker (a pool process, a Ray task, a Dask/submitit task).
+
+A job arrives as a plain dict of JSON-like values plus, at most, the bytes of a portable scene file:
+no engine object ever crosses a process boundary. The worker loads the scene, renders it with
+``bf.render`` (so the process-wide shared backend instance stays warm from job to job), writes the
+outputs atomically and returns a small dict describing what happened.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+__all__ = ["run_job", "pool_main", "output_files", "rss_mb"]
+
+
+def rss_mb() -> float | None:
+    """Resident set size of this process in MiB (Linux /proc; peak RSS elsewhere), None if unknown."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    try:
+        import resource
+        import sys
+
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        return peak / (1024.0 * 1024.0) if sys.platform == "darwin" else peak / 1024.0
+    except (ImportError, OSError):
+        return None
+
+
+def output_files(output: str, outputs: tuple[str, ...] | list[str]) -> list[str]:
+    """The files a job writes: ``output`` itself and, for images (.png/.exr), one ``<stem>.<name><suffix>``
+    per extra requested output (a ``.npz`` output holds every requested output in one file)."""
+    p = Path(output)
+    if p.suffix.lower() == ".npz":
+        return [str(p)]
+    primary = "rgb" if "rgb" in outputs else outputs[0]
+    files = [str(p)]
+    files += [str(p.with_name(f"{p.stem}.{name}{p.suffix}")) for name in outputs if name != primary]
+    return files
+
+
+def _save(result: Any, output: str, outputs: tuple[str, ...]) -> list[str]:
+    files = output_files(output, outputs)
+    if Path(output).suffix.lower() == ".npz":
+        result.save(output)
+        return files
+    primary = "rgb" if "rgb" in outputs else outputs[0]
+    names = [primary] + [n for n in outputs if n != primary]
+    for name, path in zip(names, files):
+        result.save(path, output=name)
+    return files
+
+
+def _load_scene(payload: dict[str, Any]) -> Any:
+    from .scene import Scene
+
+    data = payload.get("scene_bytes")
+    if data is None:
+        return Scene.load(payload["scene_path"], allow_outside=bool(payload.get("allow_outside")))
+    import tempfile
+
+    fd, tmp = tempfile.mkstemp(prefix="blendify-job-", suffix=".npz")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        # written by render_many with absolute texture paths: reading them is intended
+        return Scene.load(tmp, allow_outside=True)
+    finally:
+        os.unlink(tmp)
+
+
+def _register(registrations: dict[str, str] | None) -> None:
+    if not registrations:
+        return
+    from . import backend as backend_mod
+
+    for name, target in registrations.items():
+        if name not in backend_mod._entry_points():
+            backend_mod.register_backend(name, target)
+
+
+def _watchdog(seconds: float, done: threading.Event) -> None:
+    """Kill this whole process when a job overruns (used only where the process runs nothing else:
+    a Ray task worker). The caller sees a dead worker and reports the timeout."""
+    if not done.wait(seconds):
+        import signal
+
+        os.kill(os.getpid(), getattr(signal, "SIGKILL", signal.SIGTERM))
+
+
+def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None) -> dict[str, Any]:
+    """Render one job described by ``payload`` (built by ``blendify_core.batch``) and write its outputs.
+
+    Never raises for a failed render: returns ``{"status": "failed", "reason": ...}``. A render that ends
+    after ``payload["timeout"]`` seconds is reported as a timeout and its outputs are NOT written, so an
+    abandoned job can never write behind the manifest's back.
+    """
+    t0 = time.perf_counter()
+    info: dict[str, Any] = {"index": payload.get("index"), "pid": os.getpid(), "host": socket.gethostname()}
+    done = threading.Event()
+    try:
+        _register(payload.get("registrations"))
+        from .backend import shared_backend
+        from .render import choose_backend, render
+
+        scene = _load_scene(payload)
+        settings = dict(payload.get("settings") or {})
+        options = dict(payload.get("options") or {})
+        name = payload.get("backend")
+        if name is None:
+            name, _ = choose_backend(settings.get("quality", "final"))
+        shared_backend(name, **options)  # warm up (engine import, context) before the clock starts
+        if on_start is not None:
+            on_start()
+        timeout = payload.get("timeout")
+        t_start = time.perf_counter()
+        if timeout is not None and payload.get("hard_timeout"):
+            threading.Thread(target=_watchdog, args=(float(timeout), done), daemon=True).start()
+        result = render(scene, backend=name, **settings, **options)
+        elapsed = time.perf_counter() - t_start
+        done.set()
+        if timeout is not None and elapsed > float(timeout):
+            info.update(
+                status="failed",
+                reason=f"timeout: the render took {elapsed:.1f} s > {float(timeout):g} s (outputs not written)",
+            )
+        else:
+            outputs = tuple(result.meta.get("settings", {}).get("outputs") or settings.get("outputs") or ("rgb",))
+            info.update(status="done", files=_save(result, payload["output"], outputs))
+        info["backend"] = result.meta.get("backend", name)
+        info["render_seconds"] = elapsed
+    except Exception as exc:  # reported per job; the worker and the run go on
+        done.set()
+        msg = str(exc).strip().splitlines()
+        info.update(status="failed", reason=f"{type(exc).__name__}: {msg[0] if msg else ''}".rstrip(": "))
+    info["seconds"] = time.perf_counter() - t0
+    info["rss_mb"] = rss_mb()
+    return info
+
+
+def pool_main(conn: Any) -> None:
+    """Main loop of a local pool worker process: receive a job dict, send ``("start", index)`` when the
+    render starts and ``("result", index, info)`` when it ends; ``None`` (or the parent going away) ends
+    the loop. Ctrl-C is left to the parent, which stops the workers itself."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        conn.send(("ready", os.getpid(), rss_mb()))
+        while True:
+            try:
+                payload = conn.recv()
+            except (EOFError, OSError):
+                break
+            if payload is None:
+                break
+            index = payload.get("index")
+            info = run_job(payload, on_start=lambda index=index: conn.send(("start", index)))
+            try:
+                conn.send(("result", index, info))
+            except (BrokenPipeError, OSError):
+                break
+    finally:
+        from .backend import close_backends
+
+        try:
+            close_backends()
+        finally:
+            conn.close()

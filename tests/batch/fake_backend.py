@@ -1,0 +1,76 @@
+"""A fake backend for the batch tests, importable by spawned workers as ``fake_backend:FakeBackend``.
+
+Each instance is told what to do through backend options (so one batch mixes behaviours per job):
+``action`` = "ok" | "sleep" | "raise" | "abort" | "kill" | "segfault" | "raise_if_exists",
+``seconds`` (sleep), ``path`` (raise_if_exists), ``log`` (append "<pid> <scene tag>" per render, so
+tests can count how often each job was rendered), ``leak_mb`` (keep that much memory per render).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from typing import Any
+
+import numpy as np
+
+from blendify_core.backend import Backend
+from blendify_core.errors import RenderError
+from blendify_core.features import ALL_FEATURES, Capability
+from blendify_core.result import RenderResult
+
+_LEAK: list[bytearray] = []
+
+
+class FakeBackend(Backend):
+    name = "fake"
+    engine = None
+
+    def __init__(
+        self,
+        action: str = "ok",
+        seconds: float = 0.0,
+        path: str | None = None,
+        log: str | None = None,
+        leak_mb: float = 0.0,
+    ) -> None:
+        super().__init__()
+        self.action, self.seconds, self.path, self.log, self.leak_mb = action, seconds, path, log, leak_mb
+
+    @classmethod
+    def capabilities(cls) -> dict[str, Capability]:
+        return {name: Capability("exact") for name in ALL_FEATURES}
+
+    def translate(self, scene: Any, settings: Any) -> Any:
+        return scene
+
+    def render(self, native: Any, settings: Any) -> RenderResult:
+        tags = [r.tag for r in native.renderables]
+        tag = tags[0] if tags else "-"
+        if self.log:
+            with open(self.log, "a", encoding="utf-8") as f:
+                f.write(f"{os.getpid()} {tag} {settings.threads}\n")
+        if self.leak_mb:
+            _LEAK.append(bytearray(os.urandom(1024)) * int(self.leak_mb * 1024))
+        if self.action == "sleep":
+            time.sleep(self.seconds)
+        elif self.action == "raise":
+            raise RenderError("fake engine failure: out of fake memory")
+        elif self.action == "raise_if_exists" and self.path and os.path.exists(self.path):
+            raise RenderError(f"fake engine failure: {self.path} exists")
+        elif self.action == "abort":
+            os.abort()
+        elif self.action == "kill":
+            os.kill(os.getpid(), signal.SIGKILL)
+        elif self.action == "segfault":
+            import ctypes
+
+            ctypes.string_at(0)
+        w, h = native.camera.resolution
+        seed = sum(tag.encode()) % 200
+        rgba = np.zeros((h, w, 4), dtype=np.float32)
+        rgba[..., 0] = seed / 255.0
+        rgba[..., 3] = 1.0
+        depth = np.full((h, w), 2.0, dtype=np.float32) if settings.wants("depth") else None
+        return RenderResult(rgba=rgba, depth=depth, meta={"backend": self.name})
