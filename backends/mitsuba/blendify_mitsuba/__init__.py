@@ -44,9 +44,8 @@ _CAPS: dict[str, tuple[str, str]] = {
     "mesh.faces_material": (E, "one Mitsuba mesh per material slot"),
     "mesh.smooth": (E, "vertex normals"),
     "pointcloud": (
-        A,
-        "analytic spheres up to max_analytic_spheres points (exact spheres; Cycles uses its own points), "
-        "beyond that the IR's merged icosphere mesh",
+        E,
+        "analytic spheres up to max_analytic_spheres points, beyond that the IR's merged icosphere mesh",
     ),
     "pointcloud.vertex_colors": (E, ""),
     "pointcloud.emission": (A, "area emitter on the spheres, front (outer) side only"),
@@ -54,16 +53,15 @@ _CAPS: dict[str, tuple[str, str]] = {
     "primitive.circle": (E, "IR tessellation"),
     "primitive.cylinder": (E, "IR tessellation"),
     "primitive.plane": (E, "IR tessellation"),
-    "primitive.sphere": (A, "analytic sphere (Cycles renders a NURBS/UV-sphere tessellation)"),
+    "primitive.sphere": (E, "analytic sphere"),
     "primitive.ellipsoid": (E, "IR tessellation"),
     "primitive.curve": (E, "IR tessellation (tube along the polyline)"),
     "shadow_catcher": (U, "not implemented in the Mitsuba backend (no built-in shadow catcher)"),
     "object.no_shadow": (U, "Mitsuba has no per-object shadow visibility"),
     "material.principled": (
         A,
-        "plain dielectric -> roughplastic (GGX, alpha = roughness^2, IOR from ior and Specular IOR Level); "
-        "otherwise Mitsuba 'principled' (Disney diffuse, Schlick Fresnel): dielectric speculars differ "
-        "by ~5-10 % from Cycles",
+        "Mitsuba 'principled' (Disney diffuse with retro-reflection, Schlick Fresnel; IOR from ior and "
+        "Specular IOR Level, alpha = roughness^2): dielectric speculars differ by ~5-10 % from Cycles",
     ),
     "material.diffuse_only": (E, "Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
     "material.metallic": (A, "Mitsuba 'principled' metallic (measured 1.008 x Cycles on a sphere)"),

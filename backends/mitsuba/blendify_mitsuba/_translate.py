@@ -188,13 +188,13 @@ def light_dicts(scene: Any) -> dict[str, dict[str, Any]]:
 def environment_dict(env: Any) -> dict[str, Any]:
     """An ``envmap`` reproducing :func:`blendify_core.lights.equirect_uv`.
 
-    Mitsuba's envmap looks up direction d (in its local frame) at u = (1 + atan2(d_x, -d_z) / pi) / 2,
-    v = acos(d_y) / pi (v = 0 at the top row). Blender's mapping for a world direction w is
-    u = 0.5 - atan2(w_y, w_x) / (2 pi), v_top = acos(w_z) / pi. With local = (-w_y, w_z, -w_x) both agree:
-    atan2(-w_y, w_x) = -atan2(w_y, w_x). So to_world maps local x -> -world y, y -> world z,
-    z -> -world x, composed with the map's own rotation."""
+    Mitsuba's envmap looks up the local direction d at u = atan2(d_x, -d_z) / (2 pi) (mod 1),
+    v = acos(d_y) / pi (v = 0 at the top row). Blender's mapping of a world direction w is
+    u = 0.5 - atan2(w_y, w_x) / (2 pi), v_top = acos(w_z) / pi. With local = (w_y, w_z, w_x) both agree
+    (atan2(w_y, -w_x) = pi - atan2(w_y, w_x)): to_world maps local x -> world y, y -> z, z -> x (a
+    proper rotation), composed with the map's own rotation."""
     img = env.linear_rgb_image().astype(np.float32) * np.float32(env.strength)
-    local_to_world = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    local_to_world = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     m = np.eye(4)
     m[:3, :3] = env.rotation_matrix @ local_to_world
     return {
