@@ -62,9 +62,17 @@ def factory_reset() -> None:
     bpy = bpy_module()
     with BPY_LOCK, capture_output("factory reset"):
         bpy.ops.wm.read_factory_settings(use_empty=True)
+        _generation += 1
         with contextlib.suppress(Exception):
             bpy.context.preferences.filepaths.use_scripts_auto_execute = False
-        _generation += 1
+        if not hasattr(bpy.context.scene, "cycles"):
+            # seen once: the Cycles add-on not re-registered after the reset; register it again
+            import addon_utils
+
+            log.warning("cycles: the Cycles add-on was not registered after a factory reset; enabling it")
+            addon_utils.enable("cycles", default_set=True)
+            if not hasattr(bpy.context.scene, "cycles"):
+                raise RenderError("cycles: the Cycles add-on is not available in this bpy session")
 
 
 class _Capture:

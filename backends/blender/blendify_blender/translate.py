@@ -633,11 +633,33 @@ class Translator:
     def _same_scene(self, scene: Any) -> bool:
         if self.built is None or self._scene_ref is None or self.built.generation != _runtime.generation():
             return False
-        return self._scene_ref() is scene.renderables
+        if self._scene_ref() is not scene.renderables:
+            return False
+        if not self._alive():
+            # someone else reset or replaced the bpy session: the cached datablocks are gone
+            self.built, self._scene_ref, self._lights_key = None, None, None
+            self._transforms.clear()
+            return False
+        return True
+
+    def _alive(self) -> bool:
+        """Whether the cached datablocks still exist (cheap spot check)."""
+        built = self.built
+        if built is None:
+            return False
+        try:
+            if _runtime.bpy_module().context.scene != built.bscene:
+                return False
+            for entry in [built.camera, *list(built.entries.values())[:1]]:
+                for obj in entry.objects:
+                    _ = obj.name
+        except ReferenceError:
+            return False
+        return True
 
     def clear(self) -> None:
         """Remove every datablock of the cached scene (the bpy session is left empty, not reset)."""
-        if self.built is not None and self.built.generation == _runtime.generation():
+        if self.built is not None and self.built.generation == _runtime.generation() and self._alive():
             self.built.remove()
             try:
                 _runtime.bpy_module().data.orphans_purge(do_recursive=True)
