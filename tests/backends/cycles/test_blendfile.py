@@ -1,0 +1,538 @@
+"""Tests of .blend files on the Cycles backend (``blendify_blender.blendfile``): attach never runs Python
+embedded in a file, bad paths give clear errors, IR -> export_blend -> attach_blend round-trips, and a
+hand-built .blend (every area-light shape, an off-centre principal point, modifiers, colour attributes,
+a packed texture) parses correctly.
+
+Test .blend files are built at test time in a subprocess (``python -c`` with bpy), so this process's bpy
+session is never reset by the fixtures.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+if importlib.util.find_spec("bpy") is None:  # pragma: no cover - depends on the environment
+    print("tests/backends/cycles/test_blendfile.py: skipped, the 'bpy' package is not installed")
+    pytest.skip("the 'bpy' package (Blender as a module) is not installed", allow_module_level=True)
+
+from blendify_blender.blendfile import (
+    BlendAttachWarning,
+    attach_blend,
+    blender_camera_intrinsics,
+    export_blend,
+)
+
+from blendify_core.colors import FacesUV, FileTextureColors, TextureColors, UniformColors, VertexColors
+from blendify_core.errors import InvalidSceneError
+from blendify_core.materials import DiffuseMaterial, PrincipledBSDFMaterial
+from blendify_core.scene import Scene
+
+pytestmark = pytest.mark.cycles
+
+
+# ---------------------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------------------
+
+
+def run_bpy_script(code: str, *args: str, timeout: float = 120.0) -> dict[str, Any]:
+    """Run ``code`` with bpy in a fresh interpreter; returns the JSON object printed on its last line."""
+    env = dict(os.environ)
+    proc = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code), *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=env,
+    )
+    if proc.returncode != 0:
+        raise AssertionError(f"bpy script failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
+    return json.loads(lines[-1]) if lines else {}
+
+
+def world_corners(r: Any) -> np.ndarray:
+    """(F, 3, 3) world-space triangle corners of a mesh renderable."""
+    v = r.vertices @ r.rotation_matrix.T + r.translation
+    return v[r.faces]
+
+
+def datablock_ids() -> set[tuple[str, str]]:
+    import bpy
+
+    out = set()
+    for name in ("objects", "meshes", "materials", "images", "lights", "cameras", "worlds", "scenes", "texts"):
+        out |= {(name, idb.name) for idb in getattr(bpy.data, name)}
+    out |= {("libraries", lib.filepath) for lib in bpy.data.libraries}
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------
+# security
+# ---------------------------------------------------------------------------------------------------
+
+EVIL_SCRIPT = """
+import bpy, sys, json
+out, marker_text, marker_driver = sys.argv[1:4]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+sc = bpy.context.scene
+me = bpy.data.meshes.new("tri")
+me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+ob = bpy.data.objects.new("Tri", me)
+sc.collection.objects.link(ob)
+txt = bpy.data.texts.new("evil.py")
+txt.write(f"open({marker_text!r}, 'w').write('text block ran')\\n")
+txt.use_module = True  # a registered text block: runs when the file is opened with auto-run allowed
+fc = ob.driver_add("location", 0)
+fc.driver.type = "SCRIPTED"
+fc.driver.expression = f"(open({marker_driver!r}, 'w').write('driver ran') and 0) or 0.5"
+bpy.ops.wm.save_as_mainfile(filepath=out)
+print(json.dumps({"ok": True}))
+"""
+
+OPEN_WITH_AUTORUN = """
+import bpy, sys, json
+bpy.context.preferences.filepaths.use_scripts_auto_execute = True
+bpy.ops.wm.open_mainfile(filepath=sys.argv[1])
+bpy.context.view_layer.update()
+print(json.dumps({"ok": True}))
+"""
+
+
+@pytest.fixture(scope="module")
+def evil_blend(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
+    d = tmp_path_factory.mktemp("evil")
+    path, m_text, m_driver = d / "evil.blend", d / "text_marker.txt", d / "driver_marker.txt"
+    run_bpy_script(EVIL_SCRIPT, str(path), str(m_text), str(m_driver))
+    return path, m_text, m_driver
+
+
+def test_fixture_is_live_when_opened_as_main_file_with_autorun(evil_blend: tuple[Path, Path, Path], tmp_path: Path):
+    """Sanity check of the fixture: Blender's own open_mainfile with auto-run DOES run both payloads."""
+    path, m_text, m_driver = evil_blend
+    copy = tmp_path / "copy.blend"
+    copy.write_bytes(path.read_bytes())
+    run_bpy_script(OPEN_WITH_AUTORUN, str(copy))
+    assert m_text.exists() and m_driver.exists()
+    m_text.unlink()
+    m_driver.unlink()
+
+
+def test_attach_never_runs_embedded_python(evil_blend: tuple[Path, Path, Path]):
+    import bpy
+
+    path, m_text, m_driver = evil_blend
+    for m in (m_text, m_driver):
+        if m.exists():
+            m.unlink()
+    prefs = bpy.context.preferences.filepaths
+    old = prefs.use_scripts_auto_execute
+    prefs.use_scripts_auto_execute = True  # the user's preferences ALLOW auto-run
+    before = datablock_ids()
+    try:
+        scene = Scene()
+        with pytest.warns(BlendAttachWarning, match="Python driver"):
+            added = attach_blend(scene, path)
+        assert prefs.use_scripts_auto_execute is True  # restored
+        bpy.context.view_layer.update()  # any later evaluation must not run it either
+    finally:
+        prefs.use_scripts_auto_execute = old
+    assert not m_text.exists(), "a registered text block ran"
+    assert not m_driver.exists(), "a Python driver expression ran"
+    assert [r.tag for r in added] == ["Tri"]
+    np.testing.assert_allclose(world_corners(added[0])[0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]], atol=1e-7)
+    assert scene.attached_blends == [str(path.resolve())]
+    assert datablock_ids() == before  # nothing left in the bpy session
+
+
+def test_attach_bad_paths(tmp_path: Path):
+    scene = Scene()
+    missing = tmp_path / "missing.blend"
+    with pytest.raises(InvalidSceneError, match="missing.blend"):
+        attach_blend(scene, missing)
+    not_blend = tmp_path / "notes.blend"
+    not_blend.write_text("this is not a blend file\n")
+    with pytest.raises(InvalidSceneError, match=r"notes\.blend.*not a \.blend file"):
+        attach_blend(scene, not_blend)
+    with pytest.raises(InvalidSceneError, match="directory"):
+        attach_blend(scene, tmp_path)
+    with pytest.raises(InvalidSceneError, match="path"):
+        attach_blend(scene, 42)  # type: ignore[arg-type]
+    with pytest.raises(InvalidSceneError, match="with_camera"):
+        attach_blend(scene, not_blend, with_camera="yes")  # type: ignore[arg-type]
+    assert len(scene.renderables) == 0 and scene.attached_blends == []
+
+
+# ---------------------------------------------------------------------------------------------------
+# round trip IR -> .blend -> IR
+# ---------------------------------------------------------------------------------------------------
+
+
+def round_trip_scene(scale: float = 1.0) -> Scene:
+    """Two meshes (vertex colours; texture + uniform with per-face materials), every light type and
+    area shape, a background, and a camera with fx != fy and an off-centre principal point."""
+    rng = np.random.default_rng(7)
+    s = Scene()
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1]], float)
+    f = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4], [0, 2, 1], [0, 3, 2]])
+    vc = rng.uniform(0, 1, (5, 4)).astype(np.float32)
+    vc[:, 3] = 1
+    s.renderables.add_mesh(
+        v,
+        f,
+        PrincipledBSDFMaterial(roughness=0.3, metallic=0.2, coat_weight=0.1),
+        VertexColors(vc),
+        tag="pyramid",
+        translation=(1, 2, 3),
+        rotation_mode="eulerXYZ",
+        rotation=(10, 20, 30),
+    )
+    tex = (rng.uniform(0, 1, (8, 8, 3)) * 255).astype(np.uint8)
+    uv = FacesUV(rng.uniform(0, 1, (2, 3, 2)))
+    s.renderables.add_mesh(
+        np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float) + 5,
+        [[0, 1, 2], [0, 2, 3]],
+        [DiffuseMaterial(), PrincipledBSDFMaterial(metallic=1.0, roughness=0.2)],
+        [TextureColors(tex, uv), UniformColors((0.2, 0.4, 0.6))],
+        faces_material=[0, 1],
+        tag="quad",
+        smooth=True,
+    )
+    s.lights.add_point(50, shadow_soft_size=0.1, color=(1, 0.5, 0.2), translation=(0, 0, 4), tag="pt")
+    s.lights.add_area(
+        "ellipse", (1, 2), 30, translation=(1, 0, 4), rotation_mode="eulerXYZ", rotation=(10, 0, 0), tag="ell"
+    )
+    s.lights.add_area("circle", 1.5, 31, translation=(1, 0, 4), tag="disk")
+    s.lights.add_area("rectangle", (1, 2), 32, translation=(1, 0, 4), tag="rect")
+    s.lights.add_area("square", 0.5, 33, translation=(1, 0, 4), tag="sq")
+    s.lights.add_spot(100, spot_size=0.7, spot_blend=0.1, translation=(0, 0, 3), tag="spot")
+    s.lights.add_sun(4, translation=(0, 0, 3), rotation_mode="eulerXYZ", rotation=(20, 0, 0), tag="sun")
+    s.lights.set_background_light(0.3, (0.5, 0.6, 0.7))
+    k = np.array([[100.0, 0, 40.3], [0, 120.0, 25.2], [0, 0, 1]])  # fx != fy, off-centre principal point
+    k[:2] *= scale
+    s.set_perspective_camera(
+        (round(80 * scale), round(60 * scale)),
+        K=k,
+        rotation_mode="look_at",
+        rotation=(0, 0, 0),
+        translation=(3, -4, 5),
+        tag="cam",
+    )
+    return s
+
+
+def test_export_attach_round_trip(tmp_path: Path):
+    src = round_trip_scene()
+    out = export_blend(src, tmp_path / "sub" / "scene.blend", samples=4)
+    assert out == (tmp_path / "sub" / "scene.blend").absolute() and out.is_file()
+    assert sorted(p.name for p in out.parent.iterdir()) == ["scene.blend"]  # no .blend1, no temp file
+
+    dst = Scene()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BlendAttachWarning)  # everything exported must parse
+        added = attach_blend(dst, out, with_camera=True, texture_dir=tmp_path / "tex")
+    assert [r.tag for r in added] == ["pyramid", "quad"]
+    for a in src.renderables:
+        b = dst.renderables[a.tag]
+        assert b.faces.shape == a.faces.shape
+        np.testing.assert_allclose(world_corners(b), world_corners(a), atol=1e-5)
+        assert b.smooth == a.smooth
+        for ma, mb in zip(a.materials, b.materials):
+            for name in ("roughness", "metallic", "specular_ior", "coat_weight", "ior"):
+                assert abs(getattr(mb, name) - getattr(ma, name)) < 1e-6, name
+        for ca, cb in zip(a.colors_list, b.colors_list):
+            if isinstance(ca, VertexColors):
+                assert isinstance(cb, VertexColors)
+                np.testing.assert_allclose(cb.linear_rgba, ca.linear_rgba, atol=1e-6)
+            elif isinstance(ca, UniformColors):
+                np.testing.assert_allclose(cb.linear_rgba, ca.linear_rgba, atol=1e-6)
+            else:  # textures come back as the packed image, unpacked into texture_dir
+                assert isinstance(cb, (FileTextureColors, TextureColors))
+                if isinstance(cb, FileTextureColors):
+                    assert Path(cb.texture_path).parent == (tmp_path / "tex").resolve()
+                np.testing.assert_allclose(cb.linear_rgba_image(), ca.linear_rgba_image(), atol=2e-3)
+                np.testing.assert_allclose(b.triangle_uvs(cb.uv_map), a.triangle_uvs(ca.uv_map), atol=1e-6)
+    np.testing.assert_array_equal(dst.renderables["quad"].faces_material, [0, 1])
+
+    assert sorted(dst.lights.keys()) == sorted(src.lights.keys())
+    for la in src.lights:
+        lb = dst.lights[la.tag]
+        assert type(lb) is type(la)
+        assert lb.strength == pytest.approx(la.strength, rel=1e-6)
+        np.testing.assert_allclose(lb.linear_color, la.linear_color, atol=1e-6)
+        np.testing.assert_allclose(lb.matrix_world, la.matrix_world, atol=1e-6)
+        for attr in ("shape", "size", "spot_size", "spot_blend", "shadow_soft_size", "angular_diameter"):
+            if hasattr(la, attr):
+                va, vb = getattr(la, attr), getattr(lb, attr)
+                if isinstance(va, str):
+                    assert va == vb
+                else:
+                    np.testing.assert_allclose(vb, va, rtol=1e-6, err_msg=f"{la.tag}.{attr}")
+    bg = dst.lights.background
+    assert bg is not None
+    np.testing.assert_allclose(bg.radiance, src.lights.background.radiance, rtol=1e-6)
+
+    cam_a, cam_b = src.camera, dst.camera
+    assert cam_b is not None and cam_b.tag == "cam"
+    assert tuple(cam_b.resolution) == (80, 60)
+    np.testing.assert_allclose(cam_b.K, cam_a.K, atol=1e-4)
+    np.testing.assert_allclose(cam_b.matrix_world, cam_a.matrix_world, atol=1e-6)
+    assert cam_b.near == pytest.approx(cam_a.near) and cam_b.far == pytest.approx(cam_a.far)
+
+
+def test_export_orthographic_camera_and_bad_inputs(tmp_path: Path):
+    s = Scene()
+    s.renderables.add_mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], DiffuseMaterial(), UniformColors((1, 1, 1)))
+    s.set_orthographic_camera((64, 32), ortho_scale=3.0, center=(20.25, 10.5), translation=(0, 0, 5))
+    out = export_blend(s, tmp_path / "ortho.blend")
+    out2 = export_blend(s, tmp_path / "ortho.blend")  # overwriting leaves no backup
+    assert out2 == out and sorted(p.name for p in tmp_path.iterdir()) == ["ortho.blend"]
+    dst = Scene()
+    attach_blend(dst, out, with_camera=True)
+    cam = dst.camera
+    assert cam.kind == "orthographic"
+    assert cam.ortho_scale == pytest.approx(3.0, rel=1e-6)
+    np.testing.assert_allclose(cam.center, (20.25, 10.5), atol=1e-4)
+    np.testing.assert_allclose(cam.matrix_world, s.camera.matrix_world, atol=1e-6)
+
+    with pytest.raises(InvalidSceneError, match=r"\.blend"):
+        export_blend(s, tmp_path / "scene.png")
+    with pytest.raises(InvalidSceneError, match="camera"):
+        export_blend(Scene(), tmp_path / "nocam.blend")
+    with pytest.raises(InvalidSceneError, match="scene"):
+        export_blend("not a scene", tmp_path / "x.blend")  # type: ignore[arg-type]
+
+
+RENDER_BLEND = """
+import bpy, sys, json
+import numpy as np
+import OpenEXR
+path, out = sys.argv[1:3]
+bpy.ops.wm.open_mainfile(filepath=path)
+sc = bpy.context.scene
+sc.render.image_settings.media_type = "IMAGE"
+sc.render.image_settings.file_format = "OPEN_EXR"
+sc.render.image_settings.color_depth = "32"
+sc.render.use_compositing = False
+sc.render.filepath = out
+bpy.ops.render.render(write_still=True)
+with OpenEXR.File(out) as f:
+    ch = f.channels()
+    rgba = np.asarray(ch["RGBA"].pixels, dtype=np.float32)
+np.save(out + ".npy", rgba)
+print(json.dumps({"engine": sc.render.engine, "samples": sc.cycles.samples}))
+"""
+
+
+def test_exported_blend_renders_the_same_picture(tmp_path: Path):
+    import blendify_core as bf
+
+    src = round_trip_scene(scale=0.5)
+    res = bf.render(src, backend="cycles", samples=4, seed=3, outputs=("rgba",))
+    out = export_blend(src, tmp_path / "r.blend", samples=4, seed=3, outputs=("rgba",))
+    info = run_bpy_script(RENDER_BLEND, str(out), str(tmp_path / "r.exr"))
+    assert info["engine"] == "CYCLES" and info["samples"] == 4
+    img = np.load(tmp_path / "r.exr.npy")
+    ref = np.asarray(res.rgba, dtype=np.float32)
+    assert img.shape == ref.shape
+    assert float(np.abs(img - ref).max()) < 1e-3
+
+
+# ---------------------------------------------------------------------------------------------------
+# a hand-built .blend (what blendify 2.1 could not parse)
+# ---------------------------------------------------------------------------------------------------
+
+HAND_BUILT = """
+import bpy, sys, json
+import numpy as np
+out = sys.argv[1]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+sc = bpy.context.scene
+sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = 160, 120, 50
+# a quad with UVs and a POINT colour attribute read by the material
+me = bpy.data.meshes.new("quad")
+me.from_pydata([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], [], [(0, 1, 2, 3)])
+uv = me.uv_layers.new(name="UVMap")
+uv.uv.foreach_set("vector", np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32).ravel())
+ca = me.color_attributes.new("Col", "FLOAT_COLOR", "POINT")
+ca.data.foreach_set("color", np.array([[1, 0, 0, 1], [0, 1, 0, 1], [0, 0, 1, 1], [.5, .5, .5, 1]], np.float32).ravel())
+mat = bpy.data.materials.new("vc")
+p = mat.node_tree.nodes["Principled BSDF"]
+vcn = mat.node_tree.nodes.new("ShaderNodeVertexColor")
+vcn.layer_name = "Col"
+mat.node_tree.links.new(vcn.outputs["Color"], p.inputs["Base Color"])
+p.inputs["Roughness"].default_value = 0.25
+p.inputs["Metallic"].default_value = 0.5
+p.inputs["Emission Color"].default_value = (2.0, 1.0, 0.0, 1.0)
+p.inputs["Emission Strength"].default_value = 3.0
+me.materials.append(mat)
+ob = bpy.data.objects.new("Quad", me)
+sc.collection.objects.link(ob)
+ob.location = (1, 2, 3)
+ob.rotation_euler = (0.1, 0.2, 0.3)
+ob.scale = (2, 2, 2)
+# a cube with a render-only subdivision and a packed image on the base colour
+me2 = bpy.data.meshes.new("cube")
+h = 0.5
+cv = [(x, y, z) for x in (-h, h) for y in (-h, h) for z in (-h, h)]
+me2.from_pydata(cv, [], [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
+me2.uv_layers.new(name="UVMap")
+cube = bpy.data.objects.new("Cube", me2)
+sc.collection.objects.link(cube)
+cube.location = (-2, 0, 0)
+img = bpy.data.images.new("checker", 4, 4)
+px = np.zeros((4, 4, 4), np.float32)
+px[..., 3] = 1
+px[::2, ::2, 0] = 1
+img.pixels.foreach_set(px.ravel())
+img.pack()
+m2 = bpy.data.materials.new("tex")
+t = m2.node_tree.nodes.new("ShaderNodeTexImage")
+t.image = img
+m2.node_tree.links.new(t.outputs["Color"], m2.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+me2.materials.append(m2)
+md = cube.modifiers.new("sub", "SUBSURF")
+md.levels, md.render_levels = 0, 1
+# a procedural material (cannot be parsed -> listed in the warning)
+m3 = bpy.data.materials.new("noise")
+noise = m3.node_tree.nodes.new("ShaderNodeTexNoise")
+m3.node_tree.links.new(noise.outputs["Color"], m3.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+me3 = bpy.data.meshes.new("tri")
+me3.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+me3.materials.append(m3)
+tri = bpy.data.objects.new("Noisy", me3)
+sc.collection.objects.link(tri)
+def light(name, typ, **kw):
+    d = bpy.data.lights.new(name, typ)
+    for k, v in kw.items():
+        setattr(d, k, v)
+    o = bpy.data.objects.new(name, d)
+    sc.collection.objects.link(o)
+    return o
+light("Rect", "AREA", energy=50, shape="RECTANGLE", size=2, size_y=0.5).location = (1, 0, 4)
+light("Disk", "AREA", energy=60, shape="DISK", size=1.5).location = (2, 0, 4)
+e = light("Ell", "AREA", energy=70, shape="ELLIPSE", size=1, size_y=3)
+e.location, e.scale = (3, 0, 4), (2, 1, 1)
+light("Sq", "AREA", energy=80, shape="SQUARE", size=0.7, exposure=1.0).location = (4, 0, 4)
+light("Raw", "AREA", energy=10, shape="SQUARE", size=2.0, normalize=False).location = (5, 0, 4)
+light("Pt", "POINT", energy=100, shadow_soft_size=0.1).location = (0, 0, 5)
+light("Sun", "SUN", energy=3, angle=0.01).rotation_euler = (0.3, 0, 0)
+light("Spot", "SPOT", energy=200, spot_size=0.8, spot_blend=0.2, color=(1, 0.5, 0.25)).location = (0, 3, 3)
+cd = bpy.data.cameras.new("Cam")
+cd.lens, cd.sensor_width, cd.sensor_fit = 40, 32, "HORIZONTAL"
+cd.shift_x, cd.shift_y = 0.1, -0.05
+cd.clip_start, cd.clip_end = 0.5, 50
+co = bpy.data.objects.new("Cam", cd)
+sc.collection.objects.link(co)
+sc.camera = co
+co.location, co.rotation_euler = (0, -6, 2), (1.3, 0, 0.1)
+w = bpy.data.worlds.new("W")
+sc.world = w
+bg = w.node_tree.nodes["Background"]
+bg.inputs["Color"].default_value = (0.2, 0.3, 0.4, 1)
+bg.inputs["Strength"].default_value = 0.5
+bpy.context.view_layer.update()
+frame = [tuple(v) for v in cd.view_frame(scene=sc)]  # Blender's own view frame (camera space)
+bpy.data.libraries.write(out, {sc}, compress=True)
+print(json.dumps({"frame": frame, "cam_matrix": [list(r) for r in co.matrix_world]}))
+"""
+
+
+@pytest.fixture(scope="module")
+def hand_built(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, Any]]:
+    d = tmp_path_factory.mktemp("hand")
+    path = d / "hand.blend"
+    info = run_bpy_script(HAND_BUILT, str(path))
+    return path, info
+
+
+def test_attach_hand_built_blend(hand_built: tuple[Path, dict[str, Any]], tmp_path: Path):
+    path, info = hand_built
+    before = datablock_ids()
+    scene = Scene()
+    with pytest.warns(BlendAttachWarning) as rec:
+        added = attach_blend(scene, path, with_camera=True, texture_dir=tmp_path)
+    msg = "\n".join(str(w.message) for w in rec)
+    assert "ShaderNodeTexNoise" in msg  # the procedural material is listed
+    assert datablock_ids() == before
+    assert sorted(r.tag for r in added) == ["Cube", "Noisy", "Quad"]
+
+    quad = scene.renderables["Quad"]
+    np.testing.assert_allclose(quad.translation, (1, 2, 3), atol=1e-6)
+    corners = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float) * 2.0  # scale baked in
+    np.testing.assert_allclose(quad.vertices, corners, atol=1e-6)
+    assert quad.faces.shape == (2, 3)
+    col = quad.colors_list[0]
+    assert isinstance(col, VertexColors) and col.color_space == "linear"
+    np.testing.assert_allclose(col.linear_rgba, [[1, 0, 0, 1], [0, 1, 0, 1], [0, 0, 1, 1], [0.5, 0.5, 0.5, 1]])
+    mat = quad.materials[0]
+    assert isinstance(mat, PrincipledBSDFMaterial) and mat.color_space == "linear"
+    assert mat.roughness == pytest.approx(0.25) and mat.metallic == pytest.approx(0.5)
+    # emission colour (2, 1, 0) x 3 -> colour (1, 0.5, 0) x 6
+    np.testing.assert_allclose(mat.linear("emission_color")[:3], (1, 0.5, 0), atol=1e-6)
+    assert mat.emission_strength == pytest.approx(6.0)
+    assert isinstance(quad.uv_map, FacesUV)
+
+    cube = scene.renderables["Cube"]
+    assert cube.vertices.shape == (26, 3) and cube.faces.shape == (48, 3)  # render subdivision level 1
+    tex = cube.colors_list[0]
+    assert isinstance(tex, FileTextureColors) and Path(tex.texture_path).parent == tmp_path.resolve()
+    img = tex.image()
+    assert img.shape[:2] == (4, 4) and img[-1, 0, 0] == 255 and img[-1, 1, 0] == 0  # bottom row, UV (0, 0)
+
+    lights = {lt.tag: lt for lt in scene.lights}
+    assert (lights["Rect"].shape, lights["Rect"].size) == ("rectangle", (2.0, 0.5))
+    assert (lights["Disk"].shape, lights["Disk"].size) == ("circle", (1.5, 1.5))
+    assert lights["Ell"].shape == "ellipse"
+    np.testing.assert_allclose(lights["Ell"].size, (2.0, 3.0), rtol=1e-6)  # object scale applied
+    assert lights["Sq"].shape == "square" and lights["Sq"].strength == pytest.approx(160.0)  # exposure 1
+    assert lights["Raw"].strength == pytest.approx(10.0 * 4.0)  # normalize off: energy x area
+    assert lights["Rect"].strength == pytest.approx(50.0) and lights["Ell"].strength == pytest.approx(70.0)
+    assert type(lights["Pt"]).__name__ == "PointLight" and lights["Pt"].shadow_soft_size == pytest.approx(0.1)
+    assert lights["Spot"].spot_size == pytest.approx(0.8) and lights["Spot"].spot_blend == pytest.approx(0.2)
+    np.testing.assert_allclose(lights["Spot"].linear_color, (1, 0.5, 0.25), atol=1e-6)
+    assert lights["Sun"].angular_diameter == pytest.approx(0.01)
+    bg = scene.lights.background
+    np.testing.assert_allclose(bg.radiance, np.array([0.2, 0.3, 0.4]) * 0.5, atol=1e-6)
+
+    # camera: K from Blender's own view frame (continuous image coordinates, pixel centres at +0.5)
+    cam = scene.camera
+    assert tuple(cam.resolution) == (160, 120) and cam.resolution_percentage == 50
+    fr = np.array(info["frame"])  # corners: (+x,+y), (+x,-y), (-x,-y), (-x,+y) at depth z
+    z = -fr[0, 2]
+    xmin, xmax, ymin, ymax = fr[:, 0].min() / z, fr[:, 0].max() / z, fr[:, 1].min() / z, fr[:, 1].max() / z
+    fx, fy = 160 / (xmax - xmin), 120 / (ymax - ymin)
+    cx, cy = -xmin * fx - 0.5, ymax * fy - 0.5
+    np.testing.assert_allclose(cam.K, [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], atol=1e-3)
+    assert cam.cx == pytest.approx(63.5, abs=1e-3) and cam.cy == pytest.approx(51.5, abs=1e-3)  # not mirrored
+    np.testing.assert_allclose(cam.matrix_world, np.array(info["cam_matrix"]), atol=1e-6)
+    assert (cam.near, cam.far) == (pytest.approx(0.5), pytest.approx(50.0))
+
+
+def test_camera_intrinsics_sensor_fits():
+    """K for vertical / auto sensor fit and non-square pixels (Blender's view-plane rules)."""
+
+    class Cam:
+        type, lens, sensor_width, sensor_height, ortho_scale = "PERSP", 50.0, 36.0, 24.0, 2.0
+        shift_x, shift_y, sensor_fit = 0.1, 0.2, "VERTICAL"
+
+    k = blender_camera_intrinsics(Cam, 100, 200, 1.0, 2.0)  # ycor = 2, viewfac = 400
+    assert k["fx"] == pytest.approx(50 * 400 / 24) and k["fy"] == pytest.approx(k["fx"] / 2)
+    assert k["cx"] == pytest.approx(50 - 0.1 * 400 - 0.5) and k["cy"] == pytest.approx(100 + 0.2 * 400 / 2 - 0.5)
+    Cam.sensor_fit = "AUTO"  # portrait with square pixels: vertical fit with the sensor WIDTH
+    k = blender_camera_intrinsics(Cam, 100, 200)
+    assert k["fx"] == pytest.approx(50 * 200 / 36) and k["fy"] == pytest.approx(k["fx"])
+    Cam.type = "ORTHO"
+    k = blender_camera_intrinsics(Cam, 100, 200)
+    assert k["ortho_scale"] == pytest.approx(2.0 * 100 / 200)
