@@ -91,8 +91,7 @@ CAPABILITIES: dict[str, Capability] = {
     "camera.anisotropic": Capability(_E, "fx != fy in the projection matrix"),
     "output.rgb": Capability(
         _E,
-        "8-bit colour pass linearised with (x/255)^2.2; anti-aliased with MSAA (EGL) or supersampling, "
-        "coverage alpha",
+        "8-bit colour pass linearised with (x/255)^2.2; anti-aliased with MSAA (EGL) or supersampling, coverage alpha",
     ),
     "output.depth": Capability(_E, "planar z from a float G-buffer pass, one sample at the pixel centre"),
     "output.normal": Capability(_E, "world-space shading normal facing the viewer, G-buffer pass"),

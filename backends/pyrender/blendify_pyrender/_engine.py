@@ -7,7 +7,9 @@ node; the camera is updated every frame; lights are rebuilt when any of them cha
 
 from __future__ import annotations
 
+import atexit
 import time
+import weakref
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -20,9 +22,11 @@ from blendify_core.settings import RenderSettings
 
 from ._platform import GLContext
 
-__all__ = ["Engine", "Frame"]
+__all__ = ["Engine", "Frame", "AntiAliasing", "linearise_rgba8", "apply_coverage", "box_downsample"]
 
 _GAMMA = 2.2
+#: the coverage pass of the "coverage" anti-aliasing is rendered at 3x the resolution (9 samples/pixel)
+COVERAGE_SUPERSAMPLE = 3
 _LIN8 = ((np.arange(256, dtype=np.float64) / 255.0) ** _GAMMA).astype(np.float32)
 
 
@@ -30,6 +34,19 @@ def _translate_mod() -> Any:
     from . import _translate
 
     return _translate
+
+
+@dataclass(frozen=True)
+class AntiAliasing:
+    """How the colour pass is anti-aliased: ``mode`` "none", "coverage" (plain shading + multisampled
+    coverage), "msaa" (multisampled shading) or "ssaa" (supersampling by ``supersample``)."""
+
+    mode: str
+    msaa: int = 0
+    supersample: int = 1
+
+    def describe(self) -> dict[str, Any]:
+        return {"mode": self.mode, "msaa": self.msaa, "supersample": self.supersample}
 
 
 @dataclass
@@ -97,6 +114,37 @@ def linearise_rgba8(img: np.ndarray) -> np.ndarray:
     return out
 
 
+def apply_coverage(rgba: np.ndarray, coverage: np.ndarray) -> np.ndarray:
+    """Anti-aliased silhouettes from a plain (one sample per pixel) colour pass and a supersampled
+    coverage: pixels whose centre missed every surface take the mean colour of their covered 8-neighbours;
+    every pixel's straight colour is then weighted by its coverage (premultiplied)."""
+    hit = rgba[..., 3] > 0.5
+    h, w = hit.shape
+    cov = coverage.astype(np.float32, copy=True)
+    out = np.empty_like(rgba)
+    out[..., :3] = rgba[..., :3]
+    ys, xs = np.nonzero((~hit) & (cov > 0))
+    if len(ys):
+        acc = np.zeros((len(ys), 3), dtype=np.float32)
+        cnt = np.zeros(len(ys), dtype=np.float32)
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                if dy == 0 and dx == 0:
+                    continue
+                yy, xx = ys + dy, xs + dx
+                ok = (yy >= 0) & (yy < h) & (xx >= 0) & (xx < w)
+                yy, xx = np.clip(yy, 0, h - 1), np.clip(xx, 0, w - 1)
+                m = ok & hit[yy, xx]
+                acc[m] += rgba[yy[m], xx[m], :3]
+                cnt += m
+        fill = acc / np.maximum(cnt, 1.0)[:, None]
+        out[ys, xs, :3] = fill
+        cov[ys[cnt == 0], xs[cnt == 0]] = 0.0
+    out[..., :3] *= cov[..., None]
+    out[..., 3] = cov
+    return out
+
+
 def box_downsample(img: np.ndarray, k: int) -> np.ndarray:
     if k == 1:
         return img
@@ -121,6 +169,14 @@ class Engine:
         self._light_nodes: list[tuple[Any, Any, bool]] = []  # (node, IR light, casts)
         self._camera_node: Any = None
         self.msaa_supported = self.renderer.max_samples >= 2
+        ref = weakref.ref(self)
+
+        def _close_at_exit() -> None:  # before the interpreter tears PyOpenGL down
+            engine = ref()
+            if engine is not None:
+                engine.close()
+
+        atexit.register(_close_at_exit)
 
     # -- scene sync --------------------------------------------------------------------------------
     def sync(self, scene: Any) -> Frame:
@@ -143,7 +199,12 @@ class Engine:
                 if built.mesh is not None:
                     node = self.pscene.add(built.mesh, pose=self._pose(r, built.offset))
                 entry = _Entry(
-                    key, r.revision("transform"), node, built.offset, built.notes, tr.is_shadow_catcher(r),
+                    key,
+                    r.revision("transform"),
+                    node,
+                    built.offset,
+                    built.notes,
+                    tr.is_shadow_catcher(r),
                     r.emit_shadows,
                 )
                 self.entries[r.uid] = entry
@@ -209,7 +270,7 @@ class Engine:
             self.entries[r.uid].casts_shadow and self.entries[r.uid].node is not None for r in frame.scene.renderables
         )
         flags = 0
-        for node, light, casts in self._light_nodes:
+        for _node, light, casts in self._light_nodes:
             if not casts:
                 continue
             if isinstance(light, SunLight) and casters:
@@ -218,7 +279,30 @@ class Engine:
                 flags |= RenderFlags.SHADOWS_SPOT
         return flags
 
-    def render(self, frame: Frame, settings: RenderSettings, msaa: int, supersample: int) -> RenderResult:
+    @property
+    def software(self) -> bool:
+        """True on a software rasteriser (llvmpipe, softpipe, swrast), where MSAA shades every sample."""
+        name = self.renderer.gl_renderer.lower()
+        return any(k in name for k in ("llvmpipe", "softpipe", "swrast", "software"))
+
+    def _color(self, frame: Frame, w: int, h: int, aa: AntiAliasing, flags: int) -> np.ndarray:
+        """Linear premultiplied (H, W, 4) colour with the anti-aliasing scheme ``aa``."""
+        r = self.renderer
+        if aa.mode in ("none", "coverage"):
+            rgba = linearise_rgba8(r.render_color(self.pscene, w, h, 0, flags))
+            if aa.mode == "coverage":
+                ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
+                # supersampled, not multisampled: llvmpipe's MSAA is 4x slower even for a trivial shader
+                k = COVERAGE_SUPERSAMPLE
+                cov = box_downsample(r.render_coverage(self.pscene, w * k, h * k, 0, ids), k)
+                rgba = apply_coverage(rgba, cov)
+            return rgba
+        if aa.mode == "msaa":
+            return linearise_rgba8(r.render_color(self.pscene, w, h, aa.msaa, flags))
+        k = max(1, aa.supersample)  # "ssaa"
+        return box_downsample(linearise_rgba8(r.render_color(self.pscene, w * k, h * k, 0, flags)), k)
+
+    def render(self, frame: Frame, settings: RenderSettings, aa: AntiAliasing) -> RenderResult:
         cam = frame.scene.camera
         w, h = cam.width, cam.height
         timings: dict[str, float] = {"sync": frame.sync_seconds}
@@ -235,29 +319,30 @@ class Engine:
             if node is not None and self.entries[r.uid].catcher
         ]
         want = set(settings.outputs)
-        kinds = [type(light).__name__ for _, light, _ in self._light_nodes]
+        kinds = [type(node.light).__name__ for node, _, _ in self._light_nodes]
         if any(kinds.count(k) > 4 for k in set(kinds)):
             approximations.append("lights: pyrender shades at most 4 lights of each type (the nearest are used)")
-        samples = 0
+        if "rgb" in want and aa.mode == "coverage":
+            approximations.append(
+                "anti-aliasing: coverage scheme (silhouettes against the background are anti-aliased from a "
+                "supersampled coverage pass; edges between objects are not)"
+            )
         result = RenderResult(instance_tags=list(frame.tags))
         flags = self._shadow_flags(frame)
+        gbuf = None
         try:
-            gbuf = None
             if want & {"depth", "normal", "albedo", "instance"} or catchers:
                 t0 = time.perf_counter()
-                ids = {node: (i, None) for i, node in enumerate(frame.nodes) if node is not None}
+                ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
                 gbuf = renderer.render_gbuffer(self.pscene, w, h, ids)
                 timings["gbuffer"] = time.perf_counter() - t0
             if "rgb" in want:
                 t0 = time.perf_counter()
-                samples = min(msaa, renderer.max_samples) if msaa > 0 and self.msaa_supported else 0
-                k = max(1, supersample)
-                img8 = renderer.render_color(self.pscene, w * k, h * k, samples, flags)
-                rgba = box_downsample(linearise_rgba8(img8), k)
+                rgba = self._color(frame, w, h, aa, flags)
                 timings["color"] = time.perf_counter() - t0
                 if catchers:
                     t0 = time.perf_counter()
-                    rgba = self._apply_catchers(frame, rgba, gbuf, catchers, w, h, samples, k, flags)
+                    rgba = self._apply_catchers(frame, rgba, gbuf, catchers, w, h, aa, flags)
                     timings["shadow_catcher"] = time.perf_counter() - t0
                 if not settings.transparent_background:
                     bg = np.clip(_translate_mod().ambient_radiance(frame.scene.lights), 0, None).astype(np.float32)
@@ -280,9 +365,8 @@ class Engine:
         result.meta.update(
             backend="pyrender",
             platform=self.context.platform,
-            antialiasing={"msaa": samples if "rgb" in want else 0, "supersample": max(1, supersample)}
-            if "rgb" in want
-            else None,
+            gl_renderer=renderer.gl_renderer,
+            antialiasing=aa.describe() if "rgb" in want else None,
             approximations=sorted(set(approximations)),
             timings=timings,
             rebuilt_renderables=frame.rebuilt,
@@ -297,8 +381,7 @@ class Engine:
         catchers: list[tuple[int, Any]],
         w: int,
         h: int,
-        samples: int,
-        k: int,
+        aa: AntiAliasing,
         flags: int,
     ) -> np.ndarray:
         """Shadow catchers: render the catchers alone (unoccluded light), then replace catcher pixels by
@@ -308,7 +391,7 @@ class Engine:
         for n in hidden:
             n.mesh.is_visible = False
         try:
-            alone = box_downsample(linearise_rgba8(self.renderer.render_color(self.pscene, w * k, h * k, samples, flags)), k)
+            alone = self._color(frame, w, h, aa, flags)
         finally:
             for n in hidden:
                 n.mesh.is_visible = True
@@ -325,10 +408,12 @@ class Engine:
         return out
 
     def close(self) -> None:
+        """Free the GL objects and release the context (idempotent)."""
         if not self.context.alive:
             return
         try:
             self.context.make_current()
             self.renderer.delete()
+            self.renderer._shadow_fb = None  # pyrender's delete() leaves it set (a second delete would use it)
         finally:
             self.context.release()

@@ -28,6 +28,7 @@ import numpy as np
 import pyrender
 from OpenGL.GL import (
     GL_BLEND,
+    GL_COLOR,
     GL_COLOR_ATTACHMENT0,
     GL_COLOR_ATTACHMENT1,
     GL_COLOR_BUFFER_BIT,
@@ -46,8 +47,11 @@ from OpenGL.GL import (
     GL_MAX_SAMPLES,
     GL_MULTISAMPLE,
     GL_NEAREST,
+    GL_PACK_ALIGNMENT,
     GL_READ_FRAMEBUFFER,
+    GL_RED,
     GL_RENDERBUFFER,
+    GL_RENDERER,
     GL_RGBA,
     GL_RGBA8,
     GL_RGBA32F,
@@ -70,11 +74,12 @@ from OpenGL.GL import (
     glDrawBuffers,
     glDrawElementsInstanced,
     glEnable,
-    glFinish,
     glFramebufferRenderbuffer,
     glGenFramebuffers,
     glGenRenderbuffers,
     glGetIntegerv,
+    glGetString,
+    glPixelStorei,
     glPolygonMode,
     glReadBuffer,
     glReadPixels,
@@ -177,6 +182,7 @@ class FrameRenderer(pyrender.Renderer):
         super().__init__(1, 1)
         self._program_cache = pyrender.shader_program.ShaderProgramCache(shader_dir=_shader_dir())
         self.max_samples = int(glGetIntegerv(GL_MAX_SAMPLES))
+        self.gl_renderer = (glGetString(GL_RENDERER) or b"").decode("ascii", "replace")
         self._targets: dict[tuple[str, int, int, int], dict[str, Any]] = {}
         self._target: tuple[int, int, int] = (1, 1, 0)
         self._shadow_light: Any = None
@@ -194,7 +200,7 @@ class FrameRenderer(pyrender.Renderer):
         for old in [k for k in self._targets if k[0] == kind]:
             self._free_target(self._targets.pop(old))
         fb = {"fbos": [], "rbs": []}
-        if kind == "color":
+        if kind in ("color", "coverage"):
             color_rb, depth_rb = glGenRenderbuffers(2)
             glBindRenderbuffer(GL_RENDERBUFFER, color_rb)
             if samples > 0:
@@ -308,42 +314,22 @@ class FrameRenderer(pyrender.Renderer):
         color, _ = self.render(scene, flags)
         return color
 
-    def render_gbuffer(self, scene: Any, width: int, height: int, ids: dict[Any, tuple[int, np.ndarray]]) -> GBuffer:
-        """Draw the mesh nodes in ``ids`` (node -> (instance id, linear albedo factor RGBA)) into the float
-        G-buffer, one sample per pixel centre, both faces."""
-        self._update_context(scene, RenderFlags.NONE)
-        fb = self._framebuffer("gbuffer", width, height, 0)
-        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb["draw"])
-        glDrawBuffers(2, [GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1])
-        glViewport(0, 0, width, height)
-        zero = np.zeros(4, dtype=np.float32)
-        glClearBufferfv(0x1800, 0, zero)  # GL_COLOR
-        glClearBufferfv(0x1800, 1, zero)
-        glClearColor(0.0, 0.0, 0.0, 0.0)
-        glClear(GL_DEPTH_BUFFER_BIT)
-        glEnable(GL_DEPTH_TEST)
-        glDepthMask(True)
-        glDepthFunc(GL_LESS)
-        glDisable(GL_CULL_FACE)
-        glDisable(GL_BLEND)
-        glDisable(GL_MULTISAMPLE)
-        glPolygonMode(GL_FRONT_AND_BACK, GL_FILL)
-        self.viewport_width, self.viewport_height = width, height
+    def _draw_nodes(self, scene: Any, ids: dict[Any, int], shader: str, with_material: bool) -> None:
+        """Draw the visible mesh nodes in ``ids`` (node -> instance id) with one of our shader pairs."""
         V, P = self._get_camera_matrices(scene)  # noqa: N806
         program = None
         for node in scene.mesh_nodes:
-            entry = ids.get(node)
-            if entry is None or not node.mesh.is_visible:
+            inst_id = ids.get(node)
+            if inst_id is None or not node.mesh.is_visible:
                 continue
-            inst_id, _ = entry
             pose = scene.get_pose(node)
             for prim in node.mesh.primitives:
                 defines = _buffer_defines(prim)
-                tex = getattr(prim.material, "baseColorTexture", None)
+                tex = getattr(prim.material, "baseColorTexture", None) if with_material else None
                 if tex is not None and "TEXCOORD_0_LOC" in defines:
                     defines["HAS_BASE_COLOR_TEX"] = 1
                 program = self._program_cache.get_program(
-                    vertex_shader="blendify_gbuffer.vert", fragment_shader="blendify_gbuffer.frag", defines=defines
+                    vertex_shader=shader + ".vert", fragment_shader=shader + ".frag", defines=defines
                 )
                 if not program._in_context():
                     program._add_to_context()
@@ -351,10 +337,11 @@ class FrameRenderer(pyrender.Renderer):
                 program.set_uniform("V", V)
                 program.set_uniform("P", P)
                 program.set_uniform("M", pose)
-                program.set_uniform("instance_id", float(inst_id + 1))
-                program.set_uniform("albedo_factor", np.asarray(prim.albedo_factor, dtype=np.float32))
-                if "HAS_BASE_COLOR_TEX" in defines:
-                    self._bind_texture(tex, "base_color_texture", program)
+                if with_material:
+                    program.set_uniform("instance_id", float(inst_id + 1))
+                    program.set_uniform("albedo_factor", np.asarray(prim.albedo_factor, dtype=np.float32))
+                    if "HAS_BASE_COLOR_TEX" in defines:
+                        self._bind_texture(tex, "base_color_texture", program)
                 prim._bind()
                 n_inst = 1 if prim.poses is None else len(prim.poses)
                 if prim.indices is not None:
@@ -367,7 +354,31 @@ class FrameRenderer(pyrender.Renderer):
                 self._reset_active_textures()
         if program is not None:
             program._unbind()
-        glFinish()
+
+    def _begin_pass(self, width: int, height: int) -> None:
+        glViewport(0, 0, width, height)
+        glEnable(GL_DEPTH_TEST)
+        glDepthMask(True)
+        glDepthFunc(GL_LESS)
+        glDisable(GL_CULL_FACE)
+        glDisable(GL_BLEND)
+        glPolygonMode(GL_FRONT_AND_BACK, GL_FILL)
+        self.viewport_width, self.viewport_height = width, height
+
+    def render_gbuffer(self, scene: Any, width: int, height: int, ids: dict[Any, int]) -> GBuffer:
+        """Draw the mesh nodes in ``ids`` (node -> instance id) into the float G-buffer, one sample per
+        pixel centre, both faces."""
+        self._update_context(scene, RenderFlags.NONE)
+        fb = self._framebuffer("gbuffer", width, height, 0)
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb["draw"])
+        glDrawBuffers(2, [GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1])
+        zero = np.zeros(4, dtype=np.float32)
+        glClearBufferfv(GL_COLOR, 0, zero)
+        glClearBufferfv(GL_COLOR, 1, zero)
+        glClear(GL_DEPTH_BUFFER_BIT)
+        glDisable(GL_MULTISAMPLE)
+        self._begin_pass(width, height)
+        self._draw_nodes(scene, ids, "blendify_gbuffer", True)
         glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["read"])
         out = []
         for att in (GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1):
@@ -376,3 +387,25 @@ class FrameRenderer(pyrender.Renderer):
             out.append(np.frombuffer(buf, dtype=np.float32).reshape(height, width, 4)[::-1])
         glBindFramebuffer(GL_FRAMEBUFFER, 0)
         return GBuffer(out[0], out[1])
+
+    def render_coverage(self, scene: Any, width: int, height: int, samples: int, ids: dict[Any, int]) -> np.ndarray:
+        """(H, W) float32 coverage of the nodes in ``ids`` from a ``samples``-times multisampled pass with a
+        trivial shader (cheap even where the driver shades every sample, as llvmpipe does)."""
+        self._update_context(scene, RenderFlags.NONE)
+        fb = self._framebuffer("coverage", width, height, samples)
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb["draw"])
+        glClearColor(0.0, 0.0, 0.0, 0.0)
+        glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT)
+        glEnable(GL_MULTISAMPLE)
+        self._begin_pass(width, height)
+        self._draw_nodes(scene, ids, "blendify_coverage", False)
+        if samples > 0:
+            glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["draw"])
+            glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb["read"])
+            glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL_COLOR_BUFFER_BIT, GL_NEAREST)
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["read"])
+        glReadBuffer(GL_COLOR_ATTACHMENT0)
+        glPixelStorei(GL_PACK_ALIGNMENT, 1)
+        buf = glReadPixels(0, 0, width, height, GL_RED, GL_UNSIGNED_BYTE)
+        glBindFramebuffer(GL_FRAMEBUFFER, 0)
+        return np.frombuffer(buf, dtype=np.uint8).reshape(height, width)[::-1].astype(np.float32) / 255.0

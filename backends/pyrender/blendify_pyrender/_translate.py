@@ -407,9 +407,7 @@ def build_renderable(r: Renderable) -> Built:
         if surf.vertex_rgba is not None:
             color_0 = surf.vertex_rgba if idx is None else surf.vertex_rgba[idx]
         pm, albedo = pbr_material(mat, surf, uv is not None, notes)
-        prims.append(
-            _primitive(positions, normals, sub, pm, albedo, uv=uv if needs_uv else None, color_0=color_0)
-        )
+        prims.append(_primitive(positions, normals, sub, pm, albedo, uv=uv if needs_uv else None, color_0=color_0))
         if mat.has_wireframe:
             wire = _wireframe(verts - centre, faces if fm is None else faces[fm == m], mat, notes)
             if wire is not None:
