@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import os
 import socket
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["run_job", "pool_main", "output_files", "rss_mb"]
+__all__ = ["run_job", "run_ray_job", "StartClock", "pool_main", "output_files", "rss_mb"]
 
 
 def rss_mb() -> float | None:
@@ -90,15 +89,6 @@ def _register(registrations: dict[str, str] | None) -> None:
             backend_mod.register_backend(name, target)
 
 
-def _watchdog(seconds: float, done: threading.Event) -> None:
-    """Kill this whole process when a job overruns (used only where the process runs nothing else:
-    a Ray task worker). The caller sees a dead worker and reports the timeout."""
-    if not done.wait(seconds):
-        import signal
-
-        os.kill(os.getpid(), getattr(signal, "SIGKILL", signal.SIGTERM))
-
-
 def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None) -> dict[str, Any]:
     """Render one job described by ``payload`` (built by ``blendify_core.batch``) and write its outputs.
 
@@ -108,7 +98,6 @@ def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None)
     """
     t0 = time.perf_counter()
     info: dict[str, Any] = {"index": payload.get("index"), "pid": os.getpid(), "host": socket.gethostname()}
-    done = threading.Event()
     try:
         _register(payload.get("registrations"))
         from .backend import shared_backend
@@ -125,11 +114,8 @@ def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None)
             on_start()
         timeout = payload.get("timeout")
         t_start = time.perf_counter()
-        if timeout is not None and payload.get("hard_timeout"):
-            threading.Thread(target=_watchdog, args=(float(timeout), done), daemon=True).start()
         result = render(scene, backend=name, **settings, **options)
         elapsed = time.perf_counter() - t_start
-        done.set()
         if timeout is not None and elapsed > float(timeout):
             info.update(
                 status="failed",
@@ -141,12 +127,32 @@ def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None)
         info["backend"] = result.meta.get("backend", name)
         info["render_seconds"] = elapsed
     except Exception as exc:  # reported per job; the worker and the run go on
-        done.set()
         msg = str(exc).strip().splitlines()
         info.update(status="failed", reason=f"{type(exc).__name__}: {msg[0] if msg else ''}".rstrip(": "))
     info["seconds"] = time.perf_counter() - t0
     info["rss_mb"] = rss_mb()
     return info
+
+
+class StartClock:
+    """Where Ray tasks record when their render starts (used as a zero-CPU Ray actor), so the driver
+    can time jobs out from the real start rather than from submission."""
+
+    def __init__(self) -> None:
+        self._starts: dict[int, float] = {}
+
+    def started(self, index: int) -> None:
+        self._starts[index] = time.time()
+
+    def starts(self) -> dict[int, float]:
+        return dict(self._starts)
+
+
+def run_ray_job(payload: dict[str, Any], clock: Any = None) -> dict[str, Any]:
+    """:func:`run_job` for a Ray task: reports the render's start to the driver's :class:`StartClock`."""
+    index = payload.get("index")
+    on_start = None if clock is None else (lambda: clock.started.remote(index))
+    return run_job(payload, on_start=on_start)
 
 
 def pool_main(conn: Any) -> None:

@@ -741,38 +741,44 @@ def _run_ray(
         if threads is None:
             threads = max(1, cpus // workers) if workers else 1
         slots = workers or max(1, cpus // threads)
-        task = ray.remote(_worker.run_job).options(
-            num_cpus=threads, max_retries=0, max_calls=recycle_after or 0, name="blendify-render-job"
-        )
+        task = ray.remote(num_cpus=threads, max_retries=0, max_calls=recycle_after or 0)(_worker.run_ray_job)
+        clock = ray.remote(num_cpus=0)(_worker.StartClock).remote() if run.timeout is not None else None
         queue = list(reversed(pending))
         in_flight: dict[Any, tuple[int, float]] = {}
         while queue or in_flight:
             while queue and len(in_flight) < slots:
                 index = queue.pop()
-                payload = run.payload(index, threads, "bytes")
-                payload["hard_timeout"] = run.timeout is not None  # a Ray task worker runs one job at a time
-                in_flight[task.remote(payload)] = (index, time.monotonic())
-            ready, _ = ray.wait(list(in_flight), num_returns=1, timeout=0.5)
+                try:
+                    payload = run.payload(index, threads, "bytes")
+                except Exception as exc:  # the scene could not be serialised
+                    run.finish(index, {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"})
+                    continue
+                in_flight[task.remote(payload, clock)] = (index, time.time())
+            if not in_flight:
+                continue
+            ready, _ = ray.wait(list(in_flight), num_returns=1, timeout=0.2)
             for ref in ready:
-                index, submitted = in_flight.pop(ref)
+                index, _submitted = in_flight.pop(ref)
                 try:
                     info = ray.get(ref)
-                except Exception as exc:  # the task's worker died (crash, abort, our own timeout watchdog)
-                    elapsed = time.monotonic() - submitted
-                    if run.timeout is not None and elapsed >= run.timeout:
-                        reason = f"timeout: the job ran longer than {run.timeout:g} s (worker killed)"
-                    else:
-                        first = (str(exc).strip().splitlines() or [""])[0]
-                        reason = f"worker crashed: {type(exc).__name__}: {first}"
-                    info = {"status": "failed", "reason": reason}
+                except Exception as exc:  # the task's worker died (segfault, abort, killed)
+                    first = (str(exc).strip().splitlines() or [""])[0]
+                    info = {"status": "failed", "reason": f"worker crashed: {type(exc).__name__}: {first}"}
                 run.finish(index, info)
-            if run.timeout is not None:  # a task that never got going (no free worker, engine start-up hang)
-                now = time.monotonic()
+            if clock is not None and in_flight:
+                starts = ray.get(clock.starts.remote())
+                now = time.time()
                 for ref, (index, submitted) in list(in_flight.items()):
-                    if now - submitted > 2 * run.timeout + STARTUP_TIMEOUT:
-                        ray.cancel(ref, force=True)
-                        in_flight.pop(ref)
-                        run.finish(index, {"status": "failed", "reason": "timeout: the job never finished"})
+                    started = starts.get(index)
+                    if started is not None and now - started > run.timeout:
+                        reason = f"timeout: the job ran longer than {run.timeout:g} s (worker killed)"
+                    elif started is None and now - submitted > STARTUP_TIMEOUT:
+                        reason = f"timeout: the job did not start within {STARTUP_TIMEOUT:g} s"
+                    else:
+                        continue
+                    ray.cancel(ref, force=True)
+                    in_flight.pop(ref)
+                    run.finish(index, {"status": "failed", "reason": reason})
         return slots, threads
     finally:
         if started_here:
