@@ -22,6 +22,17 @@ def _describe(value: Any) -> str:
     return f"{type(value).__name__} {text}"
 
 
+def raw_array(name: str, value: Any) -> np.ndarray:
+    """``np.asarray(value)`` for a first look at user input; ragged nested lists and other values numpy
+    cannot turn into an array raise InvalidSceneError naming ``name``."""
+    if isinstance(value, np.ndarray):
+        return value
+    try:
+        return np.asarray(value)
+    except (ValueError, TypeError) as exc:
+        raise InvalidSceneError(f"{name}: expected a numeric array, got {_describe(value)} ({exc})") from None
+
+
 def frozen(array: np.ndarray) -> np.ndarray:
     """Mark an array read-only (in place) and return it."""
     array.flags.writeable = False
@@ -106,14 +117,16 @@ def as_float(
     exclusive_max: bool = False,
 ) -> float:
     """Check a real scalar (finite) within an optional range."""
-    if isinstance(value, bool) or value is None:
+    if isinstance(value, (bool, np.bool_)) or value is None:
         raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}")
+    if isinstance(value, np.ndarray):  # float() of a 1-element array is deprecated in numpy
+        if value.size != 1 or value.dtype.kind not in "iuf":
+            raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}")
+        value = value.reshape(-1)[0]
     try:
         out = float(value)
     except (TypeError, ValueError):
         raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}") from None
-    if isinstance(value, np.ndarray) and value.size != 1:
-        raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}")
     if not math.isfinite(out):
         raise InvalidSceneError(f"{name}: expected a finite number, got {out}")
     if min_value is not None and (out < min_value or (exclusive_min and out == min_value)):

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_float, as_int
+from ._validate import _describe, as_array, as_float, as_int, raw_array
 from .errors import InvalidSceneError
 from .transforms import Positionable, matrix_to_quaternion
 
@@ -27,7 +27,7 @@ CV_FROM_BLENDER = np.diag([1.0, -1.0, -1.0])
 
 
 def _resolution(value: Any) -> tuple[int, int]:
-    arr = np.asarray(value)
+    arr = raw_array("resolution", value)
     if arr.shape != (2,):
         raise InvalidSceneError(f"resolution: expected (width, height), got {_describe(value)}")
     w = as_int("resolution (width)", arr[0].item() if hasattr(arr[0], "item") else arr[0], min_value=1, max_value=65536)

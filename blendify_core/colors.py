@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_choice, as_float, frozen
+from ._validate import _describe, as_array, as_choice, as_float, frozen, raw_array
 from .colorspace import srgb8_to_linear, srgb_to_linear
 from .errors import InvalidSceneError
 
@@ -93,7 +93,7 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
 
 
 def _check_image(name: str, texture: Any, *, max_value: float | None = 1.0) -> np.ndarray:
-    arr = np.asarray(texture) if not isinstance(texture, np.ndarray) else texture
+    arr = raw_array(name, texture)
     if arr.dtype.kind not in "uif" or arr.dtype.kind == "b":
         raise InvalidSceneError(f"{name}: expected a uint8 or float image, got {_describe(texture)}")
     if arr.ndim == 2:
@@ -139,7 +139,7 @@ class UniformColors(Colors):
     kind = "uniform"
 
     def __init__(self, uniform_color: Any, color_space: str = "srgb"):
-        c = np.asarray(uniform_color)
+        c = raw_array("uniform_color", uniform_color)
         if c.dtype.kind in "iu" and c.size and np.any(c > 1):
             raise InvalidSceneError(
                 f"uniform_color: expected floats in [0, 1], got integers {c.tolist()} (divide 8-bit values by 255)"
@@ -171,7 +171,7 @@ class VertexColors(Colors):
     kind = "vertex"
 
     def __init__(self, vertex_colors: Any, color_space: str = "srgb"):
-        raw = np.asarray(vertex_colors)
+        raw = raw_array("vertex_colors", vertex_colors)
         if raw.dtype == np.uint8:
             raw = raw.astype(np.float32) / 255.0
         elif raw.dtype.kind in "iu":

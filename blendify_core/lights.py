@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_bool, as_choice, as_float, check_tag, frozen, strict_arguments
+from ._validate import _describe, as_array, as_bool, as_choice, as_float, check_tag, frozen, raw_array, strict_arguments
 from .colors import COLOR_SPACES, _check_image, _to_linear, load_image
 from .errors import InvalidSceneError
 from .transforms import Positionable
@@ -215,7 +215,7 @@ class AreaLight(Light):
     ):
         self.shape = as_choice("shape", shape, self.SHAPES)
         if self.shape in ("square", "circle"):
-            if np.ndim(size) != 0:
+            if raw_array("size", size).ndim != 0:
                 raise InvalidSceneError(f"size: a {self.shape} area light takes one number, got {_describe(size)}")
             s = as_float("size", size, min_value=0.0, exclusive_min=True)
             self.size: tuple[float, float] = (s, s)

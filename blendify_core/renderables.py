@@ -12,7 +12,18 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_bool, as_choice, as_float, as_int, check_tag, frozen, strict_arguments
+from ._validate import (
+    _describe,
+    as_array,
+    as_bool,
+    as_choice,
+    as_float,
+    as_int,
+    check_tag,
+    frozen,
+    raw_array,
+    strict_arguments,
+)
 from .colors import (
     Colors,
     FacesUV,
@@ -424,7 +435,7 @@ class PointCloud(Renderable):
         super().__init__(material, colors, tag, **pose)
 
     def _check_size(self, point_size: Any) -> float | np.ndarray:
-        if np.ndim(point_size) == 0:
+        if raw_array("point_size", point_size).ndim == 0:
             return as_float("point_size", point_size, min_value=0.0, exclusive_min=True)
         s = as_array("point_size", point_size, shape=(len(self._vertices),), min_value=0.0)
         if s.size and s.min() <= 0:
