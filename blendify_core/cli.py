@@ -1,4 +1,4 @@
-"""The ``blendify`` command line: ``info``, ``render``, ``demo``, ``crosscheck``.
+"""The ``blendify`` command line: ``info``, ``render``, ``demo``, ``batch``, ``crosscheck``.
 
 Every command has ``--help``; bad arguments print a one-line error and return a non-zero exit code.
 """
@@ -83,6 +83,23 @@ def _crosscheck(args: argparse.Namespace) -> int:
     return int(crosscheck_main(args.rest) or 0)
 
 
+def _batch(args: argparse.Namespace) -> int:
+    from .batch import read_jobs, render_many
+
+    jobs = read_jobs(args.jobs)
+    report = render_many(
+        jobs,
+        executor=args.executor,
+        workers=args.workers,
+        recycle_after=args.recycle if args.recycle > 0 else None,
+        timeout=args.timeout,
+        progress=not args.no_progress,
+        manifest=args.manifest,
+    )
+    print(report.summary())
+    return 0 if report.ok else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="blendify", description="blendify-core: one numpy scene, three renderers.")
     parser.add_argument("--version", action="version", version=f"blendify-core {__version__}")
@@ -110,6 +127,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=int, default=256, help="panel size in pixels")
     p.add_argument("-s", "--samples", type=int, default=None)
     p.set_defaults(func=_demo)
+
+    from .batch import DEFAULT_RECYCLE_AFTER
+
+    p = sub.add_parser("batch", help="render many scene files listed in a JSON-lines file, resumably")
+    p.add_argument("jobs", help='JSON lines: {"scene": "a.npz", "output": "a.png", "backend": ..., "samples": ...}')
+    p.add_argument("--executor", default="local", help="local (process pool), ray, or ray:ADDRESS")
+    p.add_argument("-w", "--workers", type=int, default=None, help="parallel jobs (default: one per core)")
+    p.add_argument("--recycle", type=int, default=DEFAULT_RECYCLE_AFTER, help="jobs per worker process; 0 = never")
+    p.add_argument("--timeout", type=float, default=None, help="seconds per job before it is killed and failed")
+    p.add_argument("--manifest", default=None, help="manifest file (default: blendify_manifest.jsonl by the outputs)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_batch)
 
     p = sub.add_parser("crosscheck", help="render a scene with every backend and compare them pairwise", add_help=False)
     p.add_argument("rest", nargs=argparse.REMAINDER)
