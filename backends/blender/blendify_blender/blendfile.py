@@ -137,13 +137,9 @@ def check_blend_path(path: Any, name: str = "path") -> Path:
 
 
 def _bpy() -> Any:
-    try:
-        import bpy
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        from blendify_core.errors import BackendUnavailableError
+    from . import _runtime
 
-        raise BackendUnavailableError(f".blend files need the 'bpy' package (Blender as a module): {exc}") from exc
-    return bpy
+    return _runtime.bpy_module()
 
 
 @contextlib.contextmanager
@@ -260,9 +256,11 @@ def append_blend_scenes(path: str | os.PathLike[str]) -> tuple[list[Any], list[s
     protections as :func:`attach_blend` (auto-run off during the load, Python drivers and text blocks
     removed). Returns (appended bpy scenes, notes about removed Python). The caller owns the new
     datablocks and must keep auto-run off while evaluating them (drivers are already gone)."""
+    from . import _runtime
+
     bpy = _bpy()
     p = check_blend_path(path)
-    with scripts_auto_execute_disabled():
+    with _runtime.BPY_LOCK, scripts_auto_execute_disabled():
         before = set(_all_ids(bpy))
         try:
             with bpy.data.libraries.load(str(p), link=False) as (src, dst):
@@ -368,6 +366,7 @@ class _Pending:
     """Everything parsed from the file, committed to the IR scene only when parsing succeeded."""
 
     meshes: list[tuple[str, dict[str, Any]]] = field(default_factory=list)
+    points: list[tuple[str, dict[str, Any]]] = field(default_factory=list)
     lights: list[tuple[str, str, dict[str, Any]]] = field(default_factory=list)
     camera: tuple[str, dict[str, Any]] | None = None
     world: list[tuple[str, dict[str, Any]]] = field(default_factory=list)
@@ -584,11 +583,11 @@ class _Parser:
         if node.type == "TEX_IMAGE":
             tex = self._texture_input(socket, where, socket.name)
             if tex is not None:
-                return {"kind": "texture", **tex}
+                return {"kind": "texture", "node": node, **tex}
         elif node.type == "VERTEX_COLOR":
-            return {"kind": "attribute", "name": node.layer_name}
+            return {"kind": "attribute", "name": node.layer_name, "node": node}
         elif node.type == "ATTRIBUTE" and node.attribute_type == "GEOMETRY" and out.name == "Color":
-            return {"kind": "attribute", "name": node.attribute_name}
+            return {"kind": "attribute", "name": node.attribute_name, "node": node}
         elif node.type == "RGB":
             return {"kind": "uniform", "rgba": tuple(out.default_value)}
         else:
@@ -598,7 +597,7 @@ class _Parser:
     # -- materials -------------------------------------------------------------------------------
     def material(self, mat: Any, where: str) -> tuple[Any, dict[str, Any]]:
         """(IR material, colour source description) of a Blender material (or None)."""
-        from blendify_core.materials import GlossyBSDFMaterial, PrincipledBSDFMaterial
+        from blendify_core.materials import PrincipledBSDFMaterial
 
         if mat is None:
             return PrincipledBSDFMaterial(color_space="linear"), {"kind": "uniform", "rgba": (0.8, 0.8, 0.8, 1.0)}
@@ -625,7 +624,19 @@ class _Parser:
         if src is None:
             self.note(f"{where}: nothing connected to the surface output, rendered as default grey")
             return PrincipledBSDFMaterial(color_space="linear"), fallback
-        node, _ = src
+        parsed = self._shader(src[0], where)
+        if parsed is None:
+            self.note(
+                f"{where}: surface shader {src[0].bl_idname} (node tree) cannot be parsed, "
+                "rendered as a Principled BSDF with the viewport colour"
+            )
+            return PrincipledBSDFMaterial(color_space="linear"), fallback
+        return parsed
+
+    def _shader(self, node: Any, where: str) -> tuple[Any, dict[str, Any]] | None:
+        """(IR material, colour description) of a shader node, or None when it cannot be parsed."""
+        from blendify_core.materials import GlossyBSDFMaterial, PrincipledBSDFMaterial
+
         if node.type == "BSDF_PRINCIPLED":
             return self._principled(node, where)
         if node.type == "BSDF_DIFFUSE":
@@ -654,11 +665,56 @@ class _Parser:
                 roughness=1.0,
             )
             return m, {"kind": "uniform", "rgba": (0.0, 0.0, 0.0, 1.0)}
-        self.note(
-            f"{where}: surface shader {node.bl_idname} (node tree) cannot be parsed, "
-            "rendered as a Principled BSDF with the viewport colour"
-        )
-        return PrincipledBSDFMaterial(color_space="linear"), fallback
+        if node.type == "MIX_SHADER":
+            return self._mix_shader(node, where)
+        return None
+
+    def _mix_shader(self, node: Any, where: str) -> tuple[Any, dict[str, Any]] | None:
+        """Two patterns: a wireframe overlay (Mix with a Wireframe factor of two Principled BSDFs) and
+        transparency (Mix of a Transparent BSDF and a shader, the factor being the alpha)."""
+        from blendify_core.materials import PrincipledBSDFWireframeMaterial
+
+        fac = node.inputs[0]
+        a = self._link_from(node.inputs[1])
+        b = self._link_from(node.inputs[2])
+        if a is None or b is None:
+            return None
+        fsrc = self._link_from(fac)
+        if fsrc is not None and fsrc[0].type == "WIREFRAME" and a[0].type == b[0].type == "BSDF_PRINCIPLED":
+            wire = fsrc[0]
+            if wire.use_pixel_size:
+                self.note(f"{where}: wireframe size in pixels read as world units")
+            base, col = self._principled(a[0], where)
+            wsock = b[0].inputs["Base Color"]
+            if wsock.is_linked:
+                self.note(f"{where}: wireframe colour driven by nodes, used its default value")
+            wc, _k = _rgb01("wireframe_color", wsock.default_value, self.notes, where)
+            params = base.parameters()
+            m = PrincipledBSDFWireframeMaterial(
+                wireframe_thickness=max(float(wire.inputs["Size"].default_value), 0.0),
+                wireframe_color=(float(wc[0]), float(wc[1]), float(wc[2]), 1.0),
+                color_space="linear",
+                **params,
+            )
+            return m, col
+        if a[0].type == "BSDF_TRANSPARENT" or b[0].type == "BSDF_TRANSPARENT":
+            other = b[0] if a[0].type == "BSDF_TRANSPARENT" else a[0]
+            parsed = self._shader(other, where)
+            if parsed is None:
+                return None
+            m, col = parsed
+            if fsrc is None:
+                f = float(np.clip(fac.default_value, 0.0, 1.0))
+                alpha = f if a[0].type == "BSDF_TRANSPARENT" else 1.0 - f
+            elif fsrc[1].name == "Alpha" and col.get("node") == fsrc[0] and a[0].type == "BSDF_TRANSPARENT":
+                alpha = 1.0  # the colour source's own alpha
+            else:
+                self.note(f"{where}: transparency factor driven by nodes, read as opaque")
+                alpha = 1.0
+            if "alpha" in m.parameter_names():
+                m = m.copy(alpha=float(m.alpha) * alpha)
+            return m, col
+        return None
 
     def _ignore_links(self, node: Any, handled: tuple[str, ...], where: str) -> None:
         for sock in node.inputs:
@@ -704,10 +760,19 @@ class _Parser:
             elif sock.is_linked:
                 self.note(f"{where}: Principled input {bl_name!r} is driven by nodes, used its default value")
             params[ir_name] = self._clip(ir_name, sock.default_value, where)
+        base_src = self._link_from(inputs["Base Color"])
+        emission_from_color = 0.0
         for bl_name, ir_name in _COLOR_INPUTS.items():
             sock = inputs.get(bl_name)
             if sock is None:
                 continue
+            if ir_name == "emission_color" and sock.is_linked and base_src is not None:
+                esrc = self._link_from(sock)
+                if esrc is not None and esrc[0] == base_src[0] and esrc[1].name == base_src[1].name:
+                    # the surface emits its own colour (point clouds' particle_emission_strength)
+                    emission_from_color = float(params.get("emission_strength", 0.0))
+                    params["emission_strength"] = 0.0
+                    continue
             if sock.is_linked:
                 self.note(f"{where}: Principled input {bl_name!r} is driven by nodes, used its default value")
             c, k = _rgb01(ir_name, sock.default_value, self.notes, where)
@@ -741,6 +806,8 @@ class _Parser:
             if s is not None and s.enabled and s.is_linked:
                 self.note(f"{where}: Principled input {name!r} not parsed")
         colors = self._color_source(inputs["Base Color"], where)
+        if emission_from_color > 0:
+            colors["emission_from_color"] = emission_from_color
         return PrincipledBSDFMaterial(color_space="linear", **params), colors
 
     def _alpha_value(self, node: Any) -> float | None:
@@ -828,7 +895,11 @@ class _Parser:
             key = (slots[i].as_pointer() if slots[i] is not None else 0, 0)
             if key not in self._material_cache:
                 self._material_cache[key] = self.material(slots[i], f"object {name!r}")
-            mats.append(self._material_cache[key])
+            m_ir, col_desc = self._material_cache[key]
+            col_desc = dict(col_desc)  # per-mesh copy (attribute names are resolved per mesh)
+            if col_desc.pop("emission_from_color", 0.0):
+                self.note(f"object {name!r}: emission driven by the base colour is only parsed on point clouds")
+            mats.append((m_ir, col_desc))
         faces_material = remap[tm] if len(used) > 1 else None
 
         # shading: flat, smooth, or mixed (split vertices where corner normals differ)
@@ -958,8 +1029,8 @@ class _Parser:
                 rgb, k = _rgb01("base_color", rgba[:3], self.notes, name)
                 if k > 1.0:
                     self.note(f"object {name!r}: base colour > 1 normalised to [0, 1]")
-                alpha = float(np.clip(rgba[3], 0.0, 1.0)) if len(rgba) > 3 else 1.0
-                c = UniformColors(tuple(rgb) + ((alpha,) if alpha < 1.0 else ()), color_space="linear")
+                # the 4th component of a Base Color socket does not affect shading (Alpha is its own input)
+                c = UniformColors(tuple(rgb), color_space="linear")
             ir_cols.append(c)
 
         # world transform: rotation + translation as the pose, scale/shear/reflection baked in
@@ -984,6 +1055,82 @@ class _Parser:
             "rotation": r,
             "translation": t,
         }
+
+    def points_instance(self, bpy_obj: Any, matrix: np.ndarray, name: str, pend: _Pending) -> None:
+        """A point cloud (native points, e.g. Geometry Nodes Mesh to Points) -> IR PointCloud."""
+        from blendify_core.colors import UniformColors, VertexColors
+
+        pc = bpy_obj.data
+        attrs = pc.attributes
+        n = len(attrs["position"].data) if "position" in attrs else 0
+        if n == 0:
+            return
+        pos = np.empty(n * 3, dtype=np.float32)
+        attrs["position"].data.foreach_get("vector", pos)
+        verts = pos.reshape(n, 3).astype(np.float64)
+        if "radius" in attrs:
+            rad = np.empty(n, dtype=np.float32)
+            attrs["radius"].data.foreach_get("value", rad)
+        else:
+            rad = np.full(n, 0.01, dtype=np.float32)
+        slots = [s.material for s in bpy_obj.material_slots] if len(bpy_obj.material_slots) else list(pc.materials)
+        mat = slots[0] if slots else None
+        if len(slots) > 1:
+            self.note(f"point cloud {name!r}: {len(slots)} materials, used the first")
+        key = (mat.as_pointer() if mat is not None else 0, 0)
+        if key not in self._material_cache:
+            self._material_cache[key] = self.material(mat, f"point cloud {name!r}")
+        m_ir, col = self._material_cache[key]
+        col = dict(col)
+        emission = float(col.pop("emission_from_color", 0.0))
+        colors: Any = None
+        if col["kind"] == "attribute":
+            nm = col["name"] or pc.color_attributes.default_color_name or pc.color_attributes.active_color_name
+            attr = attrs.get(nm) if nm else None
+            if attr is not None and attr.domain == "POINT" and attr.data_type in ("FLOAT_COLOR", "BYTE_COLOR"):
+                buf = np.empty(n * 4, dtype=np.float32)
+                attr.data.foreach_get("color", buf)
+                colors = VertexColors(np.clip(buf.reshape(n, 4), 0.0, 1.0), color_space="linear")
+            else:
+                self.note(f"point cloud {name!r}: colour attribute {nm!r} not found, used white")
+        elif col["kind"] == "texture":
+            self.note(f"point cloud {name!r}: image textures on points not supported, used a uniform colour")
+        if colors is None:
+            rgba = np.asarray(col.get("rgba", (0.8, 0.8, 0.8, 1.0)), dtype=np.float64)
+            rgb, _k = _rgb01("base_color", rgba[:3], self.notes, name)
+            colors = UniformColors(tuple(rgb), color_space="linear")
+        r, s, t = _decompose(matrix)
+        if not _is_identity(s):
+            verts = verts @ s.T
+            scale = abs(np.linalg.det(s)) ** (1.0 / 3.0)
+            rad = rad * scale
+            if not np.allclose(np.linalg.svd(s, compute_uv=False), scale, rtol=1e-5):
+                self.note(f"point cloud {name!r}: non-uniform scale, sphere radii scaled by the mean")
+        size = 2.0 * rad.astype(np.float64)
+        if np.any(size <= 0):
+            self.note(f"point cloud {name!r}: points with radius <= 0 dropped")
+            keep = size > 0
+            verts, size = verts[keep], size[keep]
+            if isinstance(colors, VertexColors):
+                colors = VertexColors(colors.vertex_colors[keep], color_space="linear")
+            if len(verts) == 0:
+                return
+        point_size: Any = float(size[0]) if np.allclose(size, size[0], rtol=1e-6) else size
+        pend.points.append(
+            (
+                name,
+                {
+                    "vertices": verts,
+                    "material": m_ir,
+                    "colors": colors,
+                    "point_size": point_size,
+                    "particle_emission_strength": emission,
+                    "rotation_mode": "rotmat",
+                    "rotation": r,
+                    "translation": t,
+                },
+            )
+        )
 
     def _read_color_attribute(self, me: Any, nm: str, where: str) -> tuple[str, np.ndarray] | None:
         attr = me.attributes.get(nm) if nm else None
@@ -1301,7 +1448,24 @@ def attach_blend(
     if texture_dir is not None and not isinstance(texture_dir, (str, os.PathLike)):
         raise InvalidSceneError(f"texture_dir: expected a directory path or None, got {texture_dir!r}")
     p = check_blend_path(path)
+    from . import _runtime
+
     bpy = _bpy()
+    with _runtime.BPY_LOCK, _runtime.capture_output("attach .blend") as cap:
+        with _runtime.engine_errors(f"attach_blend({str(p)!r})", cap):
+            pend, parser, scene_label = _parse_blend(bpy, scene, p, with_camera, scene_name, with_world, texture_dir)
+    return _commit(scene, p, pend, parser, scene_label, warn, with_camera)
+
+
+def _parse_blend(
+    bpy: Any,
+    scene: Any,
+    p: Path,
+    with_camera: bool,
+    scene_name: str | None,
+    with_world: bool | None,
+    texture_dir: str | os.PathLike[str] | None,
+) -> tuple[_Pending, _Parser, str]:
     parser = _Parser(bpy, p, texture_dir)
     pend = _Pending()
     with scripts_auto_execute_disabled(), _loaded_blend(p) as (scenes, removed):
@@ -1325,29 +1489,50 @@ def attach_blend(
             dg = bpy.context.evaluated_depsgraph_get()
         dg.update()
         unsupported: dict[str, int] = {}
+        # objects whose evaluated geometry also comes as their own mesh component (curves with a bevel,
+        # text, ...): the component is parsed, the object's own to_mesh() would duplicate it
+        own_mesh: set[str] = set()
+        for inst in dg.object_instances:
+            if inst.is_instance and inst.parent is not None and inst.object.type == "MESH":
+                if inst.parent.original == inst.object.original:
+                    own_mesh.add(inst.object.original.name)
         for inst in dg.object_instances:
             obj = inst.object
             typ = obj.type
-            if typ in ("EMPTY", "CAMERA", "ARMATURE", "LATTICE", "SPEAKER", "LIGHT_PROBE"):
-                if typ == "EMPTY" or typ == "CAMERA" or typ == "ARMATURE" or typ == "LATTICE":
-                    continue
-            orig_name = obj.original.name if obj.original is not None else obj.name
-            if inst.is_instance and inst.parent is not None:
-                name = f"{inst.parent.original.name}/{orig_name}"
-            else:
-                name = orig_name
-            matrix = _mat(inst.matrix_world)
+            if typ in ("EMPTY", "CAMERA", "ARMATURE", "LATTICE", "SPEAKER"):
+                continue
+            if not inst.is_instance and typ in ("CURVE", "SURFACE", "FONT", "META") and obj.original.name in own_mesh:
+                continue
+            orig = obj.original if obj.original is not None else obj
+            parent = inst.parent.original if (inst.is_instance and inst.parent is not None) else None
+            # a geometry component of the object itself (e.g. points made by Geometry Nodes) is not an
+            # instance of another object
+            own_component = parent is not None and parent == orig
+            name = orig.name if parent is None or own_component else f"{parent.name}/{orig.name}"
             saved_tag = _saved_tag(obj)
-            if saved_tag is not None and not inst.is_instance:
+            if saved_tag is not None and (parent is None or own_component):
                 name = saved_tag
+            if parent is None and orig.hide_render:
+                continue
+            matrix = _mat(inst.matrix_world)
+            n_before = len(pend.meshes) + len(pend.points)
             if typ in _MESH_TYPES:
-                if obj.original is not None and obj.original.hide_render and not inst.is_instance:
-                    continue
                 parser.mesh_instance(obj, matrix, name, pend)
+            elif typ == "POINTCLOUD":
+                parser.points_instance(obj, matrix, name, pend)
             elif typ == "LIGHT":
                 parser.light(obj, matrix, name, pend)
+                continue
             else:
                 unsupported[typ] = unsupported.get(typ, 0) + 1
+                continue
+            if len(pend.meshes) + len(pend.points) > n_before:
+                spec = (pend.points[-1] if typ == "POINTCLOUD" else pend.meshes[-1])[1]
+                spec["emit_shadows"] = bool(orig.visible_shadow)
+                if orig.is_shadow_catcher:
+                    parser.note(f"object {name!r}: shadow catcher read as a normal surface")
+                if not orig.visible_camera:
+                    parser.note(f"object {name!r}: hidden from the camera in Blender, visible in the IR")
         for typ, n in unsupported.items():
             parser.note(f"{n} object(s) of type {typ} not parsed (kept for Cycles only)")
         if with_world or (with_world is None and scene.lights.background is None and scene.lights.environment is None):
@@ -1357,7 +1542,7 @@ def attach_blend(
                 raise InvalidSceneError(f"with_camera: scene {sc.name!r} of {str(p)!r} has no camera")
             parser.camera(sc, sc.camera.evaluated_get(dg), pend)
         scene_label = sc.name
-    return _commit(scene, p, pend, parser, scene_label, warn, with_camera)
+    return pend, parser, scene_label
 
 
 def _commit(
@@ -1371,7 +1556,15 @@ def _commit(
     old_bg, old_env, old_cam = scene.lights.background, scene.lights.environment, scene.camera
     try:
         for name, spec in pend.meshes:
-            added_r.append(scene.renderables.add_mesh(tag=_unique_tag(name, taken_r), **spec))
+            emit = spec.pop("emit_shadows", True)
+            r = scene.renderables.add_mesh(tag=_unique_tag(name, taken_r), **spec)
+            r.emit_shadows = emit
+            added_r.append(r)
+        for name, spec in pend.points:
+            emit = spec.pop("emit_shadows", True)
+            r = scene.renderables.add_pointcloud(tag=_unique_tag(name, taken_r), **spec)
+            r.emit_shadows = emit
+            added_r.append(r)
         for name, kind, spec in pend.lights:
             add = {
                 "point": scene.lights.add_point,
