@@ -71,8 +71,8 @@ def _canonical_sign(normals: np.ndarray) -> np.ndarray:
 
 def _propagate(points: np.ndarray, normals: np.ndarray, idx: np.ndarray, viewpoint: np.ndarray | None) -> np.ndarray:
     """Consistent orientation by propagation over a minimum spanning tree of the kNN graph (Hoppe et al.
-    1992; edge weight 1 - |n_i . n_j|), then one global sign per connected component: towards
-    ``viewpoint`` by majority, else outwards from the component's centroid (for flat components: +Z,
+    1992; edge weight 1 - |n_i . n_j|), then one global sign per connected component: its points
+    nearest to ``viewpoint`` face it, else outwards from the component's centroid (for flat components: +Z,
     then +Y, then +X)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, connected_components, minimum_spanning_tree
@@ -116,9 +116,18 @@ def _propagate(points: np.ndarray, normals: np.ndarray, idx: np.ndarray, viewpoi
     # global sign per component
     ncomp = int(labels.max()) + 1
     if viewpoint is not None:
-        facing = np.sign(np.einsum("ij,ij->i", out, viewpoint - points))
-        score = np.bincount(labels, weights=facing, minlength=ncomp)
-        tie = np.bincount(labels, weights=np.einsum("ij,ij->i", out, viewpoint - points), minlength=ncomp)
+        # the points of a patch nearest to the viewpoint are the ones surely seen from it (on a closed
+        # surface and on a scan alike): orient the patch so that they face the viewpoint
+        dist = np.linalg.norm(viewpoint - points, axis=1)
+        counts = np.bincount(labels, minlength=ncomp)
+        order = np.lexsort((dist, labels))
+        starts = np.r_[0, np.cumsum(counts)[:-1]]
+        rank = np.empty(n_pts, dtype=np.int64)
+        rank[order] = np.arange(n_pts) - starts[labels[order]]
+        near = rank < np.maximum(1, np.ceil(0.01 * counts))[labels]
+        facing = np.einsum("ij,ij->i", out, viewpoint - points) / np.maximum(dist, 1e-300)
+        score = np.bincount(labels[near], weights=np.sign(facing[near]), minlength=ncomp)
+        tie = np.bincount(labels[near], weights=facing[near], minlength=ncomp)
         score = np.where(score == 0, tie, score)
     else:
         counts = np.bincount(labels, minlength=ncomp).astype(np.float64)
@@ -192,8 +201,9 @@ def estimate_normals(
 
     ``orient``:
       - ``"propagate"`` (default): consistent across each connected patch by propagation over a minimum
-        spanning tree of the kNN graph; each patch then faces ``viewpoint`` (by majority) when given,
-        else points away from its centroid (outwards on closed surfaces; flat patches: +Z, then +Y, +X).
+        spanning tree of the kNN graph; each patch then faces ``viewpoint`` when given (judged on the
+        patch's points nearest to it, which are surely visible), else points away from its centroid
+        (outwards on closed surfaces; flat patches: +Z, then +Y, then +X).
       - ``"viewpoint"``: each normal independently faces ``viewpoint`` (a (3,) position, e.g. the
         scanner or camera position); required.
       - ``None``: PCA sign only made deterministic (largest component positive).
@@ -335,6 +345,32 @@ def closest_points_on_mesh(
     return best_face, best_bary, best_d
 
 
+def _angle_weighted_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Vertex normals weighted by the corner angles (Thuermer & Wuethrich 1998): independent of how
+    polygons were split into triangles, unlike area weighting. Zero where undefined."""
+    from ..geometry import face_normals
+
+    fn = face_normals(v, f)
+    acc = np.zeros_like(v)
+    for c in range(3):
+        e1 = v[f[:, (c + 1) % 3]] - v[f[:, c]]
+        e2 = v[f[:, (c + 2) % 3]] - v[f[:, c]]
+        l1, l2 = np.linalg.norm(e1, axis=1), np.linalg.norm(e2, axis=1)
+        cos = np.einsum("ij,ij->i", e1, e2) / np.maximum(l1 * l2, 1e-300)
+        ang = np.arccos(np.clip(cos, -1.0, 1.0))
+        np.add.at(acc, f[:, c], fn * ang[:, None])
+    length = np.linalg.norm(acc, axis=1, keepdims=True)
+    return np.divide(acc, length, out=np.zeros_like(acc), where=length > 0)
+
+
+def _welded_normals(v: np.ndarray, f: np.ndarray, weld: np.ndarray) -> np.ndarray:
+    """Angle-weighted normals accumulated over welded vertex groups, returned per original vertex."""
+    n_groups = int(weld.max()) + 1
+    rep = np.zeros(n_groups, dtype=np.int64)
+    rep[weld] = np.arange(len(v))
+    return _angle_weighted_normals(v[rep], weld[f])[weld]
+
+
 def normals_from_mesh(
     points: Any, mesh_vertices: Any, mesh_faces: Any = None, method: str = "interpolate", k: int = 4
 ) -> np.ndarray:
@@ -343,13 +379,14 @@ def normals_from_mesh(
 
     ``mesh_vertices``/``mesh_faces``: (V, 3) and (F, 3) arrays in the points' frame, or a blendify
     Mesh/renderable as ``mesh_vertices`` (its triangles in WORLD space are used; ``mesh_faces`` None).
-    ``method``: ``"interpolate"`` (default; area-weighted vertex normals interpolated with the
+    ``method``: ``"interpolate"`` (default; angle-weighted vertex normals, coincident vertices welded,
+    interpolated with the
     barycentric coordinates of the closest point, i.e. smooth shading) or ``"face"`` (the closest
     triangle's normal). Normals are L2-normalised (blendify averaged 5 vertex normals and divided by
     the L1 norm, so its results were not unit length). Degenerate cases fall back to the face normal,
     then +Z; never NaN.
     """
-    from ..geometry import face_normals, vertex_normals
+    from ..geometry import face_normals
     from ..renderables import Renderable
 
     p = _points("points", points)
@@ -387,7 +424,11 @@ def normals_from_mesh(
     if method == "face":
         out = fn[fid]
     else:
-        vn = vertex_normals(vu, fu)
+        # weld coincident vertices first (UV seams and poles duplicate them) so that each vertex normal
+        # averages every face around the point, not only those on one side of a seam
+        scale = max(float(np.abs(vu).max()), 1e-300)
+        _, weld = _unique_rows(np.round(vu / (1e-9 * scale)))
+        vn = _welded_normals(vu, fu, weld)
         tri = fu[fid]
         out = np.einsum("ij,ijk->ik", bary, vn[tri])
         length = np.linalg.norm(out, axis=1)
