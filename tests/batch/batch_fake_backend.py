@@ -1,4 +1,4 @@
-"""A fake backend for the batch tests, importable by spawned workers as ``fake_backend:FakeBackend``.
+"""A fake backend for the batch tests, importable by spawned workers as ``batch_fake_backend:FakeBackend``.
 
 Each instance is told what to do through backend options (so one batch mixes behaviours per job):
 ``action`` = "ok" | "sleep" | "raise" | "abort" | "kill" | "segfault" | "raise_if_exists",
@@ -24,7 +24,7 @@ _LEAK: list[bytearray] = []
 
 
 class FakeBackend(Backend):
-    name = "fake"
+    name = "batchfake"
     engine = None
 
     def __init__(
@@ -74,3 +74,27 @@ class FakeBackend(Backend):
         rgba[..., 3] = 1.0
         depth = np.full((h, w), 2.0, dtype=np.float32) if settings.wants("depth") else None
         return RenderResult(rgba=rgba, depth=depth, meta={"backend": self.name})
+
+
+FAKE = "batchfake"
+TARGET = "batch_fake_backend:FakeBackend"
+
+
+def tiny_scene(tag: str, resolution: tuple[int, int] = (16, 12)) -> Any:
+    """A one-plane scene whose renderable tag names the job (the fake colours the frame from it)."""
+    from blendify_core.colors import UniformColors
+    from blendify_core.materials import DiffuseMaterial
+    from blendify_core.scene import Scene
+
+    scene = Scene()
+    scene.set_orthographic_camera(resolution, ortho_scale=2.0, translation=(0, 0, 5.0), near=0.1, far=20)
+    scene.renderables.add_plane_mesh(4.0, DiffuseMaterial(), UniformColors((0.5, 0.5, 0.5)), tag=tag)
+    scene.lights.add_sun(strength=3.0)
+    return scene
+
+
+def expected_red(tag: str) -> int:
+    """The 8-bit sRGB red value the fake writes for ``tag``."""
+    from blendify_core.colorspace import linear_to_srgb
+
+    return int(np.round(linear_to_srgb(np.float32((sum(tag.encode()) % 200) / 255.0)) * 255))
