@@ -35,7 +35,13 @@ from blendify_blender.blendfile import (
 
 from blendify_core.colors import FacesUV, FileTextureColors, TextureColors, UniformColors, VertexColors
 from blendify_core.errors import InvalidSceneError
-from blendify_core.materials import DiffuseMaterial, PrincipledBSDFMaterial
+from blendify_core.materials import (
+    DiffuseMaterial,
+    GlossyBSDFMaterial,
+    PlasticWireframeMaterial,
+    PrincipledBSDFMaterial,
+    PrincipledBSDFWireframeMaterial,
+)
 from blendify_core.scene import Scene
 
 pytestmark = pytest.mark.cycles
@@ -289,6 +295,83 @@ def test_export_attach_round_trip(tmp_path: Path):
     np.testing.assert_allclose(cam_b.K, cam_a.K, atol=1e-4)
     np.testing.assert_allclose(cam_b.matrix_world, cam_a.matrix_world, atol=1e-6)
     assert cam_b.near == pytest.approx(cam_a.near) and cam_b.far == pytest.approx(cam_a.far)
+
+
+def test_round_trip_points_wireframe_transparency_curves(tmp_path: Path):
+    rng = np.random.default_rng(3)
+    s = Scene()
+    pts = rng.uniform(-1, 1, (50, 3))
+    s.renderables.add_pointcloud(
+        pts,
+        PrincipledBSDFMaterial(roughness=0.6),
+        VertexColors(rng.uniform(0, 1, (50, 3))),
+        point_size=rng.uniform(0.01, 0.05, 50),
+        particle_emission_strength=0.5,
+        tag="points",
+        translation=(0, 0, 1),
+    )
+    s.renderables.add_pointcloud(
+        pts[:5], PrincipledBSDFMaterial(), UniformColors((1, 0, 0)), point_size=0.02, tag="few"
+    )
+    s.renderables.add_cube_mesh(
+        1.0,
+        PlasticWireframeMaterial(wireframe_thickness=0.02, wireframe_color=(0.1, 0.2, 0.3)),
+        UniformColors((0.5, 0.5, 0.5)),
+        tag="wire",
+    )
+    s.renderables.add_sphere_nurbs(
+        0.5, GlossyBSDFMaterial(roughness=0.2, alpha=0.5), UniformColors((0.9, 0.8, 0.1)), tag="glossy"
+    )
+    s.renderables.add_cube_mesh(
+        0.5, PrincipledBSDFMaterial(alpha=0.7), UniformColors((0.1, 0.9, 0.1, 0.5)), tag="translucent"
+    )
+    curve = s.renderables.add_curve_nurbs(
+        np.array([[0, 0, 0], [1, 0, 0], [1, 1, 1]], float),
+        0.05,
+        DiffuseMaterial(),
+        UniformColors((1, 1, 1)),
+        tag="tube",
+    )
+    curve.emit_shadows = False
+    s.set_perspective_camera((64, 48), fov_x=0.8, translation=(0, -5, 1), rotation_mode="look_at", rotation=(0, 0, 0))
+    path = tmp_path / "more.blend"
+    s.export_blend(path)  # the Scene method delegates to the cycles backend
+    dst = Scene()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BlendAttachWarning)
+        dst.attach_blend(path)
+    assert sorted(dst.renderables.keys()) == sorted(s.renderables.keys())  # one object each (no duplicates)
+
+    a, b = s.renderables["points"], dst.renderables["points"]
+    assert type(b).__name__ == "PointCloud"
+    np.testing.assert_allclose(
+        b.vertices @ b.rotation_matrix.T + b.translation, a.vertices @ a.rotation_matrix.T + a.translation, atol=1e-6
+    )
+    np.testing.assert_allclose(b.point_size, a.point_size, rtol=1e-6)
+    np.testing.assert_allclose(b.colors.linear_rgba, a.colors.linear_rgba, atol=1e-6)
+    assert b.particle_emission_strength == pytest.approx(0.5)
+    assert b.material.roughness == pytest.approx(0.6)
+    assert dst.renderables["few"].point_size == pytest.approx(0.02)
+
+    wire = dst.renderables["wire"].material
+    assert isinstance(wire, PrincipledBSDFWireframeMaterial)
+    assert wire.wireframe_thickness == pytest.approx(0.02)
+    np.testing.assert_allclose(wire.linear("wireframe_color"), s.renderables["wire"].material.linear("wireframe_color"))
+    glossy = dst.renderables["glossy"].material
+    assert isinstance(glossy, GlossyBSDFMaterial) and glossy.alpha == pytest.approx(0.5)
+    assert glossy.roughness == pytest.approx(0.2)
+    # material alpha x colour alpha is the alpha Blender renders with
+    assert dst.renderables["translucent"].material.alpha == pytest.approx(0.35)
+    assert dst.renderables["translucent"].colors.linear_rgba[3] == 1.0
+    tube = dst.renderables["tube"]
+    assert tube.emit_shadows is False and len(tube.faces) > 50
+    wc = tube.vertices @ tube.rotation_matrix.T + tube.translation
+    dist = np.full(len(wc), np.inf)  # distance of every tube vertex to the polyline
+    for p0, p1 in ((np.zeros(3), np.array([1.0, 0, 0])), (np.array([1.0, 0, 0]), np.ones(3))):
+        d = p1 - p0
+        t = np.clip((wc - p0) @ d / (d @ d), 0.0, 1.0)
+        dist = np.minimum(dist, np.linalg.norm(wc - (p0 + t[:, None] * d), axis=1))
+    assert dist.max() < 0.0505 and np.median(dist) > 0.045
 
 
 def test_export_orthographic_camera_and_bad_inputs(tmp_path: Path):
