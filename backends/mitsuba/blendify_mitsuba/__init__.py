@@ -70,7 +70,11 @@ _CAPS: dict[str, tuple[str, str]] = {
     "material.coat": (A, "principled clearcoat (different lobe from Blender's coat)"),
     "material.sheen": (A, "principled sheen (different lobe)"),
     "material.subsurface": (U, "Mitsuba has no subsurface scattering in the principled BSDF"),
-    "material.emission": (A, "area emitter on the surface: emits from the front side only"),
+    "material.emission": (
+        A,
+        "area emitter on the surface: emits from the front side only; with a background/environment light "
+        "the coverage alpha is composited from two extra one-bounce passes",
+    ),
     "material.alpha": (E, "mask BSDF with the material x colour alpha"),
     "material.wireframe": (U, "no faithful wireframe overlay in Mitsuba"),
     "material.roughness_map": (U, "not translated"),
@@ -82,8 +86,12 @@ _CAPS: dict[str, tuple[str, str]] = {
     "light.sun.soft": (A, "delta directional light (angular diameter ignored: hard shadows)"),
     "light.spot": (E, "spot, intensity = P / (4 pi), cutoff = spot_size / 2"),
     "light.spot.blend": (A, "Mitsuba's falloff is linear in angle, Blender's a smoothstep"),
-    "light.area": (E, "rectangle with radiance P / (pi A), one-sided, hidden from the camera"),
-    "light.area.disk": (E, "disk with radiance P / (pi A), one-sided, hidden from the camera"),
+    "light.area": (
+        E,
+        "rectangle with radiance P / (pi A), one-sided, hidden from the camera (visible from its emitting "
+        "side only in scenes with emissive materials)",
+    ),
+    "light.area.disk": (E, "disk with radiance P / (pi A), one-sided, hidden from the camera as light.area"),
     "light.no_shadow": (U, "Mitsuba lights always cast shadows"),
     "light.background": (E, "constant emitter"),
     "light.environment": (E, "envmap rotated to Blender's equirectangular mapping"),
@@ -107,7 +115,8 @@ class MitsubaNative:
     scene_dict: dict[str, Any]
     shapes: dict[str, Any]
     camera: Any
-    emission_scene: Any = None
+    coverage_scene: Any = None  # shapes only: coverage alpha (when compositing)
+    sky_scene: Any = None  # background/environment only: what the sky adds behind partial pixels
     integrator: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     effects: Any = None
@@ -194,7 +203,10 @@ class MitsubaBackend(Backend):
         from blendify_core.lights import AreaLight
 
         effects = analyse_effects(scene)
-        hide = bool(settings.transparent_background)
+        # hide_emitters gives a coverage alpha under a sky and hides area lights from the camera (as in
+        # Cycles), but in Mitsuba 3.9 it also skips emissive *surfaces* along camera rays: with emissive
+        # materials the alpha is recovered by compositing instead (see translate)
+        hide = bool(settings.transparent_background) and not effects.emission
         max_depth = settings.max_bounces + 2
         if settings.effects and not (
             effects.indirect_diffuse or effects.glossy or effects.transmission or effects.caustics
@@ -232,16 +244,18 @@ class MitsubaBackend(Backend):
             }
             sampler = {"type": "independent", "sample_count": int(settings.samples)}
             try:
-                tr = translate_scene(scene, film, sampler, integrator, self.max_analytic_spheres)
+                composite = bool(settings.transparent_background) and effects.emission
+                tr = translate_scene(scene, film, sampler, integrator, self.max_analytic_spheres, composite=composite)
             except BlendifyError:
                 raise
             except Exception as exc:
                 raise RenderError(f"mitsuba: translating the scene failed: {type(exc).__name__}: {exc}") from exc
             try:
                 mi_scene = mi.load_dict(tr.scene_dict)
-                em_scene = None
-                if tr.emission_dict is not None and integrator["hide_emitters"]:
-                    em_scene = mi.load_dict(tr.emission_dict)
+                cov_scene = sky_scene = None
+                if tr.coverage_dict is not None and tr.background_dict is not None:
+                    cov_scene = mi.load_dict(tr.coverage_dict)
+                    sky_scene = mi.load_dict(tr.background_dict)
             except Exception as exc:
                 raise RenderError(f"mitsuba: mi.load_dict failed: {exc}") from exc
         return MitsubaNative(
@@ -250,7 +264,8 @@ class MitsubaBackend(Backend):
             scene_dict=tr.scene_dict,
             shapes=tr.shapes,
             camera=cam,
-            emission_scene=em_scene,
+            coverage_scene=cov_scene,
+            sky_scene=sky_scene,
             integrator=integrator,
             effects=effects,
             n_analytic_spheres=tr.n_analytic_spheres,
@@ -273,9 +288,14 @@ class MitsubaBackend(Backend):
                 if settings.wants("rgb"):
                     t0 = time.perf_counter()
                     rgba = render_rgba(native.scene, settings.samples, settings.seed)
-                    if native.emission_scene is not None:
-                        em = render_rgba(native.emission_scene, settings.samples, settings.seed + 7919)
-                        rgba[..., :3] += em[..., :3]
+                    if native.coverage_scene is not None:
+                        # emissive surfaces + a sky: rendered with the sky visible; the coverage alpha comes
+                        # from a one-bounce pass of the shapes, the sky behind partly covered pixels is removed
+                        alpha = render_rgba(native.coverage_scene, settings.samples, settings.seed)[..., 3]
+                        sky = render_rgba(native.sky_scene, settings.samples, settings.seed)[..., :3]
+                        rgba[..., :3] -= (1.0 - alpha)[..., None] * sky
+                        rgba[..., :3] = np.maximum(rgba[..., :3], 0.0)
+                        rgba[..., 3] = alpha
                     if not settings.transparent_background:
                         rgba[..., 3] = 1.0
                     out["rgba"] = rgba
@@ -311,7 +331,7 @@ class MitsubaBackend(Backend):
             "samples": settings.samples,
             "seed": settings.seed,
             "pixel_filter": settings.pixel_filter,
-            "emission_pass": native.emission_scene is not None,
+            "alpha_compositing": native.coverage_scene is not None,
             "analytic_spheres": native.n_analytic_spheres,
             "timings": timings,
         }

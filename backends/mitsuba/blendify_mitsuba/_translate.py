@@ -51,8 +51,11 @@ class Translation:
 
     scene_dict: dict[str, Any]
     shapes: dict[str, ShapeInfo]
-    emission_dict: dict[str, Any] | None  # the emissive shapes alone (camera-visible emission pass)
     n_analytic_spheres: int = 0
+    #: for transparent films with emissive surfaces and a background/environment light (then
+    #: ``hide_emitters`` cannot be used): the shapes alone (coverage alpha) and the sky alone
+    coverage_dict: dict[str, Any] | None = None
+    background_dict: dict[str, Any] | None = None
     notes: list[str] = field(default_factory=list)
 
 
@@ -426,8 +429,12 @@ def translate_scene(
     integrator: dict[str, Any],
     max_analytic_spheres: int,
     camera: Any = None,
+    composite: bool = False,
 ) -> Translation:
-    """Build the ``mi.load_dict`` dictionary of ``scene`` (camera replaced by ``camera`` if given)."""
+    """Build the ``mi.load_dict`` dictionary of ``scene`` (camera replaced by ``camera`` if given).
+
+    ``composite``: also build the coverage and sky scenes used to recover a coverage alpha when
+    ``hide_emitters`` cannot be used (emissive surfaces would vanish from camera rays with it)."""
     cam = scene.camera if camera is None else camera
     d: dict[str, Any] = {
         "type": "scene",
@@ -435,7 +442,6 @@ def translate_scene(
         "sensor": camera_dict(cam, film, sampler),
     }
     shapes: dict[str, ShapeInfo] = {}
-    emissive: dict[str, Any] = {}
     n_spheres = 0
     for ri, r in enumerate(scene.renderables):
         prefix = f"r{ri:05d}"
@@ -460,7 +466,7 @@ def translate_scene(
                 )
         matrix = r.matrix_world
         if isinstance(r, PointCloud):
-            n_spheres += _add_pointcloud(d, shapes, emissive, r, ri, prefix, matrix, max_analytic_spheres)
+            n_spheres += _add_pointcloud(d, shapes, r, ri, prefix, matrix, max_analytic_spheres)
             continue
         if isinstance(r, SphereNURBS):
             mat, colors = r.materials[0], r.colors_list[0]
@@ -477,7 +483,6 @@ def translate_scene(
             em = _emission(mat)
             if em is not None:
                 shape["emitter"] = {"type": "area", "radiance": _rgb(em)}
-                emissive[key] = shape
             d[key] = shape
             shapes[key] = ShapeInfo(ri, const, tex)
             continue
@@ -514,23 +519,19 @@ def translate_scene(
                     attrs["vertex_alpha"] = part.vertex_rgba[:, 3]
             mesh = build_mesh(key, part.vertices, part.faces, part.normals, part.uv, attrs, bsdf, emitter)
             d[key] = mesh
-            if emitter is not None:
-                emissive[key] = mesh
             shapes[key] = ShapeInfo(ri, const, tex)
     d.update(light_dicts(scene))
-    emission_dict = None
-    if emissive:
-        emission_dict = {
-            "type": "scene",
-            "integrator": {"type": "path", "max_depth": 1, "hide_emitters": False},
-            "sensor": camera_dict(cam, film, sampler),
-            **emissive,
+    coverage_dict = background_dict = None
+    sky = {k: v for k, v in d.items() if k in ("environment", "background")}
+    if composite and sky:
+        one_bounce = {"type": "path", "max_depth": 1, "hide_emitters": False}
+        base = {"type": "scene", "integrator": one_bounce, "sensor": camera_dict(cam, film, sampler)}
+        coverage_dict = {**base, **{k: v for k, v in d.items() if k.startswith("r")}}
+        sky_dict = {
+            k: (environment_dict(scene.lights.environment) if k == "environment" else v) for k, v in sky.items()
         }
-        # everything else still occludes the emitters
-        for key, value in d.items():
-            if key.startswith("r") and key not in emissive:
-                emission_dict[key] = value
-    return Translation(d, shapes, emission_dict, n_spheres)
+        background_dict = {**base, "sensor": camera_dict(cam, film, sampler), **sky_dict}
+    return Translation(d, shapes, n_spheres, coverage_dict=coverage_dict, background_dict=background_dict)
 
 
 def _wrap_mask(bsdf: dict[str, Any], material: Any, colors: Any) -> dict[str, Any]:
@@ -543,7 +544,6 @@ def _wrap_mask(bsdf: dict[str, Any], material: Any, colors: Any) -> dict[str, An
 def _add_pointcloud(
     d: dict[str, Any],
     shapes: dict[str, ShapeInfo],
-    emissive: dict[str, Any],
     r: PointCloud,
     ri: int,
     prefix: str,
@@ -573,7 +573,6 @@ def _add_pointcloud(
                 em = (em if em is not None else 0.0) + np.asarray(c) * strength
             if em is not None:
                 shape["emitter"] = {"type": "area", "radiance": _rgb(em)}
-                emissive[key] = shape
             d[key] = shape
             shapes[key] = ShapeInfo(ri, np.asarray(c, dtype=np.float64))
         return n
@@ -609,7 +608,5 @@ def _add_pointcloud(
         emitter = mi.load_dict({"type": "area", "radiance": _rgb(em)})
     mesh = build_mesh(key, verts, tm.faces, normals, None, attrs, bsdf, emitter)
     d[key] = mesh
-    if emitter is not None:
-        emissive[key] = mesh
     shapes[key] = ShapeInfo(ri, const, tex)
     return 0

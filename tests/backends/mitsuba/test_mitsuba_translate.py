@@ -235,7 +235,7 @@ def test_pointcloud_analytic_then_merged(mi_scalar):
     assert tr.scene_dict["r00000_mesh"].face_count() == len(pc.to_mesh().faces)
 
 
-def test_emission_builds_an_emitter_and_a_camera_pass(mi_scalar):
+def test_emission_builds_an_emitter_and_compositing_scenes(mi_scalar):
     scene = bf.Scene()
     scene.renderables.add_sphere_nurbs(
         0.5, PrincipledBSDFMaterial(emission_color=(1, 0.5, 0.25), emission_strength=3.0), UniformColors((1, 1, 1))
@@ -245,7 +245,14 @@ def test_emission_builds_an_emitter_and_a_camera_pass(mi_scalar):
     shape = tr.scene_dict["r00000_sphere"]
     expected = PrincipledBSDFMaterial(emission_color=(1, 0.5, 0.25)).linear("emission_color")[:3] * 3.0
     assert shape["emitter"]["radiance"]["value"] == pytest.approx(list(expected))
-    assert tr.emission_dict is not None and tr.emission_dict["integrator"]["max_depth"] == 1
+    assert tr.coverage_dict is None  # no sky: no compositing needed
+    scene.lights.set_background_light(0.5)
+    from blendify_mitsuba._translate import translate_scene
+
+    tr = translate_scene(scene, FILM, SAMPLER, INTEGRATOR, 10, composite=True)
+    assert tr.coverage_dict["integrator"]["max_depth"] == 1 and "background" not in tr.coverage_dict
+    assert "r00000_sphere" in tr.coverage_dict
+    assert "background" in tr.background_dict and "r00000_sphere" not in tr.background_dict
 
 
 def test_settings_drive_integrator(scalar_backend):

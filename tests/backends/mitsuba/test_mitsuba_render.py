@@ -1,0 +1,279 @@
+"""Tiny Mitsuba renders (scalar_rgb, <= 160x120, few samples): the camera self-test, exact depth,
+light units against analytic values, textures, outputs, determinism and clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from blendify_mitsuba import MitsubaBackend
+
+import blendify_core as bf
+from blendify_core import testing
+from blendify_core.colors import UniformColors, VertexColors
+from blendify_core.materials import DiffuseMaterial, PrincipledBSDFMaterial
+
+_status = MitsubaBackend.probe()
+if not _status.available:  # pragma: no cover - depends on the machine
+    print(f"\nskipping the mitsuba backend tests: {_status.reason}")
+    pytest.skip(f"mitsuba backend unavailable: {_status.reason}", allow_module_level=True)
+
+pytestmark = pytest.mark.mitsuba
+
+ALL = ("rgb", "depth", "normal", "albedo", "instance")
+
+
+def _render(backend, scene, **kw):
+    return bf.render(scene, backend=backend, **kw)
+
+
+def _centroids(result, pixels: np.ndarray, window: int = 9) -> np.ndarray:
+    """Alpha-weighted marker centroids (OpenCV pixel coordinates) in a window around each expected pixel."""
+    a = result.rgba[..., 3].astype(np.float64)
+    vv, uu = np.mgrid[0 : a.shape[0], 0 : a.shape[1]]
+    out = []
+    for u, v in pixels:
+        w = a * (np.abs(uu - u) <= window) * (np.abs(vv - v) <= window)
+        out.append([(w * uu).sum() / w.sum(), (w * vv).sum() / w.sum()])
+    return np.array(out)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [dict(), dict(center=None), dict(orthographic=True)],
+    ids=["perspective-offcentre", "perspective-centred", "orthographic-offcentre"],
+)
+def test_camera_self_test_markers(scalar_backend, kwargs):
+    scene, pixels = testing.marker_scene(**kwargs)
+    r = _render(scalar_backend, scene, samples=64, outputs=("rgb", "instance"))
+    err = np.linalg.norm(_centroids(r, pixels) - pixels, axis=1)
+    print(f"marker centroid errors (px): {np.round(err, 4)}")
+    assert err.max() < 0.1
+    # the pixel-centre instance mask agrees with the projected marker centres
+    for i, (u, v) in enumerate(pixels):
+        assert r.instance[int(round(v)), int(round(u))] == i
+
+
+def test_anisotropic_pixels_are_a_clear_error(scalar_backend):
+    scene, _ = testing.marker_scene(fx=150.0, fy=185.0)
+    with pytest.raises(bf.UnsupportedFeatureError, match="camera.anisotropic"):
+        _render(scalar_backend, scene, samples=1)
+    with pytest.raises(bf.UnsupportedFeatureError, match="fx"):
+        scalar_backend.translate(scene, bf.settings.resolve_settings(samples=1))
+
+
+def test_depth_of_a_tilted_plane_is_exact(scalar_backend):
+    scene = testing.depth_plane_scene()
+    r = _render(scalar_backend, scene, samples=1, outputs=("depth", "normal", "instance"))
+    expected = testing.expected_plane_depth(scene)
+    hit = np.isfinite(expected)
+    assert np.array_equal(np.isfinite(r.depth), hit)
+    rel = np.abs(r.depth[hit] - expected[hit]) / expected[hit]
+    assert rel.max() < 1e-4
+    assert np.all(r.instance[hit] == 0) and np.all(r.instance[~hit] == -1)
+    n = scene.renderables["plane"].rotation_matrix[:, 2]
+    np.testing.assert_allclose(r.normal[hit], np.broadcast_to(n, r.normal[hit].shape), atol=1e-5)
+
+
+def _plane_expected(scene, light: str) -> np.ndarray:
+    """Analytic radiance (H, W) of the Lambertian plane of testing.plane_scene at the pixel centres."""
+    cam = scene.camera
+    o, d = cam.pixel_rays()
+    p = o - d * (o[:, 2:3] / d[:, 2:3])  # hit points on z = 0
+    rho = 0.5
+    lt = list(scene.lights)
+    if light == "sun":
+        s = lt[0]
+        e = s.strength * max(0.0, -s.direction[2]) * np.ones(len(p))
+    elif light in ("point", "spot"):
+        s = lt[0]
+        v = s.translation - p
+        dist = np.linalg.norm(v, axis=1)
+        e = s.strength / (4 * np.pi) * (v[:, 2] / dist) / dist**2
+    elif light in ("area", "area_disk"):
+        s = lt[0]
+        n = 200
+        g = (np.arange(n) + 0.5) / n - 0.5
+        gx, gy = np.meshgrid(g * s.size[0], g * s.size[1])
+        pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+        da = s.size[0] * s.size[1] / n**2
+        if light == "area_disk":
+            keep = (pts[:, 0] / (s.size[0] / 2)) ** 2 + (pts[:, 1] / (s.size[1] / 2)) ** 2 <= 1
+            pts = pts[keep] * np.sqrt(np.pi / 4 * s.size[0] * s.size[1] / (keep.sum() * da))
+        q = np.concatenate([pts, np.zeros((len(pts), 1))], axis=1) + s.translation
+        e = np.zeros(len(p))
+        for chunk in np.array_split(np.arange(len(p)), 16):
+            v = q[None] - p[chunk, None]
+            r2 = (v**2).sum(-1)
+            cos_p = v[..., 2] / np.sqrt(r2)
+            e[chunk] = (s.radiance[0] * cos_p * cos_p / r2).sum(1) * da
+    elif light == "background":
+        e = np.pi * np.ones(len(p))
+    else:  # pragma: no cover
+        raise ValueError(light)
+    return (rho / np.pi * e).reshape(cam.height, cam.width)
+
+
+@pytest.mark.parametrize(
+    "light,spp,tol",
+    [("sun", 4, 1e-4), ("point", 4, 1e-3), ("spot", 4, 1e-3), ("area", 64, 0.01), ("area_disk", 64, 0.01)],
+)
+def test_light_units_match_blender_radiometry(scalar_backend, light, spp, tol):
+    scene = testing.plane_scene(light, resolution=(32, 32))
+    r = _render(scalar_backend, scene, samples=spp)
+    exp = _plane_expected(scene, light)
+    got = r.rgba[..., 0].astype(np.float64)
+    inner = slice(4, 28)
+    ratio = got[inner, inner].sum() / exp[inner, inner].sum()
+    print(f"{light}: Mitsuba / analytic = {ratio:.5f}")
+    assert abs(ratio - 1) < tol
+
+
+def test_background_light_units(scalar_backend):
+    scene = testing.plane_scene("background", resolution=(16, 16))
+    r = _render(scalar_backend, scene, samples=64)
+    ratio = float(r.rgba[..., 0].mean()) / 0.5
+    print(f"background: Mitsuba / analytic = {ratio:.5f}")
+    assert abs(ratio - 1) < 0.01
+    assert np.all(r.rgba[..., 3] == 1.0)  # the plane covers the image
+
+
+@pytest.mark.parametrize("faces_uv", [False, True])
+def test_texture_orientation(scalar_backend, faces_uv):
+    r = _render(scalar_backend, testing.textured_quad_scene(faces_uv=faces_uv), samples=4, outputs=("rgb", "albedo"))
+    # 2x2 texture: top-left red, top-right green, bottom-left blue, bottom-right white
+    expected = {(16, 16): [1, 0, 0], (16, 48): [0, 1, 0], (48, 16): [0, 0, 1], (48, 48): [1, 1, 1]}
+    for (row, col), rgb in expected.items():
+        np.testing.assert_allclose(r.albedo[row, col], rgb, atol=1e-6)
+        assert np.argmax(r.rgba[row, col, :3]) == int(np.argmax(rgb)) or rgb == [1, 1, 1]
+
+
+def test_vertex_colours_and_outputs(scalar_backend):
+    scene = bf.Scene()
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    cols = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0.5]])
+    scene.renderables.add_mesh(
+        v, [[0, 1, 2], [0, 2, 3]], DiffuseMaterial(), VertexColors(cols, color_space="linear"), tag="quad"
+    )
+    scene.renderables.add_sphere_nurbs(0.3, DiffuseMaterial(), UniformColors((0.8, 0.8, 0.8)), translation=(0, 0, 1))
+    scene.set_orthographic_camera((32, 32), ortho_scale=2.0, translation=(0, 0, 3))
+    scene.lights.set_background_light(1.0)
+    r = _render(scalar_backend, scene, samples=4, outputs=ALL)
+    # corner pixels: albedo close to the vertex colours (interpolated at the pixel centre)
+    np.testing.assert_allclose(r.albedo[31, 0], cols[0], atol=0.08)
+    np.testing.assert_allclose(r.albedo[31, 31], cols[1], atol=0.08)
+    np.testing.assert_allclose(r.albedo[0, 31], cols[2], atol=0.08)
+    assert r.instance[16, 16] == 1 and r.instance[0, 0] == 0
+    assert r.instance_tags == ["quad", "Sphere_000"]
+    o, _ = scene.camera.pixel_rays(np.array([[16.0, 16.0]]))
+    rho2 = o[0, 0] ** 2 + o[0, 1] ** 2  # the pixel centre's distance from the axis, squared
+    assert r.depth[16, 16] == pytest.approx(3 - 1 - np.sqrt(0.09 - rho2), abs=1e-5)
+    assert r.depth[0, 0] == pytest.approx(3.0, abs=1e-5)
+    np.testing.assert_allclose(r.normal[16, 16], [o[0, 0] / 0.3, o[0, 1] / 0.3, np.sqrt(0.09 - rho2) / 0.3], atol=1e-4)
+    np.testing.assert_allclose(r.albedo[16, 16], UniformColors((0.8, 0.8, 0.8)).linear_rgba[:3], atol=1e-6)
+
+
+def test_alpha_is_coverage_and_premultiplied(scalar_backend):
+    scene = testing.plane_scene("sun", resolution=(32, 32))
+    scene.renderables["plane"].set_position(translation=(1.5, 0, 0))  # covers x in [-0.5, 3.5]
+    r = _render(scalar_backend, scene, samples=64, outputs=("rgb", "instance"))
+    a = r.rgba[..., 3]
+    assert np.all(a[:, :8] == 0) and np.all(r.rgba[:, :8, :3] == 0)
+    assert np.all(a[:, 9:] == 1)
+    assert np.all(r.instance[:, :8] == -1) and np.all(r.instance[:, 9:] == 0)
+    # premultiplied: colour / alpha is the plane's radiance where partially covered
+    edge = (a > 0.05) & (a < 0.95)
+    full = r.rgba[:, 20, 0].mean()
+    if edge.any():
+        np.testing.assert_allclose(r.rgba[..., 0][edge] / a[edge], full, rtol=0.02)
+
+
+def test_environment_light_keeps_coverage_alpha(scalar_backend):
+    scene = bf.Scene()
+    scene.renderables.add_sphere_nurbs(0.5, DiffuseMaterial(), UniformColors((0.8, 0.8, 0.8)))
+    scene.set_perspective_camera((32, 32), fov_x=np.deg2rad(40), translation=(0, 0, 4))
+    sky = np.ones((8, 16, 3), np.float32) * 0.7
+    scene.lights.set_environment_map(sky, strength=1.0)
+    r = _render(scalar_backend, scene, samples=16)
+    assert r.rgba[0, 0, 3] == 0 and r.rgba[16, 16, 3] == 1
+    assert r.meta["hide_emitters"]
+
+
+def test_emissive_surfaces_are_visible(scalar_backend):
+    scene = bf.Scene()
+    emit = PrincipledBSDFMaterial(emission_color=(1, 1, 1), emission_strength=2.0, specular_ior=0.0, roughness=1.0)
+    scene.renderables.add_sphere_nurbs(0.5, emit, UniformColors((0.0, 0.0, 0.0)), tag="glow")
+    scene.set_perspective_camera((32, 32), fov_x=np.deg2rad(40), translation=(0, 0, 4))
+    # an area light between the camera and the sphere, emitting away from the camera (its back is invisible)
+    scene.lights.add_area("square", 0.2, 10.0, translation=(0, 0, 3))
+    r = _render(scalar_backend, scene, samples=16)
+    centre = r.rgba[16, 16]
+    assert centre[:3] == pytest.approx([2.0, 2.0, 2.0], rel=1e-4)
+    assert centre[3] == 1.0 and r.rgba[0, 0, 3] == 0.0
+    assert not r.meta["hide_emitters"] and not r.meta["alpha_compositing"]
+
+
+def test_emissive_surfaces_under_a_sky_keep_coverage_alpha(scalar_backend):
+    scene = bf.Scene()
+    emit = PrincipledBSDFMaterial(emission_color=(1, 1, 1), emission_strength=2.0, specular_ior=0.0, roughness=1.0)
+    scene.renderables.add_sphere_nurbs(0.5, emit, UniformColors((0.0, 0.0, 0.0)), tag="glow")
+    scene.set_perspective_camera((32, 32), fov_x=np.deg2rad(40), translation=(0, 0, 4))
+    scene.lights.set_background_light(0.7)
+    r = _render(scalar_backend, scene, samples=16)
+    assert r.meta["alpha_compositing"]
+    assert r.rgba[0, 0, 3] == 0.0 and np.allclose(r.rgba[0, 0, :3], 0.0, atol=1e-6)
+    assert r.rgba[16, 16, 3] == 1.0 and r.rgba[16, 16, :3] == pytest.approx([2.0] * 3, rel=1e-4)
+    edge = (r.rgba[..., 3] > 0.0) & (r.rgba[..., 3] < 1.0)
+    assert edge.any()
+    # premultiplied, without the sky behind partly covered pixels (alpha comes from another pass: per-pixel
+    # noise, so compare sums over the silhouette)
+    ratio = r.rgba[..., 0][edge].sum() / r.rgba[..., 3][edge].sum()
+    assert ratio == pytest.approx(2.0, rel=0.05)
+
+
+def test_same_seed_same_image(scalar_backend):
+    scene = testing.bunny_scene((32, 32))
+    a = _render(scalar_backend, scene, samples=4, seed=3)
+    b = _render(scalar_backend, scene, samples=4, seed=3)
+    c = _render(scalar_backend, scene, samples=4, seed=4)
+    assert np.array_equal(a.rgba, b.rgba)
+    assert not np.array_equal(a.rgba, c.rgba)
+    assert a.meta["variant"] == "scalar_rgb" and a.meta["spp"] == 4
+    assert a.meta["integrator"] == "path" and a.meta["max_depth"] == a.meta["settings"]["max_bounces"] + 2
+
+
+def test_primitives_and_pointclouds_render(scalar_backend):
+    scene = testing.primitives_scene((48, 36))
+    r = _render(scalar_backend, scene, samples=4, outputs=ALL)
+    assert set(np.unique(r.instance)) == {-1, *range(len(scene.renderables))}
+    scene = testing.pointcloud_scene(n=300, resolution=(32, 32))
+    r1 = _render(scalar_backend, scene, samples=4, outputs=("rgb", "instance"))
+    with MitsubaBackend(variant="scalar_rgb", max_analytic_spheres=0) as merged:
+        r2 = bf.render(scene, backend=merged, samples=4, outputs=("rgb", "instance"))
+    assert r1.meta["analytic_spheres"] == 300 and r2.meta["analytic_spheres"] == 0
+    # analytic spheres vs icospheres of the same radius: nearly the same silhouettes
+    assert np.mean(r1.instance != r2.instance) < 0.05
+
+
+@pytest.mark.parametrize(
+    "feature,build",
+    [
+        ("material.wireframe", "wire"),
+        ("shadow_catcher", "catcher"),
+        ("object.no_shadow", "no_shadow"),
+    ],
+)
+def test_unsupported_features_are_clear_errors(scalar_backend, feature, build):
+    from blendify_core.materials import PrincipledBSDFWireframeMaterial
+
+    scene = testing.plane_scene("sun", resolution=(16, 16))
+    if build == "wire":
+        scene.renderables.add_cube_mesh(0.5, PrincipledBSDFWireframeMaterial(), UniformColors((1, 1, 1)))
+    elif build == "catcher":
+        scene.renderables["plane"].shadow_catcher = True
+    else:
+        scene.renderables["plane"].emit_shadows = False
+    with pytest.raises(bf.UnsupportedFeatureError, match=feature.replace(".", r"\.")):
+        _render(scalar_backend, scene, samples=1)
+    # and the translator itself refuses too (when called without the core's capability check)
+    with pytest.raises(bf.UnsupportedFeatureError):
+        scalar_backend.translate(scene, bf.settings.resolve_settings(samples=1))
