@@ -525,6 +525,49 @@ sc.world = w
 bg = w.node_tree.nodes["Background"]
 bg.inputs["Color"].default_value = (0.2, 0.3, 0.4, 1)
 bg.inputs["Strength"].default_value = 0.5
+# an environment texture (external PNG, relative path) added to the colour background
+import os
+env_img = bpy.data.images.new("env", 8, 4)
+env_img.filepath_raw = os.path.join(os.path.dirname(out), "env.png")
+env_img.file_format = "PNG"
+env_img.save()
+env_img.filepath = "//env.png"
+envn = w.node_tree.nodes.new("ShaderNodeTexEnvironment")
+envn.image = env_img
+bg2 = w.node_tree.nodes.new("ShaderNodeBackground")
+bg2.inputs["Strength"].default_value = 2.0
+w.node_tree.links.new(envn.outputs["Color"], bg2.inputs["Color"])
+add = w.node_tree.nodes.new("ShaderNodeAddShader")
+w.node_tree.links.new(bg.outputs[0], add.inputs[0])
+w.node_tree.links.new(bg2.outputs[0], add.inputs[1])
+w.node_tree.links.new(add.outputs[0], w.node_tree.nodes["World Output"].inputs["Surface"])
+# a collection instanced by two empties
+inst = bpy.data.collections.new("Inst")  # not linked to the scene itself
+leaf_me = bpy.data.meshes.new("leaf")
+leaf_me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+inst.objects.link(bpy.data.objects.new("Leaf", leaf_me))
+for i, x in enumerate((10.0, 20.0)):
+    emp = bpy.data.objects.new(f"Spawner{i}", None)
+    emp.instance_type, emp.instance_collection, emp.location = "COLLECTION", inst, (x, 0, 0)
+    sc.collection.objects.link(emp)
+# mixed shading: a cube with five smooth faces and one flat face
+me4 = bpy.data.meshes.new("mixed")
+me4.from_pydata(cv, [], [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
+me4.polygons.foreach_set("use_smooth", [True, True, True, True, True, False])
+sc.collection.objects.link(bpy.data.objects.new("Mixed", me4))
+# per-corner (byte) colours that differ across a shared edge
+me5 = bpy.data.meshes.new("corners")
+me5.from_pydata([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], [], [(0, 1, 2), (0, 2, 3)])
+cc = me5.color_attributes.new("CornerCol", "BYTE_COLOR", "CORNER")
+cc.data.foreach_set("color", [1, 0, 0, 1] * 3 + [0, 0, 1, 1] * 3)
+m5 = bpy.data.materials.new("corner_mat")
+an = m5.node_tree.nodes.new("ShaderNodeAttribute")
+an.attribute_name = "CornerCol"
+m5.node_tree.links.new(an.outputs["Color"], m5.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+me5.materials.append(m5)
+cobj = bpy.data.objects.new("Corners", me5)
+cobj.location = (0, 0, -3)
+sc.collection.objects.link(cobj)
 bpy.context.view_layer.update()
 frame = [tuple(v) for v in cd.view_frame(scene=sc)]  # Blender's own view frame (camera space)
 bpy.data.libraries.write(out, {sc}, compress=True)
@@ -549,7 +592,34 @@ def test_attach_hand_built_blend(hand_built: tuple[Path, dict[str, Any]], tmp_pa
     msg = "\n".join(str(w.message) for w in rec)
     assert "ShaderNodeTexNoise" in msg  # the procedural material is listed
     assert datablock_ids() == before
-    assert sorted(r.tag for r in added) == ["Cube", "Noisy", "Quad"]
+    assert sorted(r.tag for r in added) == [
+        "Corners",
+        "Cube",
+        "Mixed",
+        "Noisy",
+        "Quad",
+        "Spawner0/Leaf",
+        "Spawner1/Leaf",
+    ]
+    for i, x in enumerate((10.0, 20.0)):  # collection instances at their empties' world transform
+        np.testing.assert_allclose(
+            world_corners(scene.renderables[f"Spawner{i}/Leaf"])[0], [[x, 0, 0], [x + 1, 0, 0], [x, 1, 0]], atol=1e-6
+        )
+    mixed = scene.renderables["Mixed"]  # the flat face's 4 corners become their own vertices
+    assert mixed.smooth and mixed.vertices.shape == (12, 3) and mixed.faces.shape == (12, 3)
+    normals = mixed.vertex_normals()
+    top = np.all(mixed.vertices[mixed.faces][..., 2] > 0.49, axis=1)  # the flat face is the top (+Z) one
+    assert top.sum() == 2
+    np.testing.assert_allclose(normals[np.unique(mixed.faces[top])], [[0, 0, 1]] * 4, atol=1e-6)
+    side = np.unique(mixed.faces[~top])  # smooth faces keep smooth (diagonal) normals at the corners
+    assert np.abs(normals[side]).min(axis=1).max() > 0.5
+    corners = scene.renderables["Corners"]  # vertices 0 and 2 are split by their corner colours
+    assert corners.vertices.shape == (6, 3)
+    tri_cols = corners.colors.linear_rgba[corners.faces]
+    np.testing.assert_allclose(tri_cols[0, :, :3], [[1, 0, 0]] * 3, atol=1e-6)
+    np.testing.assert_allclose(tri_cols[1, :, :3], [[0, 0, 1]] * 3, atol=1e-6)
+    env = scene.lights.environment  # relative image path resolved against the .blend's folder
+    assert env is not None and env.path == str((path.parent / "env.png").resolve()) and env.strength == 2.0
 
     quad = scene.renderables["Quad"]
     np.testing.assert_allclose(quad.translation, (1, 2, 3), atol=1e-6)
