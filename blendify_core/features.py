@@ -93,7 +93,9 @@ class Capability:
 
     def __post_init__(self) -> None:
         if self.level not in ("exact", "approximate", "unsupported"):
-            raise ValueError(f"Capability.level: expected exact/approximate/unsupported, got {self.level!r}")
+            from .errors import InvalidSceneError
+
+            raise InvalidSceneError(f"Capability.level: expected exact/approximate/unsupported, got {self.level!r}")
 
 
 def scene_features(scene, outputs: tuple[str, ...] = ("rgb",)) -> dict[str, str]:  # type: ignore[no-untyped-def]

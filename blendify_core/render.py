@@ -12,7 +12,7 @@ import numpy as np
 
 from .backend import Backend, available_backends, shared_backend
 from .effects import analyse_effects
-from .errors import BackendUnavailableError, InvalidSceneError, UnsupportedFeatureError
+from .errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
 from .features import scene_features
 from .result import RenderResult
 from .settings import RenderSettings, resolve_settings
@@ -70,6 +70,37 @@ def check_capabilities(backend: Backend, scene: Any, settings: RenderSettings) -
                 )
             approximations.append(text)
     return approximations
+
+
+_OUTPUT_FIELDS = {
+    "rgb": ("rgba", (4,), np.float32),
+    "depth": ("depth", (), np.float32),
+    "normal": ("normal", (3,), np.float32),
+    "albedo": ("albedo", (3,), np.float32),
+    "instance": ("instance", (), np.int32),
+}
+
+
+def _check_outputs(result: Any, settings: RenderSettings, cam: Any, backend_name: str) -> None:
+    """Hold a backend to the RenderResult contract: every requested output present with the camera's
+    shape (cast to the canonical dtype), every other output None."""
+    if not isinstance(result, RenderResult):
+        raise RenderError(f"backend {backend_name!r} returned {type(result).__name__}, not a RenderResult")
+    shape = (cam.height, cam.width)
+    for output, (attr, channels, dtype) in _OUTPUT_FIELDS.items():
+        data = getattr(result, attr)
+        if output not in settings.outputs:
+            setattr(result, attr, None)
+            continue
+        if data is None:
+            raise RenderError(f"backend {backend_name!r} returned no {output!r} output although it was requested")
+        data = np.asarray(data)
+        if data.shape != shape + channels:
+            raise RenderError(
+                f"backend {backend_name!r} returned the {output!r} output with shape {data.shape}, "
+                f"expected {shape + channels}"
+            )
+        setattr(result, attr, data if data.dtype == dtype else data.astype(dtype))
 
 
 def render(
@@ -159,6 +190,7 @@ def render(
                 f"target_error: backend {inst.name!r} is not a path tracer; rendered once (its error is bias, "
                 "not noise)"
             )
+    _check_outputs(result, settings, render_cam, inst.name)
 
     if src is not None:
         from .distortion import remap_result
