@@ -103,6 +103,11 @@ txt.use_module = True  # a registered text block: runs when the file is opened w
 fc = ob.driver_add("location", 0)
 fc.driver.type = "SCRIPTED"
 fc.driver.expression = f"(open({marker_driver!r}, 'w').write('driver ran') and 0) or 0.5"
+mat = bpy.data.materials.new("m")  # a second driver hidden in a material's node tree
+me.materials.append(mat)
+fc2 = mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].driver_add("default_value")
+fc2.driver.type = "SCRIPTED"
+fc2.driver.expression = f"(open({marker_driver!r}, 'w').write('node driver ran') and 0) or 0.5"
 bpy.ops.wm.save_as_mainfile(filepath=out)
 print(json.dumps({"ok": True}))
 """
@@ -148,8 +153,9 @@ def test_attach_never_runs_embedded_python(evil_blend: tuple[Path, Path, Path]):
     before = datablock_ids()
     try:
         scene = Scene()
-        with pytest.warns(BlendAttachWarning, match="Python driver"):
+        with pytest.warns(BlendAttachWarning, match="Python driver") as rec:
             added = attach_blend(scene, path)
+        assert str(rec[0].message).count("Python driver") == 2
         assert prefs.use_scripts_auto_execute is True  # restored
         bpy.context.view_layer.update()  # any later evaluation must not run it either
     finally:
@@ -185,7 +191,7 @@ def test_attach_bad_paths(tmp_path: Path):
 # ---------------------------------------------------------------------------------------------------
 
 
-def round_trip_scene(scale: float = 1.0) -> Scene:
+def round_trip_scene(scale: float = 1.0, texture_file: Path | None = None) -> Scene:
     """Two meshes (vertex colours; texture + uniform with per-face materials), every light type and
     area shape, a background, and a camera with fx != fy and an off-centre principal point."""
     rng = np.random.default_rng(7)
@@ -215,6 +221,24 @@ def round_trip_scene(scale: float = 1.0) -> Scene:
         tag="quad",
         smooth=True,
     )
+    if texture_file is not None:
+        from PIL import Image
+
+        Image.fromarray((rng.uniform(0, 1, (4, 6, 3)) * 255).astype(np.uint8)).save(texture_file)
+        s.renderables.add_mesh(
+            [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+            [[0, 1, 2]],
+            DiffuseMaterial(),
+            FileTextureColors(texture_file, FacesUV([[[0, 0], [1, 0], [0, 1]]])),
+            tag="filetex",
+            translation=(0, 0, -1),
+        )
+        s.lights.set_environment_map(
+            rng.uniform(0, 2, (8, 16, 3)).astype(np.float32),
+            strength=0.5,
+            rotation_mode="eulerXYZ",
+            rotation=(0, 0, 30),
+        )
     s.lights.add_point(50, shadow_soft_size=0.1, color=(1, 0.5, 0.2), translation=(0, 0, 4), tag="pt")
     s.lights.add_area(
         "ellipse", (1, 2), 30, translation=(1, 0, 4), rotation_mode="eulerXYZ", rotation=(10, 0, 0), tag="ell"
@@ -239,17 +263,28 @@ def round_trip_scene(scale: float = 1.0) -> Scene:
 
 
 def test_export_attach_round_trip(tmp_path: Path):
-    src = round_trip_scene()
+    src = round_trip_scene(texture_file=tmp_path / "tex.png")
     out = export_blend(src, tmp_path / "sub" / "scene.blend", samples=4)
     assert out == (tmp_path / "sub" / "scene.blend").absolute() and out.is_file()
     assert sorted(p.name for p in out.parent.iterdir()) == ["scene.blend"]  # no .blend1, no temp file
+    src_pixels = src.renderables["filetex"].colors.linear_rgba_image()
+    (tmp_path / "tex.png").unlink()  # the texture is packed in the .blend
 
     dst = Scene()
     with warnings.catch_warnings():
         warnings.simplefilter("error", BlendAttachWarning)  # everything exported must parse
         added = attach_blend(dst, out, with_camera=True, texture_dir=tmp_path / "tex")
-    assert [r.tag for r in added] == ["pyramid", "quad"]
+    assert [r.tag for r in added] == ["pyramid", "quad", "filetex"]
+    ft = dst.renderables["filetex"].colors
+    assert isinstance(ft, FileTextureColors) and ft.color_space == "srgb"
+    np.testing.assert_allclose(ft.linear_rgba_image(), src_pixels, atol=1e-6)  # the PNG bytes came back
+    env_a, env_b = src.lights.environment, dst.lights.environment
+    assert env_b is not None and env_b.strength == pytest.approx(0.5)
+    np.testing.assert_allclose(env_b.rotation_matrix, env_a.rotation_matrix, atol=1e-6)
+    np.testing.assert_allclose(env_b.linear_rgb_image(), env_a.linear_rgb_image(), atol=1e-6)
     for a in src.renderables:
+        if a.tag == "filetex":
+            continue
         b = dst.renderables[a.tag]
         assert b.faces.shape == a.faces.shape
         np.testing.assert_allclose(world_corners(b), world_corners(a), atol=1e-5)
