@@ -349,7 +349,7 @@ class Trajectory:
         inner = inner / np.linalg.norm(inner, axis=1, keepdims=True)
         s0, s1 = inner[seg], inner[seg + 1]
         a = _slerp(q0, q1, u)
-        b = _slerp(s0, s1, u)
+        b = _slerp_raw(s0, s1, u)  # no shorter-arc flip: s_i follow the aligned q_i continuously
         return _slerp_raw(a, b, 2.0 * u * (1.0 - u))
 
 
