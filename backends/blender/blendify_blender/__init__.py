@@ -162,7 +162,7 @@ class CyclesBackend(Backend):
         from . import _runtime
 
         t0 = time.perf_counter()
-        with _runtime.BPY_LOCK:
+        with _runtime.defer_keyboard_interrupt(), _runtime.BPY_LOCK:
             built = self.translate(scene, settings)
             t1 = time.perf_counter()
             result = self.render(built, settings)

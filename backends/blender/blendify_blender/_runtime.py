@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
 import sys
 import tempfile
 import threading
@@ -27,6 +28,7 @@ __all__ = [
     "capture_output",
     "engine_errors",
     "datablock_counts",
+    "defer_keyboard_interrupt",
 ]
 
 log = logging.getLogger("blendify_blender")
@@ -57,11 +59,17 @@ def generation() -> int:
 def factory_reset() -> None:
     """Reset bpy to an empty factory scene (no user preferences, no startup file, no objects).
 
-    Also forces Python auto-execution off (the factory default) so nothing loaded later runs scripts."""
+    Also forces Python auto-execution off (the factory default) so nothing loaded later runs scripts.
+    ``read_factory_settings`` crashes Blender when called from a thread other than the main one, so
+    there the session is emptied through the data API instead (:func:`soft_reset`); every setting the
+    backend relies on is set explicitly anyway."""
     global _generation
     bpy = bpy_module()
     with BPY_LOCK, capture_output("factory reset"):
-        bpy.ops.wm.read_factory_settings(use_empty=True)
+        if threading.current_thread() is threading.main_thread():
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+        else:
+            soft_reset()
         _generation += 1
         with contextlib.suppress(Exception):
             bpy.context.preferences.filepaths.use_scripts_auto_execute = False
@@ -73,6 +81,50 @@ def factory_reset() -> None:
             addon_utils.enable("cycles", default_set=True)
             if not hasattr(bpy.context.scene, "cycles"):
                 raise RenderError("cycles: the Cycles add-on is not available in this bpy session")
+
+
+_RESET_COLLECTIONS = (
+    "objects",
+    "meshes",
+    "materials",
+    "images",
+    "lights",
+    "cameras",
+    "curves",
+    "worlds",
+    "node_groups",
+    "pointclouds",
+    "textures",
+    "collections",
+    "actions",
+    "hair_curves",
+    "grease_pencils",
+    "volumes",
+    "lattices",
+    "metaballs",
+    "fonts",
+    "libraries",
+)
+
+
+def soft_reset() -> None:
+    """Empty the bpy session through the data API (usable from any thread): every datablock of the
+    common kinds and every scene but the current one are removed."""
+    global _generation
+    bpy = bpy_module()
+    with BPY_LOCK:
+        keep = bpy.context.scene
+        ids = [s for s in bpy.data.scenes if s != keep]
+        for name in _RESET_COLLECTIONS:
+            coll = getattr(bpy.data, name, None)
+            if coll is not None:
+                ids.extend(coll)
+        if ids:
+            bpy.data.batch_remove(ids)
+        keep.world = None
+        keep.camera = None
+        keep.compositing_node_group = None
+        _generation += 1
 
 
 class _Capture:
@@ -186,3 +238,36 @@ def datablock_counts() -> dict[str, int]:
     """Number of datablocks per bpy.data collection (to check that nothing leaks)."""
     bpy = bpy_module()
     return {name: len(getattr(bpy.data, name)) for name in _COLLECTIONS}
+
+
+@contextlib.contextmanager
+def defer_keyboard_interrupt() -> Iterator[None]:
+    """Hold Ctrl-C (SIGINT) until the block is done, then raise KeyboardInterrupt.
+
+    Cycles cannot be cancelled from the bpy module: a render runs to its end anyway. Deferring the
+    interrupt to the end of the block keeps file descriptors, the temporary directory, the lock and the
+    translation cache consistent, so the backend stays usable. Only the main thread receives signals;
+    elsewhere this is a no-op. (With ``isolate=True`` Ctrl-C is immediate: the worker is killed.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+
+    def _handler(signum: int, frame: Any) -> None:
+        received.append(signum)
+        log.warning("cycles: Ctrl-C received; stopping after the current render step")
+
+    try:
+        old = signal.signal(signal.SIGINT, _handler)
+    except (ValueError, OSError):  # pragma: no cover - not the main interpreter
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+        if received:
+            if callable(old) and old is not signal.default_int_handler:
+                old(signal.SIGINT, None)
+            else:
+                raise KeyboardInterrupt
