@@ -465,6 +465,10 @@ def test_exported_blend_renders_the_same_picture(tmp_path: Path):
     ref = np.asarray(res.rgba, dtype=np.float32)
     assert img.shape == ref.shape
     assert float(np.abs(img - ref).max()) < 1e-3
+    # export and attach leave the shared in-process backend usable: the same render again
+    attach_blend(Scene(), out, with_camera=True)
+    again = bf.render(src, backend="cycles", samples=4, seed=3, outputs=("rgba",))
+    np.testing.assert_array_equal(np.asarray(again.rgba), ref)
 
 
 # ---------------------------------------------------------------------------------------------------
