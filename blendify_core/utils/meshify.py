@@ -19,7 +19,15 @@ import numpy as np
 from .._validate import _describe, as_array
 from ..errors import BackendUnavailableError, InvalidSceneError
 
-__all__ = ["MeshifyResult", "meshify_pointcloud", "add_meshified", "atlas_uv", "bake_texture", "sample_texture"]
+__all__ = [
+    "MeshifyResult",
+    "meshify_pointcloud",
+    "add_meshified",
+    "atlas_uv",
+    "atlas_texel_faces",
+    "bake_texture",
+    "sample_texture",
+]
 
 METHODS = ("ball_pivoting", "poisson")
 _MARGIN = 1.0  # texels between a triangle and its cell border
@@ -122,6 +130,34 @@ def atlas_uv(n_faces: int, texture_size: int | None = None, cell: int | None = N
     return (st / size).astype(np.float32), size, c
 
 
+def _texel_owner(size: int, cell: int, n_faces: int, start: int, stop: int) -> tuple[np.ndarray, ...]:
+    """For flat texel indices [start, stop): the owning face (-1 for unused cells) and the clamped
+    barycentric coordinates (l0, l1, l2) of the texel centre in that face's atlas triangle."""
+    grid = size // cell
+    a_loc, b_loc, leg = _local_corners(cell)
+    idx = np.arange(start, stop)
+    row, col = idx // size, idx % size
+    sx = col + 0.5
+    ty = size - (row + 0.5)  # from the bottom
+    cx, cy = (sx // cell).astype(np.int64), (ty // cell).astype(np.int64)
+    la, lb = sx - cx * cell, ty - cy * cell
+    upper = la + lb >= cell
+    face = 2 * (cy * grid + cx) + upper
+    face = np.where(face < n_faces, face, -1)
+    # barycentrics in the right-isosceles local triangle, clamped to it
+    l1 = np.where(upper, (b_loc[0, 0] - la) / leg, (la - a_loc[0, 0]) / leg)
+    l2 = np.where(upper, (b_loc[0, 1] - lb) / leg, (lb - a_loc[0, 1]) / leg)
+    l1, l2 = np.clip(l1, 0.0, 1.0), np.clip(l2, 0.0, 1.0)
+    tot = np.maximum(l1 + l2, 1.0)
+    l1, l2 = l1 / tot, l2 / tot
+    return face, 1.0 - l1 - l2, l1, l2
+
+
+def atlas_texel_faces(n_faces: int, size: int, cell: int) -> np.ndarray:
+    """(size, size) int64: the face whose colour each texel of the atlas holds (-1: unused), row 0 = top."""
+    return _texel_owner(size, cell, n_faces, 0, size * size)[0].reshape(size, size)
+
+
 def bake_texture(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -137,32 +173,15 @@ def bake_texture(
     inverse-distance-weighted mean of the ``knn`` nearest input points; unused cells get the mean colour."""
     from scipy.spatial import cKDTree
 
-    n_faces = len(faces)
-    grid = size // cell
-    a_loc, b_loc, leg = _local_corners(cell)
     tree = cKDTree(points)
     kk = max(1, min(int(knn), len(points)))
     out = np.empty((size * size, colors.shape[1]))
     mean = colors.mean(axis=0)
-    flat = np.arange(size * size)
     for s in range(0, size * size, chunk):
-        idx = flat[s : s + chunk]
-        row, col = idx // size, idx % size
-        sx = col + 0.5
-        ty = size - (row + 0.5)  # from the bottom
-        cx, cy = (sx // cell).astype(np.int64), (ty // cell).astype(np.int64)
-        la, lb = sx - cx * cell, ty - cy * cell
-        upper = la + lb >= cell
-        face = 2 * (cy * grid + cx) + upper
-        used = face < n_faces
-        # barycentrics in the right-isosceles local triangle, clamped to it
-        l1 = np.where(upper, (b_loc[0, 0] - la) / leg, (la - a_loc[0, 0]) / leg)
-        l2 = np.where(upper, (b_loc[0, 1] - lb) / leg, (lb - a_loc[0, 1]) / leg)
-        l1, l2 = np.clip(l1, 0.0, 1.0), np.clip(l2, 0.0, 1.0)
-        tot = np.maximum(l1 + l2, 1.0)
-        l1, l2 = l1 / tot, l2 / tot
-        l0 = 1.0 - l1 - l2
-        res = np.broadcast_to(mean, (len(idx), colors.shape[1])).copy()
+        e = min(s + chunk, size * size)
+        face, l0, l1, l2 = _texel_owner(size, cell, len(faces), s, e)
+        used = face >= 0
+        res = np.broadcast_to(mean, (e - s, colors.shape[1])).copy()
         if used.any():
             tri = faces[face[used]]
             p3 = (
@@ -175,7 +194,7 @@ def bake_texture(
             w = 1.0 / np.maximum(dist, 1e-12)
             w /= w.sum(axis=1, keepdims=True)
             res[used] = np.einsum("nk,nkc->nc", w, colors[nn])
-        out[s : s + chunk] = res
+        out[s:e] = res
     return out.reshape(size, size, colors.shape[1])
 
 
