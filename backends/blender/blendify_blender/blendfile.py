@@ -301,8 +301,9 @@ def _is_identity(s: np.ndarray, tol: float = 1e-7) -> bool:
     return bool(np.max(np.abs(s - np.eye(3))) <= tol)
 
 
-def _rgb01(name: str, rgb: Any, notes: list[str], where: str) -> tuple[np.ndarray, float]:
-    """Split a linear RGB (may exceed 1) into a [0, 1] colour and a multiplier."""
+def _rgb01(rgb: Any) -> tuple[np.ndarray, float]:
+    """Split a linear RGB (may exceed 1; negative values are clipped) into a [0, 1] colour and a
+    multiplier (the IR keeps colours in [0, 1] and intensities in strengths)."""
     c = np.clip(np.asarray(rgb, dtype=np.float64)[:3], 0.0, None)
     peak = float(c.max()) if c.size else 0.0
     if peak > 1.0:
@@ -655,7 +656,7 @@ class _Parser:
             return GlossyBSDFMaterial(roughness=rough, distribution=dist, color_space="linear"), col
         if node.type == "EMISSION":
             self._ignore_links(node, (), where)
-            c, k = _rgb01("emission", node.inputs["Color"].default_value, self.notes, where)
+            c, k = _rgb01(node.inputs["Color"].default_value)
             strength = float(node.inputs["Strength"].default_value) * k
             m = PrincipledBSDFMaterial(
                 color_space="linear",
@@ -688,7 +689,7 @@ class _Parser:
             wsock = b[0].inputs["Base Color"]
             if wsock.is_linked:
                 self.note(f"{where}: wireframe colour driven by nodes, used its default value")
-            wc, _k = _rgb01("wireframe_color", wsock.default_value, self.notes, where)
+            wc, _k = _rgb01(wsock.default_value)
             params = base.parameters()
             m = PrincipledBSDFWireframeMaterial(
                 wireframe_thickness=max(float(wire.inputs["Size"].default_value), 0.0),
@@ -775,7 +776,7 @@ class _Parser:
                     continue
             if sock.is_linked:
                 self.note(f"{where}: Principled input {bl_name!r} is driven by nodes, used its default value")
-            c, k = _rgb01(ir_name, sock.default_value, self.notes, where)
+            c, k = _rgb01(sock.default_value)
             if k > 1.0:
                 if ir_name == "emission_color":
                     params["emission_strength"] = params.get("emission_strength", 0.0) * k
@@ -1026,7 +1027,7 @@ class _Parser:
                     c = UniformColors((1.0, 1.0, 1.0), color_space="linear")
             if c is None:
                 rgba = np.asarray(col.get("rgba", (0.8, 0.8, 0.8, 1.0)), dtype=np.float64)
-                rgb, k = _rgb01("base_color", rgba[:3], self.notes, name)
+                rgb, k = _rgb01(rgba[:3])
                 if k > 1.0:
                     self.note(f"object {name!r}: base colour > 1 normalised to [0, 1]")
                 # the 4th component of a Base Color socket does not affect shading (Alpha is its own input)
@@ -1097,7 +1098,7 @@ class _Parser:
             self.note(f"point cloud {name!r}: image textures on points not supported, used a uniform colour")
         if colors is None:
             rgba = np.asarray(col.get("rgba", (0.8, 0.8, 0.8, 1.0)), dtype=np.float64)
-            rgb, _k = _rgb01("base_color", rgba[:3], self.notes, name)
+            rgb, _k = _rgb01(rgba[:3])
             colors = UniformColors(tuple(rgb), color_space="linear")
         r, s, t = _decompose(matrix)
         if not _is_identity(s):
@@ -1170,7 +1171,7 @@ class _Parser:
             n.type != "OUTPUT_LIGHT" and n.type != "EMISSION" for n in data.node_tree.nodes
         ):
             self.note(f"{where}: light node tree not parsed")
-        color, k = _rgb01("color", rgb, self.notes, where)
+        color, k = _rgb01(rgb)
         power *= k
         normalize = bool(getattr(data, "normalize", True))
         common = {
@@ -1245,7 +1246,7 @@ class _Parser:
         where = f"world {world.name!r}"
         tree = world.node_tree
         if tree is None:
-            c, k = _rgb01("background", world.color, self.notes, where)
+            c, k = _rgb01(world.color)
             if k * float(c.max()) > 0:
                 pend.world.append(("background", {"strength": k, "color": tuple(c), "color_space": "linear"}))
             return
@@ -1296,7 +1297,7 @@ class _Parser:
                 continue
             if csrc is not None:
                 self.note(f"{where}: background colour driven by a {csrc[0].bl_idname} node, used its default value")
-            c, k = _rgb01("background", col.default_value, self.notes, where)
+            c, k = _rgb01(col.default_value)
             if strength * k * float(c.max()) <= 0:
                 continue
             if colour_done:
@@ -1625,8 +1626,8 @@ def export_blend(scene: Any, path: str | os.PathLike[str], pack_textures: bool =
     """Write ``scene`` as a .blend that opens in Blender and renders the same picture.
 
     The bpy scene is built by the Cycles translator (:func:`blendify_blender.translate.build_scene`,
-    which resets the bpy session to an empty factory scene first), every image is packed into the file
-    when ``pack_textures`` (default; otherwise external texture files are referenced by absolute path),
+    which resets the bpy session to an empty factory scene first); in-memory images are always packed,
+    texture FILES are packed when ``pack_textures`` (default; otherwise referenced by absolute path),
     each object gets its IR tag as the custom property ``blendify_tag`` (so :func:`attach_blend` gives
     the same tags back), and the file is written with ``bpy.data.libraries.write`` to a temporary name
     then renamed: no ``.blend1`` backup, the main file path and the working directory do not change.
@@ -1675,10 +1676,11 @@ def export_blend(scene: Any, path: str | os.PathLike[str], pack_textures: bool =
                 if built.camera_object is not None:
                     built.camera_object[TAG_PROPERTY] = scene.camera.tag
                 bl_scene = built.bscene
-                if pack_textures:
-                    for img in _scene_images(bpy, bl_scene):
-                        if img.packed_file is None and img.source in ("FILE", "GENERATED"):
-                            img.pack()
+                for img in _scene_images(bpy, bl_scene):
+                    # in-memory images (no file behind them) are always packed, files only when asked
+                    in_memory = img.source == "GENERATED" or not (img.filepath_raw or img.filepath)
+                    if img.packed_file is None and (in_memory or (pack_textures and img.source == "FILE")):
+                        img.pack()
                 bpy.data.libraries.write(str(tmp), {bl_scene}, path_remap="ABSOLUTE", fake_user=False, compress=True)
             os.replace(tmp, out)
         except OSError as exc:

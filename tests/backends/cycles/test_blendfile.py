@@ -33,7 +33,16 @@ from blendify_blender.blendfile import (
     export_blend,
 )
 
-from blendify_core.colors import FacesUV, FileTextureColors, TextureColors, UniformColors, VertexColors
+from blendify_core.colors import (
+    FacesUV,
+    FileTextureColors,
+    NormalMap,
+    TextureColors,
+    TextureMap,
+    UniformColors,
+    VertexColors,
+    VertexUV,
+)
 from blendify_core.errors import InvalidSceneError
 from blendify_core.materials import (
     DiffuseMaterial,
@@ -407,6 +416,39 @@ def test_round_trip_points_wireframe_transparency_curves(tmp_path: Path):
         t = np.clip((wc - p0) @ d / (d @ d), 0.0, 1.0)
         dist = np.minimum(dist, np.linalg.norm(wc - (p0 + t[:, None] * d), axis=1))
     assert dist.max() < 0.0505 and np.median(dist) > 0.045
+
+
+def test_round_trip_texture_maps_and_unpacked_textures(tmp_path: Path):
+    from PIL import Image
+
+    rng = np.random.default_rng(5)
+    rough = rng.uniform(0, 1, (4, 4)).astype(np.float32)
+    normals = rng.uniform(0, 1, (4, 4, 3)).astype(np.float32)
+    png = tmp_path / "albedo.png"
+    Image.fromarray((rng.uniform(0, 1, (4, 4, 3)) * 255).astype(np.uint8)).save(png)
+    s = Scene()
+    s.renderables.add_mesh(
+        [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+        [[0, 1, 2]],
+        PrincipledBSDFMaterial(
+            roughness_map=TextureMap(rough), metallic_map=TextureMap(rough), normal_map=NormalMap(normals, 0.7)
+        ),
+        FileTextureColors(png, VertexUV([[0, 0], [1, 0], [0, 1]])),
+        tag="maps",
+    )
+    s.set_perspective_camera((32, 32), fov_x=0.8, translation=(0, 0, 5))
+    out = export_blend(s, tmp_path / "maps.blend", pack_textures=False)
+    dst = Scene()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BlendAttachWarning)
+        attach_blend(dst, out, texture_dir=tmp_path / "unpacked")
+    m = dst.renderables["maps"].material
+    np.testing.assert_allclose(m.roughness_map.values(), rough, atol=1e-6)
+    np.testing.assert_allclose(m.metallic_map.values(), rough, atol=1e-6)
+    np.testing.assert_allclose(m.normal_map.normals(), NormalMap(normals).normals(), atol=1e-6)
+    assert m.normal_map.strength == pytest.approx(0.7)
+    # not packed: the external file is referenced where it is
+    assert dst.renderables["maps"].colors.texture_path == str(png.resolve())
 
 
 def test_export_orthographic_camera_and_bad_inputs(tmp_path: Path):
