@@ -67,6 +67,27 @@ class MaterialBuilder:
         img.update()
         return img
 
+    def image_from_uint8(self, name: str, data: np.ndarray, colorspace: str, entry: Any) -> Any:
+        """A byte image from (H, W, C) uint8 (C = 1, 3, 4; row 0 = top), decoded by Blender with
+        ``colorspace`` ("sRGB": the exact IEC curve, as the IR). Bytes round-trip exactly; Cycles keeps
+        them as 8-bit textures (4x less memory than float)."""
+        bpy = _runtime.bpy_module()
+        h, w, c = data.shape
+        t4 = np.empty((h, w, 4), dtype=np.uint8)
+        src = data[::-1]
+        if c == 1:
+            t4[..., :3] = src
+        else:
+            t4[..., :3] = src[..., :3]
+        t4[..., 3] = src[..., 3] if c == 4 else 255
+        px = np.multiply(t4, np.float32(1.0 / 255.0), dtype=np.float32)
+        img = entry.add("images", bpy.data.images.new(name, width=w, height=h, alpha=True, float_buffer=False))
+        img.colorspace_settings.name = colorspace
+        img.alpha_mode = "STRAIGHT"
+        img.pixels.foreach_set(px.ravel())
+        img.update()
+        return img
+
     def image_from_file(self, name: str, path: str, colorspace: str, entry: Any) -> Any:
         bpy = _runtime.bpy_module()
         try:
@@ -102,7 +123,11 @@ class MaterialBuilder:
             node.attribute_name = f"bf_color_{slot}"
             return node.outputs["Color"], (node.outputs["Alpha"] if colors.has_alpha else 1.0)
         if isinstance(colors, TextureColors):
-            img = self.image_from_array(f"{name}_tex", colors.linear_rgba_image(), "Linear Rec.709", entry)
+            if colors.texture.dtype == np.uint8:
+                cs = "sRGB" if colors.color_space == "srgb" else "Linear Rec.709"
+                img = self.image_from_uint8(f"{name}_tex", colors.texture, cs, entry)
+            else:
+                img = self.image_from_array(f"{name}_tex", colors.linear_rgba_image(), "Linear Rec.709", entry)
         elif isinstance(colors, FileTextureColors):
             cs = "sRGB" if colors.color_space == "srgb" else "Linear Rec.709"
             img = self.image_from_file(f"{name}_tex", colors.texture_path, cs, entry)
