@@ -203,11 +203,15 @@ def _strip_python(bpy: Any, new_ids: list[Any]) -> list[str]:
         if isinstance(idb, bpy.types.Text):
             continue
         for owner, ad, fc in list(_python_drivers(idb)):
-            removed.append(
-                f"Python driver on {owner.name!r} {fc.data_path}[{fc.array_index}] = {fc.driver.expression!r} "
-                "(removed, never evaluated)"
-            )
-            ad.drivers.remove(fc)
+            what = f"Python driver on {owner.name!r} {fc.data_path}[{fc.array_index}] = {fc.driver.expression!r}"
+            try:
+                ad.drivers.remove(fc)
+            except (RuntimeError, TypeError, AttributeError, ReferenceError) as exc:
+                # e.g. data linked from another library is read-only: refuse rather than evaluate it
+                raise InvalidSceneError(
+                    f"path: the file contains a {what} that cannot be removed ({exc}); refusing to evaluate it"
+                ) from None
+            removed.append(f"{what} (removed, never evaluated)")
     for t in texts:
         removed.append(f"text block {t.name!r} (not loaded)")
     if texts:

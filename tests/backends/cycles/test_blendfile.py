@@ -175,6 +175,11 @@ def test_attach_never_runs_embedded_python(evil_blend: tuple[Path, Path, Path]):
     np.testing.assert_allclose(world_corners(added[0])[0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]], atol=1e-7)
     assert scene.attached_blends == [str(path.resolve())]
     assert datablock_ids() == before  # nothing left in the bpy session
+    with pytest.raises(InvalidSceneError, match="no camera"):
+        attach_blend(Scene(), path, with_camera=True)
+    with pytest.raises(InvalidSceneError, match="scene_name"):
+        attach_blend(Scene(), path, scene_name="Nope")
+    assert datablock_ids() == before
 
 
 def test_attach_bad_paths(tmp_path: Path):
