@@ -182,6 +182,48 @@ def test_attach_never_runs_embedded_python(evil_blend: tuple[Path, Path, Path]):
     assert datablock_ids() == before
 
 
+LINKED_SCRIPT = """
+import bpy, sys, json
+d = sys.argv[1]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+me = bpy.data.meshes.new("tri")
+me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+ob = bpy.data.objects.new("Linked", me)
+bpy.context.scene.collection.objects.link(ob)
+fc = ob.driver_add("location", 0)
+fc.driver.type = "SCRIPTED"
+fc.driver.expression = f"(open({d + '/linked_marker'!r}, 'w').write('x') and 0) or 0.5"
+bpy.ops.wm.save_as_mainfile(filepath=d + "/lib.blend")
+bpy.ops.wm.read_factory_settings(use_empty=True)
+with bpy.data.libraries.load(d + "/lib.blend", link=True) as (src, dst):
+    dst.objects = ["Linked"]
+bpy.context.scene.collection.objects.link(dst.objects[0])
+bpy.ops.wm.save_as_mainfile(filepath=d + "/main.blend")
+print(json.dumps({"ok": True}))
+"""
+
+
+def test_attach_file_linking_another_library(tmp_path: Path):
+    """A driver on data the file LINKS from another .blend is removed too (or the file refused)."""
+    import bpy
+
+    run_bpy_script(LINKED_SCRIPT, str(tmp_path))
+    prefs = bpy.context.preferences.filepaths
+    old = prefs.use_scripts_auto_execute
+    prefs.use_scripts_auto_execute = True
+    before = datablock_ids()
+    try:
+        scene = Scene()
+        with pytest.warns(BlendAttachWarning, match="Python driver"):
+            added = attach_blend(scene, tmp_path / "main.blend")
+        bpy.context.view_layer.update()
+    finally:
+        prefs.use_scripts_auto_execute = old
+    assert not (tmp_path / "linked_marker").exists()
+    assert [r.tag for r in added] == ["Linked"]
+    assert datablock_ids() == before  # the indirectly loaded library is gone as well
+
+
 def test_attach_bad_paths(tmp_path: Path):
     scene = Scene()
     missing = tmp_path / "missing.blend"
