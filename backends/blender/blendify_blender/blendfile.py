@@ -20,37 +20,49 @@ Security: nothing embedded in the file is ever executed, whatever the user's Ble
 What is parsed into the IR (``scene`` must be a :class:`blendify_core.scene.Scene`):
 
 - meshes and everything that converts to a mesh (curves, surfaces, text, metaballs, geometry-nodes
-  output, collection instances), evaluated through the depsgraph with the RENDER visibility and the
-  render subdivision levels of their modifiers, triangulated, with the instance's world transform
-  (scale and shear baked into the object-space vertices, rotation and translation kept as the pose);
-  vertices are split where Blender's corner normals (sharp edges, flat faces) or corner colours differ,
-  so smooth/flat shading is kept;
+  output, collection and particle instances), evaluated through the depsgraph with the RENDER
+  visibility and the render subdivision levels of their modifiers, triangulated, with the instance's
+  world transform (scale and shear baked into the object-space vertices, rotation and translation kept
+  as the pose); vertices are split where Blender's corner normals (sharp edges, flat faces) or corner
+  colours differ, so smooth/flat shading is kept; ``visible_shadow`` -> ``emit_shadows``;
+- native point clouds (e.g. Geometry Nodes Mesh to Points) -> :class:`~blendify_core.renderables.PointCloud`
+  (per-point radius and colour attribute, emission from the colour -> ``particle_emission_strength``);
 - UV layers -> :class:`~blendify_core.colors.FacesUV`; colour attributes read by the material (Color
-  Attribute / Attribute node on the Base Color) -> :class:`~blendify_core.colors.VertexColors` (linear);
+  Attribute / Attribute node on the Base Color, any domain and storage) ->
+  :class:`~blendify_core.colors.VertexColors` (linear);
 - image textures on a Principled Base Color -> :class:`~blendify_core.colors.FileTextureColors`
   (external files, by absolute path; PACKED images are written to ``texture_dir`` if given, else to the
   cache directory ``$XDG_CACHE_HOME/blendify-core/blend-textures`` (``~/.cache/...``), named by the
-  SHA-256 of their bytes) or :class:`~blendify_core.colors.TextureColors` (generated images, pixels read
-  from Blender); texture-driven Roughness / Metallic -> ``roughness_map`` / ``metallic_map``, a Normal
+  SHA-256 of their bytes, and never deleted by the library) or
+  :class:`~blendify_core.colors.TextureColors` (generated images: pixels read from Blender);
+  texture-driven Roughness / Metallic -> ``roughness_map`` / ``metallic_map``, a tangent-space Normal
   Map node fed by an image -> ``normal_map``;
-- Principled BSDF (and Diffuse / Glossy / Emission shaders) -> PrincipledBSDFMaterial /
-  GlossyBSDFMaterial with every mapped parameter (``color_space="linear"``), per-face materials;
+- Principled BSDF (and Diffuse / Glossy / Emission shaders, a Mix with a Transparent BSDF = alpha, a Mix
+  with a Wireframe factor = wireframe material) -> PrincipledBSDFMaterial / GlossyBSDFMaterial /
+  PrincipledBSDFWireframeMaterial with every mapped parameter (``color_space="linear"``); per-face
+  materials;
 - point, sun, spot and area lights of every shape (square, rectangle, disk, ellipse; object scale
-  applied to the size) in the IR's units (exposure, ``normalize=False``, temperature folded in);
-- the world's Background colour x strength (an Environment Texture becomes an environment map);
+  applied to the size) in the IR's units (exposure, ``normalize=False`` and temperature folded into
+  strength and colour; Blender's point-light "soft falloff" is not represented: the IR light is the
+  sphere light without it, as the Cycles translator renders it);
+- the world: Background colour x strength -> background light, an Environment Texture (with a Mapping
+  rotation) -> environment map, both when summed by an Add Shader; imported only when the scene has
+  neither yet unless ``with_world=True``;
 - with ``with_camera=True``: the scene camera (resolution and percentage, lens / sensor / sensor fit /
-  pixel aspect -> K, the principal point from ``shift_x`` / ``shift_y`` with the correct sign, clipping,
-  orthographic cameras).
+  pixel aspect -> K, the principal point from ``shift_x`` / ``shift_y`` with the correct sign -- blendify
+  2.1 mirrored it --, clipping, orthographic cameras).
 
-What cannot be parsed (procedural or mixed shader trees, volumes, hair, particles, panoramic cameras,
-Python drivers, ...) is listed in ONE :class:`BlendAttachWarning`. The resolved file path is appended
-to ``scene.attached_blends``: the Cycles backend may append the raw file content again (through
-:func:`append_blend_scenes`, which applies the same protections) to render the Blender-only features
-exactly; the other backends render the parsed IR.
+What cannot be parsed (procedural shader trees, volumes, hair curves, panoramic cameras, Python drivers,
+depth of field, shadow catchers, ...) is listed in ONE :class:`BlendAttachWarning` (also in the result's
+``unparsed``). The resolved file path is appended to ``scene.attached_blends``, so the Cycles backend
+can append the raw file content again for Cycles-only rendering of those features, through
+:func:`append_blend_scenes` (same protections; the caller owns and removes the new datablocks); the
+other backends render the parsed IR.
 
-:func:`export_blend` builds the bpy scene with the Cycles translator, packs every image into the file
-and writes it with ``bpy.data.libraries.write`` (no ``.blend1`` backup, the main file and the working
-directory are untouched).
+:func:`export_blend` builds the bpy scene with the Cycles translator (the same translation the renders
+use), packs the images into the file and writes it with ``bpy.data.libraries.write`` (no ``.blend1``
+backup, the main file and the working directory are untouched). Objects carry their IR tag as the
+custom property ``blendify_tag``, so an exported scene attaches back with the same tags.
 """
 
 from __future__ import annotations
