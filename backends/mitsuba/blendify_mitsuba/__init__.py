@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from blendify_core.backend import Backend, BackendStatus
-from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError, UnsupportedFeatureError
+from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
 from blendify_core.features import ALL_FEATURES, Capability
 from blendify_core.result import RenderResult
 from blendify_core.settings import RenderSettings
@@ -97,7 +97,12 @@ _CAPS: dict[str, tuple[str, str]] = {
     "light.environment": (E, "envmap rotated to Blender's equirectangular mapping"),
     "camera.perspective": (E, "perspective sensor with principal-point offsets"),
     "camera.orthographic": (E, "orthographic sensor, principal point by translating the camera"),
-    "camera.anisotropic": (U, "Mitsuba's perspective sensor has square pixels only (fx != fy)"),
+    "camera.anisotropic": (
+        A,
+        "fx != fy: colour rendered by a square-pixel camera (columns supersampled k <= 4 times, rows at "
+        "k fx/fy per pixel, same samples per target pixel) and box-resampled with exact row overlaps (only "
+        "boundary rows split); depth/normal/albedo/instance exact (cast through the target pixel centres)",
+    ),
     "output.rgb": (E, ""),
     "output.depth": (E, "planar z from pixel-centre ray casts"),
     "output.normal": (E, "world shading normal (facing the camera) from pixel-centre ray casts"),
@@ -115,6 +120,8 @@ class MitsubaNative:
     scene_dict: dict[str, Any]
     shapes: dict[str, Any]
     camera: Any
+    spp: int = 1  # samples per rendered pixel (differs from settings.samples for fx != fy)
+    aniso: Any = None  # the square-pixel plan for fx != fy (see _aniso)
     coverage_scene: Any = None  # shapes only: coverage alpha (when compositing)
     sky_scene: Any = None  # background/environment only: what the sky adds behind partial pixels
     integrator: dict[str, Any] = field(default_factory=dict)
@@ -223,13 +230,13 @@ class MitsubaBackend(Backend):
         cam = scene.camera
         if cam is None:
             raise InvalidSceneError("scene.camera: the scene has no camera")
+        plan = None
+        render_cam, spp = cam, int(settings.samples)
         if cam.kind == "perspective" and not math.isclose(cam.fx, cam.fy, rel_tol=1e-9):
-            raise UnsupportedFeatureError(
-                f"camera: fx={cam.fx:g} != fy={cam.fy:g} (non-square pixels) cannot be rendered by Mitsuba's "
-                "square-pixel perspective sensor; use the cycles or pyrender backend, or a camera with fx == fy",
-                feature="camera.anisotropic",
-                backend=self.name,
-            )
+            from ._aniso import plan_square_pixels
+
+            plan = plan_square_pixels(cam, spp)  # non-square pixels: a resampled square-pixel render
+            render_cam, spp = plan.camera, plan.spp
         integrator, effects = self.integrator_for(scene, settings)
         with _ENGINE_LOCK:
             mi = self._set_variant()
@@ -237,15 +244,15 @@ class MitsubaBackend(Backend):
 
             film = {
                 "type": "hdrfilm",
-                "width": int(cam.width),
-                "height": int(cam.height),
+                "width": int(render_cam.width),
+                "height": int(render_cam.height),
                 "pixel_format": "rgba",
                 "rfilter": {"type": "box"} if settings.pixel_filter == "box" else {"type": "gaussian"},
             }
-            sampler = {"type": "independent", "sample_count": int(settings.samples)}
+            sampler = {"type": "independent", "sample_count": spp}
             try:
                 composite = bool(settings.transparent_background) and effects.emission
-                tr = translate_scene(scene, film, sampler, integrator, self.max_analytic_spheres, composite=composite)
+                tr = translate_scene(scene, film, sampler, integrator, self.max_analytic_spheres, render_cam, composite)
             except BlendifyError:
                 raise
             except Exception as exc:
@@ -264,6 +271,8 @@ class MitsubaBackend(Backend):
             scene_dict=tr.scene_dict,
             shapes=tr.shapes,
             camera=cam,
+            spp=spp,
+            aniso=plan,
             coverage_scene=cov_scene,
             sky_scene=sky_scene,
             integrator=integrator,
@@ -287,15 +296,20 @@ class MitsubaBackend(Backend):
             try:
                 if settings.wants("rgb"):
                     t0 = time.perf_counter()
-                    rgba = render_rgba(native.scene, settings.samples, settings.seed)
+                    rgba = render_rgba(native.scene, native.spp, settings.seed)
                     if native.coverage_scene is not None:
                         # emissive surfaces + a sky: rendered with the sky visible; the coverage alpha comes
                         # from a one-bounce pass of the shapes, the sky behind partly covered pixels is removed
-                        alpha = render_rgba(native.coverage_scene, settings.samples, settings.seed)[..., 3]
-                        sky = render_rgba(native.sky_scene, settings.samples, settings.seed)[..., :3]
+                        alpha = render_rgba(native.coverage_scene, native.spp, settings.seed)[..., 3]
+                        sky = render_rgba(native.sky_scene, native.spp, settings.seed)[..., :3]
                         rgba[..., :3] -= (1.0 - alpha)[..., None] * sky
                         rgba[..., :3] = np.maximum(rgba[..., :3], 0.0)
                         rgba[..., 3] = alpha
+                    if native.aniso is not None:
+                        from ._aniso import resample_rows
+
+                        cam = native.camera
+                        rgba = resample_rows(rgba, cam.width, cam.height, native.aniso.k, native.aniso.row_scale)
                     if not settings.transparent_background:
                         rgba[..., 3] = 1.0
                     out["rgba"] = rgba
@@ -328,6 +342,7 @@ class MitsubaBackend(Backend):
             "max_depth": native.integrator["max_depth"],
             "hide_emitters": native.integrator["hide_emitters"],
             "spp": settings.samples,
+            "rendered_spp": native.spp,
             "samples": settings.samples,
             "seed": settings.seed,
             "pixel_filter": settings.pixel_filter,
