@@ -42,7 +42,19 @@ def _source_coords(cam: PerspectiveCamera) -> np.ndarray:
     """Undistorted normalised coordinates seen by every output pixel (H*W, 2)."""
     vv, uu = np.mgrid[0 : cam.height, 0 : cam.width]
     xy_d = np.stack([(uu.ravel() - cam.cx) / cam.fx, (vv.ravel() - cam.cy) / cam.fy], axis=1)
-    return undistort_points(xy_d, cam.distortion)  # type: ignore[arg-type]
+    with np.errstate(all="ignore"):
+        xy = undistort_points(xy_d, cam.distortion)  # type: ignore[arg-type]
+        back = distort_points(xy, cam.distortion)  # type: ignore[arg-type]
+    # the fixed-point inversion diverges (NaN) or settles on a wrong point where the model folds over
+    err_px = float(np.max(np.abs(back - xy_d)) * max(cam.fx, cam.fy)) if np.all(np.isfinite(back)) else np.inf
+    if not err_px < 0.01:
+        from .errors import InvalidSceneError
+
+        raise InvalidSceneError(
+            "distortion: the OpenCV model with these coefficients cannot be inverted over the whole image "
+            f"(it folds over or diverges; residual {err_px:.3g} px); check the signs and units of (k1, k2, p1, p2, k3)"
+        )
+    return xy
 
 
 def margin_camera(cam: PerspectiveCamera) -> tuple[PerspectiveCamera, np.ndarray]:
