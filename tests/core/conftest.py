@@ -28,6 +28,7 @@ class FakeBackend(Backend):
     overrides: ClassVar[dict[str, Capability]] = {}
     available: ClassVar[bool] = True
     instances: ClassVar[list[FakeBackend]] = []
+    blob_sigma: ClassVar[float] = 2.0  # pixels, pattern="blobs"
 
     def __init__(self, pattern: str = "shade", **options: Any) -> None:
         super().__init__(**options)  # unknown options -> InvalidSceneError
@@ -81,7 +82,7 @@ class FakeBackend(Backend):
             for obj in native["renderables"]:
                 uv, z = cam.project(obj.translation[None])
                 if z[0] > 0:
-                    img += np.exp(-((uu - uv[0, 0]) ** 2 + (vv - uv[0, 1]) ** 2) / (2 * 1.2**2))
+                    img += np.exp(-((uu - uv[0, 0]) ** 2 + (vv - uv[0, 1]) ** 2) / (2 * self.blob_sigma**2))
             a = np.clip(img, 0, 1).ravel().astype(np.float32)
             rgba[:] = a[:, None]
         else:
