@@ -29,7 +29,7 @@ __all__ = [
     "sample_texture",
 ]
 
-METHODS = ("ball_pivoting", "poisson")
+METHODS = ("ball_pivoting", "poisson", "implicit")
 _MARGIN = 1.0  # texels between a triangle and its cell border
 _GAP = 2.0  # half-gap (in u+v texel units) between the two triangles of a cell: bilinear taps stay inside
 
@@ -226,10 +226,19 @@ def _open3d() -> Any:
         import open3d as o3d
     except ImportError as exc:
         raise BackendUnavailableError(
-            "meshify_pointcloud: surface reconstruction needs Open3D, an optional extra: pip install open3d "
-            "(or open3d-cpu; on Linux it also needs the system library libusb-1.0). "
+            "meshify_pointcloud: ball pivoting and Poisson reconstruction need Open3D, an optional extra: "
+            "pip install open3d (or open3d-cpu; on Linux it also needs the system library libusb-1.0); "
+            "method='implicit' needs no extra dependency. "
             f"Import failed with: {exc}"
         ) from None
+    return o3d
+
+
+def _open3d_or_none() -> Any:
+    try:
+        import open3d as o3d
+    except ImportError:
+        return None
     return o3d
 
 
@@ -258,6 +267,7 @@ def meshify_pointcloud(
     density_quantile: float = 0.02,
     knn: int = 3,
     color_space: str = "srgb",
+    voxel_size: float | None = None,
 ) -> MeshifyResult:
     """Reconstruct a textured triangle mesh from a coloured point cloud.
 
@@ -267,10 +277,14 @@ def meshify_pointcloud(
     ``method``: ``"ball_pivoting"`` (the blendify paper's; follows the points, keeps holes; ``radii``
     default = (1.5, 3) x the median nearest-neighbour spacing) or ``"poisson"`` (watertight, smooth;
     ``poisson_depth`` octree depth; vertices in the lowest ``density_quantile`` of sample density are
-    removed, which trims the surface Poisson invents far from the points).
-    ``target_faces``: quadric-decimation budget (None = keep all). ``texture_size``: square texture side
-    in texels (None = 8x8 texels per pair of triangles); ``knn``: input points blended per texel.
-    Needs Open3D (optional extra; raises BackendUnavailableError with the install command otherwise).
+    removed, which trims the surface Poisson invents far from the points) -- both need Open3D (optional
+    extra; BackendUnavailableError with the install command otherwise) -- or ``"implicit"``, which needs
+    nothing beyond numpy/scipy: the signed distance to the points' tangent planes on a narrow-band grid
+    (``voxel_size``, default 1.5 x the median spacing, at most 256 voxels across) and marching tetrahedra
+    (smoother and more regular than ball pivoting, holes stay open).
+    ``target_faces``: simplification budget (None = keep all): Open3D's quadric decimation, or vertex
+    clustering without Open3D. ``texture_size``: square texture side in texels, at most (None = 8x8 texels
+    per pair of triangles); ``knn``: input points blended per texel.
     """
     from .normals import _points, estimate_normals
 
@@ -294,7 +308,7 @@ def meshify_pointcloud(
         raise InvalidSceneError(f"texture_size: expected an integer >= 8 texels or None, got {texture_size!r}")
     if isinstance(knn, bool) or not isinstance(knn, (int, np.integer)) or knn < 1:
         raise InvalidSceneError(f"knn: expected a positive integer, got {knn!r}")
-    o3d = _open3d()
+    o3d = _open3d() if method != "implicit" else _open3d_or_none()
 
     t0 = time.perf_counter()
     if normals is None:
@@ -308,50 +322,78 @@ def meshify_pointcloud(
     from scipy.spatial import cKDTree
 
     t0 = time.perf_counter()
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.array(p)))
-    pcd.normals = o3d.utility.Vector3dVector(np.array(n))
     info: dict[str, Any] = {"method": method, "n_points": len(p)}
-    if method == "ball_pivoting":
-        if radii is None:
-            d, _ = cKDTree(p).query(p, k=2, workers=-1)
-            spacing = float(np.median(d[:, 1]))
-            if not spacing > 0:
-                raise InvalidSceneError("points: the median point spacing is 0 (all points coincide?)")
-            r = [1.5 * spacing, 3.0 * spacing]
+    d, _ = cKDTree(p).query(p, k=2, workers=-1)
+    spacing = float(np.median(d[:, 1]))
+    if not spacing > 0:
+        raise InvalidSceneError("points: the median point spacing is 0 (all points coincide?)")
+    if method == "implicit":
+        from ._implicit import marching_tetrahedra, signed_distance_grid
+
+        extent = float(np.ptp(p, axis=0).max())
+        if voxel_size is None:
+            voxel = max(1.5 * spacing, extent / 256.0)
         else:
-            r = as_array("radii", np.atleast_1d(radii), ndim=1, min_value=0.0).tolist()
-            if not r or min(r) <= 0:
-                raise InvalidSceneError(f"radii: expected positive ball radii, got {radii!r}")
-        info["radii"] = r
-        mesh = o3d.geometry.TriangleMesh.create_from_point_cloud_ball_pivoting(pcd, o3d.utility.DoubleVector(r))
+            voxel = float(as_array("voxel_size", voxel_size, shape=(), min_value=0.0))
+            if not voxel > 0 or extent / voxel > 1024:
+                raise InvalidSceneError(
+                    f"voxel_size: expected a positive size giving at most 1024 voxels across, got {voxel_size!r}"
+                )
+        values, valid, origin = signed_distance_grid(p, n, voxel)
+        verts, faces = marching_tetrahedra(values, valid, origin, voxel)
+        info["voxel_size"] = voxel
     else:
-        if isinstance(poisson_depth, bool) or not isinstance(poisson_depth, (int, np.integer)):
-            raise InvalidSceneError(f"poisson_depth: expected an integer octree depth, got {poisson_depth!r}")
-        if not 1 <= poisson_depth <= 14:
-            raise InvalidSceneError(f"poisson_depth: expected 1-14, got {poisson_depth}")
-        mesh, density = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=int(poisson_depth))
-        density = np.asarray(density)
-        if density_quantile > 0 and len(density):
-            mesh.remove_vertices_by_mask(density < np.quantile(density, float(density_quantile)))
-        info["poisson_depth"] = int(poisson_depth)
-    mesh.remove_degenerate_triangles()
-    mesh.remove_duplicated_triangles()
-    mesh.remove_unreferenced_vertices()
-    info["faces_reconstructed"] = len(mesh.triangles)
+        pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.array(p)))
+        pcd.normals = o3d.utility.Vector3dVector(np.array(n))
+        if method == "ball_pivoting":
+            if radii is None:
+                r = [1.5 * spacing, 3.0 * spacing]
+            else:
+                r = as_array("radii", np.atleast_1d(radii), ndim=1, min_value=0.0).tolist()
+                if not r or min(r) <= 0:
+                    raise InvalidSceneError(f"radii: expected positive ball radii, got {radii!r}")
+            info["radii"] = r
+            mesh = o3d.geometry.TriangleMesh.create_from_point_cloud_ball_pivoting(pcd, o3d.utility.DoubleVector(r))
+        else:
+            if isinstance(poisson_depth, bool) or not isinstance(poisson_depth, (int, np.integer)):
+                raise InvalidSceneError(f"poisson_depth: expected an integer octree depth, got {poisson_depth!r}")
+            if not 1 <= poisson_depth <= 14:
+                raise InvalidSceneError(f"poisson_depth: expected 1-14, got {poisson_depth}")
+            mesh, density = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=int(poisson_depth))
+            density = np.asarray(density)
+            if density_quantile > 0 and len(density):
+                mesh.remove_vertices_by_mask(density < np.quantile(density, float(density_quantile)))
+            info["poisson_depth"] = int(poisson_depth)
+        mesh.remove_degenerate_triangles()
+        mesh.remove_duplicated_triangles()
+        mesh.remove_unreferenced_vertices()
+        verts = np.asarray(mesh.vertices, dtype=np.float64).copy()
+        faces = np.asarray(mesh.triangles, dtype=np.int64).copy()
+    info["faces_reconstructed"] = len(faces)
     timings["reconstruct"] = time.perf_counter() - t0
-    if len(mesh.triangles) == 0:
+    if len(faces) == 0:
         raise InvalidSceneError(
             f"points: {method} produced no triangles (too sparse or too noisy for the radii {info.get('radii')}?)"
         )
 
     t0 = time.perf_counter()
-    if target_faces is not None and len(mesh.triangles) > target_faces:
-        mesh = mesh.simplify_quadric_decimation(target_number_of_triangles=int(target_faces))
-        mesh.remove_degenerate_triangles()
-        mesh.remove_unreferenced_vertices()
+    if target_faces is not None and len(faces) > target_faces:
+        if o3d is not None:
+            mesh = o3d.geometry.TriangleMesh(
+                o3d.utility.Vector3dVector(verts), o3d.utility.Vector3iVector(faces.astype(np.int32))
+            )
+            mesh = mesh.simplify_quadric_decimation(target_number_of_triangles=int(target_faces))
+            mesh.remove_degenerate_triangles()
+            mesh.remove_unreferenced_vertices()
+            verts = np.asarray(mesh.vertices, dtype=np.float64).copy()
+            faces = np.asarray(mesh.triangles, dtype=np.int64).copy()
+            info["simplification"] = "quadric (Open3D)"
+        else:
+            from ._implicit import cluster_simplify
+
+            verts, faces = cluster_simplify(verts, faces, int(target_faces))
+            info["simplification"] = "vertex clustering (no Open3D)"
     timings["simplify"] = time.perf_counter() - t0
-    verts = np.asarray(mesh.vertices, dtype=np.float64).copy()
-    faces = np.asarray(mesh.triangles, dtype=np.int64).copy()
     info["faces"] = len(faces)
 
     t0 = time.perf_counter()

@@ -140,3 +140,33 @@ def test_meshify_uint8_colours_and_given_normals(rng):
     assert res.texture.shape[0] <= 1024
     mae, _ = _texture_error(res, pts, cols)
     assert mae < 0.02
+
+
+def test_implicit_method_needs_no_open3d(monkeypatch, rng):
+    """The dependency-free path: narrow-band signed distance + marching tetrahedra + vertex clustering."""
+    monkeypatch.setitem(sys.modules, "open3d", None)
+    pts, cols = _sphere_cloud(rng, 4000)
+    res = meshify_pointcloud(pts, cols, method="implicit", target_faces=4000)
+    assert 0 < len(res.faces) <= 4000
+    assert res.info["simplification"] == "vertex clustering (no Open3D)"
+    np.testing.assert_allclose(np.linalg.norm(res.vertices, axis=1), 1.0, atol=0.06)
+    mae, far = _texture_error(res, pts, cols)
+    assert mae < 0.02 and far < 0.1
+    # closed, consistently oriented outwards: positive signed volume of about 4/3 pi
+    v, f = res.vertices, res.faces
+    volume = np.einsum("ij,ij->i", v[f[:, 0]], np.cross(v[f[:, 1]], v[f[:, 2]])).sum() / 6.0
+    assert volume == pytest.approx(4 / 3 * np.pi, rel=0.1)
+
+
+def test_marching_tetrahedra_plane_is_connected_and_oriented():
+    from blendify_core.utils._implicit import marching_tetrahedra
+
+    z = np.arange(6) - 2.5
+    values = np.broadcast_to(z[None, None, :], (5, 5, 6)).astype(float)  # plane z = 0 (grid units)
+    verts, faces = marching_tetrahedra(values, np.ones(values.shape, bool), np.zeros(3), 1.0)
+    np.testing.assert_allclose(verts[:, 2], 2.5)
+    fn = np.cross(verts[faces[:, 1]] - verts[faces[:, 0]], verts[faces[:, 2]] - verts[faces[:, 0]])
+    assert np.all(fn[:, 2] > 0)  # towards positive values
+    assert len(verts) == len(np.unique(np.round(verts, 9), axis=0))  # shared vertices, no duplicates
+    area = 0.5 * np.linalg.norm(fn, axis=1).sum()
+    assert area == pytest.approx(16.0)  # the 4 x 4 grid cells, exactly covered
