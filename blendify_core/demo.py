@@ -39,7 +39,7 @@ def donut_scene(panel: str = "color", resolution: tuple[int, int] = (256, 256)) 
     scene = Scene()
     v, f, c = _donut_mesh()
     r = scene.renderables
-    cam_pos, target = (0.0, -1.7, 1.25), (0.0, 0.0, 0.0)
+    cam_pos, target = (0.0, -2.1, 1.55), (0.0, 0.0, -0.05)
     if panel == "color":
         r.add_mesh(v, f, PrincipledBSDFMaterial(roughness=0.5), VertexColors(c), smooth=True, tag="donut")
         r.add_cylinder_mesh(
