@@ -182,6 +182,30 @@ def test_attach_never_runs_embedded_python(evil_blend: tuple[Path, Path, Path]):
     assert datablock_ids() == before
 
 
+def test_append_blend_scenes_for_cycles_strips_python(evil_blend: tuple[Path, Path, Path]):
+    """The raw-content helper the Cycles backend may use applies the same protections."""
+    import bpy
+    from blendify_blender.blendfile import _all_ids, append_blend_scenes
+
+    path, m_text, m_driver = evil_blend
+    prefs = bpy.context.preferences.filepaths
+    old = prefs.use_scripts_auto_execute
+    prefs.use_scripts_auto_execute = True
+    before = set(_all_ids(bpy))
+    try:
+        scenes, removed = append_blend_scenes(path)
+        assert len(scenes) == 1 and sum("Python driver" in r for r in removed) == 2
+        obj = next(o for o in scenes[0].objects if o.type == "MESH")
+        assert obj.animation_data is None or len(obj.animation_data.drivers) == 0
+        assert prefs.use_scripts_auto_execute is True
+        with bpy.context.temp_override(scene=scenes[0], view_layer=scenes[0].view_layers[0]):
+            bpy.context.evaluated_depsgraph_get().update()
+    finally:
+        prefs.use_scripts_auto_execute = old
+        bpy.data.batch_remove([i for ptr, i in _all_ids(bpy).items() if ptr not in before])
+    assert not m_text.exists() and not m_driver.exists()
+
+
 LINKED_SCRIPT = """
 import bpy, sys, json
 d = sys.argv[1]
