@@ -308,7 +308,6 @@ def render_frames(
     keep = keep_results or (fdir is None and video_path is None)
 
     report = FramesReport(backend=backend_name)
-    from ..transforms import Positionable  # noqa: F401  (type of scene.camera)
     from .trajectory import apply_pose
 
     cam = scene.camera
