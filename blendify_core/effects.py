@@ -132,9 +132,9 @@ def analyse_effects(scene: Any) -> Effects:
         if caustics
         else "no sharp specular or refractive surface between a light and a diffuse one"
     )
-    if not has_light:
+    if not has_light and not catchers:  # a shadow catcher keeps its reason (and its compositing path)
         r["shadows"] = "no light at all"
-        shadows = False if not catchers else shadows
+        shadows = False
     return Effects(
         shadows=shadows,
         indirect_diffuse=indirect,
