@@ -12,7 +12,7 @@ from blendify_core.backend import Backend, register_backend, unregister_backend
 from blendify_core.compare import TIERS, alpha_centroids, choose_tier, crosscheck_main, heat_map
 from blendify_core.features import ALL_FEATURES, Capability
 from blendify_core.stats import ReferenceEstimate, estimate_reference, sidak_alpha, z_test
-from blendify_core.testing import depth_plane_scene, plane_scene
+from blendify_core.testing import depth_plane_scene, plane_scene, primitives_scene
 
 H, W = 40, 48
 
@@ -64,6 +64,9 @@ def test_rgb_relative_error_and_rel_mse_by_hand():
     assert m["max_rel_error"] == pytest.approx(0.01, rel=1e-4)
     assert m["rel_mse"] == pytest.approx(0.005**2 / (0.25 + 0.01), rel=1e-3)
     assert m["mean_ratio"] == pytest.approx(1.01, rel=1e-5)
+    assert m["ratio_error"] == pytest.approx(0.01, rel=1e-3)
+    assert m["mean_rel_error_interior"] == pytest.approx(0.01, rel=1e-4)
+    assert m["n_interior"] == 18 * 30  # the 20 x 32 rectangle minus its 1-px rim
     assert m["n_covered"] == 20 * 32
     assert m["alpha_mean_abs_error"] == 0.0
     assert 0 < m["flip"] < 0.05
@@ -192,6 +195,8 @@ def test_choose_tier():
     assert choose_tier("cycles", "mitsuba", plane_scene("background")) == "pathtracer"
     assert choose_tier("pyrender", "mitsuba") == "raster"
     assert choose_tier("cycles", "pyrender", plane_scene("sun")) == "raster"
+    assert choose_tier("cycles", "mitsuba", primitives_scene()) == "pathtracer_material"
+    assert choose_tier("pyrender", "mitsuba", primitives_scene()) == "raster_material"
     # auto tier from meta["backend"]
     rep = bf.compare(make_result(backend="pyrender"), make_result(backend="cycles"))
     assert rep.tier == "raster" and rep.names == ("pyrender", "cycles")
