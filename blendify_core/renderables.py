@@ -499,9 +499,13 @@ class PointCloud(Renderable):
     def world_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         if len(self._vertices) == 0:
             return self.translation.copy(), self.translation.copy()
-        v = self._vertices @ self.rotation_matrix.T + self.translation
-        r = self.radii()[:, None]
-        return (v - r).min(axis=0), (v + r).max(axis=0)
+        # cheap on millions of points: the object-space box grown by the largest radius, then its corners
+        # transformed (as Mesh.world_bounds; exact for unrotated clouds, conservative otherwise)
+        r = float(self._point_size) / 2.0 if np.ndim(self._point_size) == 0 else float(np.max(self._point_size)) / 2.0
+        lo, hi = self._vertices.min(axis=0) - r, self._vertices.max(axis=0) + r
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        v = corners @ self.rotation_matrix.T + self.translation
+        return v.min(axis=0), v.max(axis=0)
 
     def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
         d = self._base_dict(arrays, prefix)
