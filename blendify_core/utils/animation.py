@@ -19,7 +19,7 @@ from ..errors import BackendUnavailableError, InvalidSceneError
 
 __all__ = ["render_frames", "FramesReport", "MANIFEST_NAME", "write_video"]
 
-MANIFEST_NAME = "frames_manifest.json"
+MANIFEST_NAME = "frames_manifest.jsonl"
 _MANIFEST_VERSION = 1
 
 
@@ -50,30 +50,47 @@ def _jsonable(value: Any) -> Any:
     return core_jsonable(value)
 
 
-def _read_manifest(path: Path) -> dict[str, Any]:
+def _read_manifest(path: Path) -> dict[str, dict[str, Any]]:
+    """Frame key -> entry from the JSON-lines manifest (the last entry of a frame wins; a line cut short
+    by a crash, or any malformed line, is ignored)."""
+    entries: dict[str, dict[str, Any]] = {}
     try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return {}
-    if (
-        not isinstance(data, dict)
-        or data.get("version") != _MANIFEST_VERSION
-        or not isinstance(data.get("frames"), dict)
-    ):
-        return {}
-    return data
+        lines = path.read_text().splitlines()
+    except OSError:
+        return entries
+    for line in lines:
+        try:
+            entry = json.loads(line)
+        except ValueError:
+            continue
+        if (
+            isinstance(entry, dict)
+            and entry.get("version") == _MANIFEST_VERSION
+            and isinstance(entry.get("frame"), str)
+        ):
+            entries[entry["frame"]] = entry
+    return entries
 
 
-def _write_json(path: Path, data: dict[str, Any]) -> None:
+def _rewrite_manifest(path: Path, entries: dict[str, dict[str, Any]]) -> None:
+    """Replace the manifest by one line per frame (atomically): keeps it compact across resumed runs."""
     from ..result import atomic_write
 
-    text = json.dumps(data, indent=1, sort_keys=True)
+    text = "".join(json.dumps(entries[k], sort_keys=True) + "\n" for k in sorted(entries))
 
     def writer(tmp: str) -> None:
         with open(tmp, "w") as f:
             f.write(text)
 
     atomic_write(path, writer)
+
+
+def _append_manifest(path: Path, entry: dict[str, Any]) -> None:
+    """Append one finished frame (O(1) per frame, durable before the next frame starts)."""
+    with open(path, "a") as f:
+        f.write(json.dumps(entry, sort_keys=True) + "\n")
+        f.flush()
+        os.fsync(f.fileno())
 
 
 def _even_rgb(frame: np.ndarray) -> np.ndarray:
@@ -235,7 +252,7 @@ def render_frames(
         every frame in order, including frames skipped on resume.
 
     Output: ``frames_dir`` gets ``frame_00000.png``... (8-bit sRGB, straight alpha, written atomically;
-    other requested ``outputs`` as ``depth_00000.png`` etc.) and a ``frames_manifest.json`` recording each
+    other requested ``outputs`` as ``depth_00000.png`` etc.) and a ``frames_manifest.jsonl`` recording each
     frame's provenance (scene fingerprint + settings); ``video_path`` gets an H.264 MP4 (needs the
     ``video`` extra: imageio + imageio-ffmpeg) with transparent pixels over ``background``.
     With neither, the RenderResults are returned in the report.
@@ -293,16 +310,16 @@ def render_frames(
     )
 
     fdir: Path | None = None
-    manifest: dict[str, Any] = {"version": _MANIFEST_VERSION, "frames": {}}
+    manifest: dict[str, dict[str, Any]] = {}
     manifest_path: Path | None = None
     if frames_dir is not None:
         fdir = Path(frames_dir)
         fdir.mkdir(parents=True, exist_ok=True)
         manifest_path = fdir / MANIFEST_NAME
         if resume:
-            old = _read_manifest(manifest_path)
-            if old:
-                manifest["frames"] = old["frames"]
+            manifest = _read_manifest(manifest_path)
+        if manifest_path.exists():
+            _rewrite_manifest(manifest_path, manifest)
     if video_path is not None and "rgb" not in outputs:
         raise InvalidSceneError("video_path: a video needs the 'rgb' output; add 'rgb' to outputs")
     keep = keep_results or (fdir is None and video_path is None)
@@ -330,7 +347,7 @@ def render_frames(
             fingerprint = None
             if fdir is not None:
                 fingerprint = scene.fingerprint()
-                entry = manifest["frames"].get(f"{i:05d}")
+                entry = manifest.get(f"{i:05d}")
                 done = (
                     resume
                     and isinstance(entry, dict)
@@ -350,7 +367,9 @@ def render_frames(
                 if fdir is not None:
                     for o, n in names.items():
                         result.save(fdir / n, output=o)
-                    manifest["frames"][f"{i:05d}"] = {
+                    entry = {
+                        "version": _MANIFEST_VERSION,
+                        "frame": f"{i:05d}",
                         "fingerprint": fingerprint,
                         "settings": settings_key,
                         "files": sorted(names.values()),
@@ -358,7 +377,8 @@ def render_frames(
                         "backend": result.meta.get("backend"),
                         "engine_version": result.meta.get("engine_version"),
                     }
-                    _write_json(manifest_path, manifest)  # type: ignore[arg-type]
+                    manifest[entry["frame"]] = entry
+                    _append_manifest(manifest_path, entry)  # type: ignore[arg-type]
                 if writer is not None:
                     writer.append(_video_frame(result, bg))
                 if keep:

@@ -39,9 +39,10 @@ def test_trajectory_frames_follow_the_camera_and_camera_is_restored(fake_backend
     np.testing.assert_array_equal(cam.translation, before[0])
     np.testing.assert_array_equal(cam.quaternion, before[1])
     assert len(fake_backend.instances) == 1 and fake_backend.instances[0].renders == 5  # one instance reused
-    manifest = json.loads((tmp_path / MANIFEST_NAME).read_text())
-    assert sorted(manifest["frames"]) == [f"{i:05d}" for i in range(5)]
-    assert manifest["frames"]["00000"]["settings"]["backend"] == fake_backend.name
+    lines = [json.loads(line) for line in (tmp_path / MANIFEST_NAME).read_text().splitlines()]
+    assert [e["frame"] for e in lines] == [f"{i:05d}" for i in range(5)]
+    assert lines[0]["settings"]["backend"] == fake_backend.name
+    assert len(lines[0]["fingerprint"]) == 64
 
 
 def test_resume_skips_finished_frames_and_rerenders_changed_ones(fake_backend, small_scene, tmp_path):
@@ -80,6 +81,12 @@ def test_resume_skips_finished_frames_and_rerenders_changed_ones(fake_backend, s
     assert rep.rendered == [3, 4]
     rep = render_frames(small_scene, move_late, n_frames=5, seed=7, resume=False, **kw)
     assert rep.rendered == [0, 1, 2, 3, 4]
+    # the manifest stays compact (one line per frame after a rewrite) and tolerates a torn last line
+    with open(tmp_path / MANIFEST_NAME, "a") as f:
+        f.write('{"version": 1, "frame": "00002", "fingerp')
+    rep = render_frames(small_scene, move_late, n_frames=5, seed=7, **kw)
+    assert rep.skipped == [0, 1, 2, 3, 4]
+    assert len((tmp_path / MANIFEST_NAME).read_text().splitlines()) == 5
 
 
 def test_callback_updates_any_object_and_results_are_returned(fake_backend, small_scene):
