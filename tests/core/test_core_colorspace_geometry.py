@@ -96,7 +96,7 @@ def test_texture_rows_and_data_maps_are_not_colour_managed():
     tm = bf.TextureMap(img)
     assert np.array_equal(tm.values(), img)  # (H, W) as given: row 0 = top, no decoding
     nm = bf.NormalMap(np.full((1, 1, 3), (128, 128, 255), np.uint8))
-    assert np.allclose(nm.normals()[0, 0], [128 / 255 * 2 - 1, 128 / 255 * 2 - 1, 1.0])
+    assert np.allclose(nm.normals()[0, 0], [128 / 255 * 2 - 1, 128 / 255 * 2 - 1, 1.0], atol=1e-6)
 
 
 def test_environment_map_colour_space_defaults():
