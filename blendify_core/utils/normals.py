@@ -215,7 +215,8 @@ def estimate_normals(
     ``return_variation=True`` also returns the surface variation lambda_min / (sum of eigenvalues) per
     point (0 = flat, 1/3 = isotropic), a cheap flatness/noise indicator.
 
-    Time: about 10 s for 1M points with k=16 on 2 CPU cores (see benchmarks/results/meshify.md).
+    Time for 1M points, k=16, on 2 idle CPU cores: about 4 s unoriented, 7 s with propagation (see
+    ``benchmarks/bench_meshify.py``).
     """
     from scipy.spatial import cKDTree
 

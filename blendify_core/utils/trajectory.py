@@ -217,6 +217,11 @@ class Trajectory:
     def __repr__(self) -> str:
         return f"Trajectory({len(self)} keypoints, {self.duration:g} s)"
 
+    @staticmethod
+    def apply(camera: Any, pose: Pose | dict[str, Any]) -> None:
+        """Move ``camera`` to ``pose`` (see :func:`apply_pose`)."""
+        apply_pose(camera, pose)
+
     # -- (de)serialisation -------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """Plain-Python description (JSON-serialisable); :meth:`from_dict` reads it back."""

@@ -157,6 +157,9 @@ def test_apply_pose_moves_the_camera():
     pose = t.refine(0.5)[1]
     apply_pose(cam, pose)
     np.testing.assert_allclose(cam.translation, pose.position)
+    Trajectory.apply(cam, t[0])
+    np.testing.assert_allclose(cam.translation, [0, -4, 1])
+    apply_pose(cam, pose)
     np.testing.assert_allclose(cam.quaternion, pose.quaternion)
     with pytest.raises(bf.InvalidSceneError, match="camera"):
         apply_pose("camera", pose)
