@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import blendify_core as bf
 from blendify_core.colors import TextureMap
@@ -666,3 +668,40 @@ def test_save_is_atomic_over_an_existing_file(tmp_path, monkeypatch):
         s.save(tmp_path / "s.npz")
     assert (tmp_path / "s.npz").read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.npz"]
+
+
+# ---------------------------------------------------------------------------------------------------
+# property: random poses and parameters survive a file round trip bit for bit
+# ---------------------------------------------------------------------------------------------------
+
+
+_f = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
+_unit = st.floats(0.0, 1.0)
+_quat = st.tuples(_f, _f, _f, _f).filter(lambda q: np.linalg.norm(q) > 1e-3)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    q1=_quat,
+    q2=_quat,
+    q3=_quat,
+    t=st.tuples(_f, _f, _f),
+    rough=_unit,
+    colour=st.tuples(_unit, _unit, _unit),
+    strength=st.floats(0.0, 1e4),
+    fx=st.floats(1.0, 1e4),
+    fy=st.floats(1.0, 1e4),
+)
+def test_random_scene_round_trips_bit_for_bit(tmp_path, q1, q2, q3, t, rough, colour, strength, fx, fy):
+    s = bf.Scene()
+    s.renderables.add_cube_mesh(
+        1.0, bf.PrincipledBSDFMaterial(roughness=rough), bf.UniformColors(colour), rotation=q1, translation=t
+    )
+    s.lights.add_spot(strength, color=colour, rotation=q2, translation=t)
+    s.set_perspective_camera(
+        (64, 48), K=np.array([[fx, 0, 31.5], [0, fy, 23.5], [0, 0, 1]]), rotation=q3, translation=t
+    )
+    s.save(tmp_path / "r.npz")
+    loaded = bf.Scene.load(tmp_path / "r.npz")
+    assert_same_scene(s, loaded)
+    assert loaded.fingerprint() == s.fingerprint()
