@@ -237,7 +237,6 @@ def _loaded_blend(path: Path) -> Iterator[tuple[list[Any], list[str]]]:
     on exit. Auto-run must already be forced off by the caller."""
     bpy = _bpy()
     before = set(_all_ids(bpy))
-    new_ids: list[Any] = []
     renamed: list[tuple[Any, str]] = []
     try:
         try:
@@ -252,9 +251,7 @@ def _loaded_blend(path: Path) -> Iterator[tuple[list[Any], list[str]]]:
                         existing.name = f"~bf{i}~{nm}"[:60]
         except (OSError, RuntimeError, ValueError) as exc:
             raise InvalidSceneError(f"path: Blender cannot read {str(path)!r} as a .blend file ({exc})") from None
-        new_ids = [idb for ptr, idb in _all_ids(bpy).items() if ptr not in before]
-        removed = _strip_python(bpy, new_ids)
-        new_ids = [i for ptr, i in _all_ids(bpy).items() if ptr not in before]
+        removed = _strip_python(bpy, [idb for ptr, idb in _all_ids(bpy).items() if ptr not in before])
         scenes = [s for s in dst.scenes if s is not None]
         if not scenes:
             raise InvalidSceneError(f"path: {str(path)!r} contains no scene")
@@ -283,8 +280,11 @@ def append_blend_scenes(path: str | os.PathLike[str]) -> tuple[list[Any], list[s
                 dst.scenes = list(src.scenes)
         except (OSError, RuntimeError, ValueError) as exc:
             raise InvalidSceneError(f"path: Blender cannot read {str(p)!r} as a .blend file ({exc})") from None
-        new_ids = [idb for ptr, idb in _all_ids(bpy).items() if ptr not in before]
-        removed = _strip_python(bpy, new_ids)
+        try:
+            removed = _strip_python(bpy, [idb for ptr, idb in _all_ids(bpy).items() if ptr not in before])
+        except BaseException:
+            bpy.data.batch_remove([i for ptr, i in _all_ids(bpy).items() if ptr not in before])
+            raise
     return [s for s in dst.scenes if s is not None], removed
 
 

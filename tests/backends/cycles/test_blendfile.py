@@ -825,22 +825,45 @@ def test_attach_hand_built_blend(hand_built: tuple[Path, dict[str, Any]], tmp_pa
     assert (cam.near, cam.far) == (pytest.approx(0.5), pytest.approx(50.0))
 
 
-def test_camera_intrinsics_sensor_fits():
-    """K for vertical / auto sensor fit and non-square pixels (Blender's view-plane rules)."""
+@pytest.mark.parametrize(
+    "width, height, pax, pay, fit, kind",
+    [
+        (100, 200, 1, 1, "AUTO", "PERSP"),
+        (200, 100, 1, 1, "AUTO", "PERSP"),
+        (100, 200, 1, 2, "VERTICAL", "PERSP"),
+        (200, 100, 2, 1, "HORIZONTAL", "PERSP"),
+        (100, 120, 1, 1.5, "AUTO", "PERSP"),
+        (120, 100, 1.3, 1, "VERTICAL", "PERSP"),
+        (100, 200, 1, 1, "AUTO", "ORTHO"),
+        (200, 100, 1, 1, "VERTICAL", "ORTHO"),
+    ],
+)
+def test_camera_intrinsics_match_blender_view_frame(width, height, pax, pay, fit, kind):
+    """K for every sensor fit and pixel aspect agrees with Blender's own view frame."""
+    import bpy
 
-    class Cam:
-        type, lens, sensor_width, sensor_height, ortho_scale = "PERSP", 50.0, 36.0, 24.0, 2.0
-        shift_x, shift_y, sensor_fit = 0.1, 0.2, "VERTICAL"
-
-    k = blender_camera_intrinsics(Cam, 100, 200, 1.0, 2.0)  # ycor = 2, viewfac = 400
-    assert k["fx"] == pytest.approx(50 * 400 / 24) and k["fy"] == pytest.approx(k["fx"] / 2)
-    assert k["cx"] == pytest.approx(50 - 0.1 * 400 - 0.5) and k["cy"] == pytest.approx(100 + 0.2 * 400 / 2 - 0.5)
-    Cam.sensor_fit = "AUTO"  # portrait with square pixels: vertical fit with the sensor WIDTH
-    k = blender_camera_intrinsics(Cam, 100, 200)
-    assert k["fx"] == pytest.approx(50 * 200 / 36) and k["fy"] == pytest.approx(k["fx"])
-    Cam.type = "ORTHO"
-    k = blender_camera_intrinsics(Cam, 100, 200)
-    assert k["ortho_scale"] == pytest.approx(2.0 * 100 / 200)
+    sc = bpy.data.scenes.new("bf_test_intrinsics")
+    cam = bpy.data.cameras.new("bf_test_intrinsics")
+    try:
+        r = sc.render
+        r.resolution_x, r.resolution_y, r.pixel_aspect_x, r.pixel_aspect_y = width, height, pax, pay
+        cam.type, cam.sensor_fit, cam.lens, cam.sensor_width, cam.sensor_height = kind, fit, 50.0, 36.0, 24.0
+        cam.shift_x, cam.shift_y, cam.ortho_scale = 0.1, 0.2, 3.0
+        fr = np.array([tuple(v) for v in cam.view_frame(scene=sc)])
+        k = blender_camera_intrinsics(cam, width, height, pax, pay)
+    finally:
+        bpy.data.cameras.remove(cam)
+        bpy.data.scenes.remove(sc)
+    if kind == "PERSP":
+        xs, ys = fr[:, 0] / -fr[0, 2], fr[:, 1] / -fr[0, 2]
+        fx, fy = width / np.ptp(xs), height / np.ptp(ys)
+        expected = (fx, fy, -xs.min() * fx - 0.5, ys.max() * fy - 0.5)
+        np.testing.assert_allclose((k["fx"], k["fy"], k["cx"], k["cy"]), expected, atol=1e-3)
+    else:
+        xs, ys = fr[:, 0], fr[:, 1]
+        px = np.ptp(xs) / width
+        assert k["ortho_scale"] == pytest.approx(np.ptp(xs), rel=1e-6)
+        np.testing.assert_allclose((k["cx"], k["cy"]), (-xs.min() / px - 0.5, ys.max() / px - 0.5), atol=1e-3)
 
 
 RENDER_FILE = """
