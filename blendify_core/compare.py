@@ -868,46 +868,51 @@ class CrosscheckReport:
         return f"CrosscheckReport({self.scene_name}: {pairs or 'no pairs'}; skipped: {skipped})"
 
     def contact_sheet(self, tile: int = 160) -> np.ndarray:
-        """(H, W, 3) uint8 labelled sheet: one row per backend (colour, depth, normal, instance) and one
-        row per pair (diff maps of every compared output). Tiles are scaled (nearest) to ``tile`` px wide."""
+        """(H, W, 3) uint8 labelled sheet: one row per backend (colour over a checkerboard, depth, normal,
+        albedo, instance ids) and one row per pair (the heat maps of every compared output, each tile
+        marked ok/FAIL against the pair's tier). Tiles are scaled (nearest) to ``tile`` px wide."""
         from PIL import Image, ImageDraw
 
-        rows: list[list[tuple[str, np.ndarray]]] = []
+        rows: list[tuple[str, list[tuple[str, np.ndarray]]]] = []
         for name, r in self.results.items():
             row = []
             if r.rgba is not None:
-                row.append((f"{name} rgb", _over_checker(r)))
+                row.append(("rgb", _over_checker(r)))
             if r.depth is not None:
-                row.append((f"{name} depth", np.repeat(depth_to_image(r.depth)[..., None], 3, axis=-1)))
+                row.append(("depth", np.repeat(depth_to_image(r.depth)[..., None], 3, axis=-1)))
             if r.normal is not None:
-                row.append((f"{name} normal", np.round(np.clip(r.normal * 0.5 + 0.5, 0, 1) * 255).astype(np.uint8)))
+                row.append(("normal", np.round(np.clip(r.normal * 0.5 + 0.5, 0, 1) * 255).astype(np.uint8)))
             if r.albedo is not None:
-                row.append((f"{name} albedo", np.round(linear_to_srgb(r.albedo) * 255).astype(np.uint8)))
+                row.append(("albedo", np.round(linear_to_srgb(r.albedo) * 255).astype(np.uint8)))
             if r.instance is not None:
-                row.append((f"{name} instance", instance_to_image(r.instance)))
-            rows.append(row)
+                row.append(("instance", instance_to_image(r.instance)))
+            rows.append((name, row))
         for (a, b), rep in self.pairs.items():
-            row = []
-            for out, img in rep.diff_images.items():
-                row.append((f"{a}-{b} {out} {'ok' if _output_ok(rep, out) else 'FAIL'}", img))
-            rows.append(row)
-        if not rows or not any(rows):
+            row = [
+                (f"{out} diff: {'ok' if _output_ok(rep, out) else 'FAIL'}", img) for out, img in rep.diff_images.items()
+            ]
+            verdict = "PASS" if rep.passed else "FAIL"
+            rows.append((f"{a}\nvs {b}\n{rep.tier}\n{verdict}", row))
+        if not any(row for _, row in rows):
             return np.zeros((32, 32, 3), dtype=np.uint8)
-        h0, w0 = next(img for row in rows for _, img in row).shape[:2]
-        scale = max(1, int(round(tile / max(w0, 1))))
-        tw, th = w0 * scale, h0 * scale
-        label_h = 14
-        ncols = max(len(r) for r in rows)
-        pad = 4
-        sheet = Image.new("RGB", (ncols * (tw + pad) + pad, len(rows) * (th + label_h + pad) + pad), (255, 255, 255))
+        h0, w0 = next(img for _, row in rows for _, img in row).shape[:2]
+        tw = max(int(tile), 16)
+        th = max(int(round(h0 * tw / max(w0, 1))), 1)
+        label_h, pad, head_w = 14, 4, 110
+        ncols = max(len(row) for _, row in rows)
+        width = head_w + ncols * (tw + pad) + pad
+        height = len(rows) * (th + label_h + pad) + pad
+        sheet = Image.new("RGB", (width, height), (255, 255, 255))
         draw = ImageDraw.Draw(sheet)
-        for ri, row in enumerate(rows):
+        for ri, (head, row) in enumerate(rows):
+            y = pad + ri * (th + label_h + pad)
+            colour = (180, 0, 0) if head.endswith("FAIL") else (0, 0, 0)
+            draw.multiline_text((pad, y + label_h), head, fill=colour, spacing=2)
             for ci, (label, img) in enumerate(row):
-                x = pad + ci * (tw + pad)
-                y = pad + ri * (th + label_h + pad)
+                x = head_w + ci * (tw + pad)
                 im = Image.fromarray(np.ascontiguousarray(img[..., :3])).resize((tw, th), Image.NEAREST)
                 sheet.paste(im, (x, y + label_h))
-                draw.text((x + 1, y + 1), label[: max(tw // 6, 8)], fill=(0, 0, 0))
+                draw.text((x + 1, y + 1), label, fill=(180, 0, 0) if label.endswith("FAIL") else (0, 0, 0))
         return np.asarray(sheet)
 
     def save(self, folder: str | os.PathLike[str], name: str = "crosscheck") -> Path:

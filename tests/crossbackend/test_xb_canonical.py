@@ -1,0 +1,55 @@
+"""Every canonical scene (xb_canonical.CANONICAL) through every available backend pair, compared at the
+tier ``choose_tier`` picks for the pair and the scene (the same run benchmarks/crosscheck_report.py
+documents in docs/crosscheck.md). Slow: 96-128 px renders at up to 256 spp."""
+
+from __future__ import annotations
+
+import pytest
+from xb_canonical import CANONICAL
+from xb_util import PAIRS, require
+
+import blendify_core as bf
+from blendify_core.compare import choose_tier
+
+OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
+
+#: measured, understood differences (docs/crosscheck.md): (scene, backend in the pair) -> reason.
+#: The pairs are xfail (not strict): when a backend fixes the cause, the test XPASSes and the entry goes.
+KNOWN = {
+    ("fuze", "cycles"): "Cycles' smooth normals differ from the IR vertex normals on this coarse mesh "
+    "(1 deg median, 5.3 deg q99) and its texture colours are 1-5 % darker per channel",
+    ("fuze", "pyrender"): "textures: pyrender samples mipmaps, Mitsuba's albedo is a pixel-centre lookup "
+    "(albedo 6.6 %)",
+    ("pointcloud", "pyrender"): "pyrender approximates points by coarser spheres (level of detail): depth "
+    "q99 1.2e-3, 9 interior mask pixels",
+    ("plane_area", "pyrender"): "pyrender renders an area light as a spot light (ratio 1.45)",
+    ("plane_area_disk", "pyrender"): "pyrender renders an area light as a spot light (ratio 1.46)",
+    ("shadow_catcher", "pyrender"): "shadow catchers differ in definition (albedo of the catcher, "
+    "shadow-mapped shadows)",
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("pair", PAIRS, ids=[f"{a}-{b}" for a, b in PAIRS])
+@pytest.mark.parametrize("name", list(CANONICAL))
+def test_canonical_pair(renders, name, pair, artifacts_dir, request):
+    a, b = pair
+    require(a)
+    require(b)
+    build, spp, _ = CANONICAL[name]
+    results = []
+    for backend in pair:
+        try:
+            results.append(renders.get(f"canonical-{name}", backend, build, samples=spp, outputs=OUTPUTS))
+        except bf.UnsupportedFeatureError as exc:
+            print(f"SKIP: {exc}")
+            pytest.skip(str(exc))
+    for backend in pair:
+        if (name, backend) in KNOWN:
+            request.applymarker(pytest.mark.xfail(reason=KNOWN[(name, backend)], strict=False))
+    tier = choose_tier(a, b, build())
+    rep = bf.compare(results[0], results[1], tier=tier, names=pair)
+    print(rep)
+    if not rep.passed:
+        rep.save(artifacts_dir)
+    assert rep.passed, rep.summary()
