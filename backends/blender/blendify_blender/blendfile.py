@@ -1667,7 +1667,10 @@ def export_blend(scene: Any, path: str | os.PathLike[str], pack_textures: bool =
         raise InvalidSceneError(f"pack_textures: expected True or False, got {pack_textures!r}")
     if scene.camera is None:
         raise InvalidSceneError("scene.camera: the scene has no camera; call scene.set_perspective_camera(...) first")
-    render_settings = resolve_settings(**settings)
+    try:
+        render_settings = resolve_settings(**settings)
+    except TypeError as exc:
+        raise InvalidSceneError(f"export_blend: unknown render setting(s) {sorted(settings)} ({exc})") from None
     out = out.absolute()
     try:
         out.parent.mkdir(parents=True, exist_ok=True)

@@ -543,6 +543,11 @@ def test_export_orthographic_camera_and_bad_inputs(tmp_path: Path):
         export_blend(Scene(), tmp_path / "nocam.blend")
     with pytest.raises(InvalidSceneError, match="scene"):
         export_blend("not a scene", tmp_path / "x.blend")  # type: ignore[arg-type]
+    with pytest.raises(InvalidSceneError, match="sampels"):
+        export_blend(s, tmp_path / "x.blend", sampels=4)
+    with pytest.raises(InvalidSceneError, match="samples"):
+        export_blend(s, tmp_path / "x.blend", samples=0)
+    assert not (tmp_path / "x.blend").exists()
 
 
 RENDER_BLEND = """
