@@ -225,7 +225,7 @@ def _strip_python(bpy: Any, new_ids: list[Any]) -> list[str]:
                 ) from None
             removed.append(f"{what} (removed, never evaluated)")
     for t in texts:
-        removed.append(f"text block {t.name!r} (not loaded)")
+        removed.append(f"text block {t.name!r} (removed, never run)")
     if texts:
         bpy.data.batch_remove(texts)
     return removed

@@ -344,7 +344,9 @@ def round_trip_scene(scale: float = 1.0, texture_file: Path | None = None) -> Sc
 
 def test_export_attach_round_trip(tmp_path: Path):
     src = round_trip_scene(texture_file=tmp_path / "tex.png")
+    cwd = os.getcwd()
     out = export_blend(src, tmp_path / "sub" / "scene.blend", samples=4)
+    assert os.getcwd() == cwd
     assert out == (tmp_path / "sub" / "scene.blend").absolute() and out.is_file()
     assert sorted(p.name for p in out.parent.iterdir()) == ["scene.blend"]  # no .blend1, no temp file
     src_pixels = src.renderables["filetex"].colors.linear_rgba_image()
