@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from blendify_core.cameras import OrthographicCamera
 from blendify_core.errors import RenderError
 from blendify_core.lights import AreaLight, SpotLight, SunLight
 from blendify_core.result import RenderResult
@@ -28,6 +29,7 @@ _GAMMA = 2.2
 #: the coverage pass of the "coverage" anti-aliasing is rendered at 3x the resolution (9 samples/pixel)
 COVERAGE_SUPERSAMPLE = 3
 _LIN8 = ((np.arange(256, dtype=np.float64) / 255.0) ** _GAMMA).astype(np.float32)
+_ALPHA8 = (np.arange(256, dtype=np.float64) / 255.0).astype(np.float32)
 
 
 def _translate_mod() -> Any:
@@ -98,19 +100,20 @@ def _lights_key(lights: Any) -> tuple[Any, ...]:
 
 
 def linearise_rgba8(img: np.ndarray) -> np.ndarray:
-    """pyrender's 8-bit colour (gamma 1/2.2, premultiplied by coverage through the MSAA resolve) to linear
-    premultiplied float32: straight = C / A, linear = straight^2.2, times A."""
+    """pyrender's 8-bit colour (gamma 1/2.2, premultiplied by coverage when multisampled) to linear
+    premultiplied float32: straight = C / A, linear = straight^2.2, times A (a table for opaque pixels)."""
+    h, w = img.shape[:2]
+    out = np.empty((h, w, 4), dtype=np.float32)
+    for c in range(3):
+        np.take(_LIN8, img[..., c], out=out[..., c])
+    np.take(_ALPHA8, img[..., 3], out=out[..., 3])
     a8 = img[..., 3]
-    out = np.empty(img.shape, dtype=np.float32)
-    out[..., :3] = _LIN8[img[..., :3]]
-    out[..., 3] = a8.astype(np.float32) / 255.0
     partial = (a8 > 0) & (a8 < 255)
     if np.any(partial):
         a = out[..., 3][partial][:, None]
         c = img[..., :3][partial].astype(np.float32) / 255.0
         straight = np.clip(c / a, 0.0, 1.0)
-        out[..., :3][partial] = (straight**_GAMMA) * a
-    out[..., :3][a8 == 0] = 0.0
+        out[partial, :3] = (straight**_GAMMA) * a
     return out
 
 
@@ -285,21 +288,47 @@ class Engine:
         name = self.renderer.gl_renderer.lower()
         return any(k in name for k in ("llvmpipe", "softpipe", "swrast", "software"))
 
+    def _point_pixels(self, frame: Frame) -> float:
+        """Pixel size (at the camera resolution) of clouds drawn as GL points: the projected diameter at the
+        cloud centre's planar depth (the largest over such clouds; 1 if there are none)."""
+        cam = frame.scene.camera
+        best = 1.0
+        for node in frame.nodes:
+            if node is None:
+                continue
+            for prim in node.mesh.primitives:
+                d = getattr(prim, "point_diameter", None)
+                if d is None:
+                    continue
+                centre = self.pscene.get_pose(node)[:3, 3]
+                if isinstance(cam, OrthographicCamera):
+                    px = d / cam.pixel_size
+                else:
+                    z = float(np.dot(centre - cam.translation, cam.viewdir))
+                    px = d * cam.fx / max(z, cam.near)
+                best = max(best, px)
+        return best
+
     def _color(self, frame: Frame, w: int, h: int, aa: AntiAliasing, flags: int) -> np.ndarray:
         """Linear premultiplied (H, W, 4) colour with the anti-aliasing scheme ``aa``."""
         r = self.renderer
+        px = self._point_pixels(frame)
         if aa.mode in ("none", "coverage"):
+            r.point_size = px
             rgba = linearise_rgba8(r.render_color(self.pscene, w, h, 0, flags))
             if aa.mode == "coverage":
                 ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
                 # supersampled, not multisampled: llvmpipe's MSAA is 4x slower even for a trivial shader
                 k = COVERAGE_SUPERSAMPLE
+                r.point_size = px * k
                 cov = box_downsample(r.render_coverage(self.pscene, w * k, h * k, 0, ids), k)
                 rgba = apply_coverage(rgba, cov)
             return rgba
         if aa.mode == "msaa":
+            r.point_size = px
             return linearise_rgba8(r.render_color(self.pscene, w, h, aa.msaa, flags))
         k = max(1, aa.supersample)  # "ssaa"
+        r.point_size = px * k
         return box_downsample(linearise_rgba8(r.render_color(self.pscene, w * k, h * k, 0, flags)), k)
 
     def render(self, frame: Frame, settings: RenderSettings, aa: AntiAliasing) -> RenderResult:
@@ -334,6 +363,7 @@ class Engine:
             if want & {"depth", "normal", "albedo", "instance"} or catchers:
                 t0 = time.perf_counter()
                 ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
+                renderer.point_size = self._point_pixels(frame)
                 gbuf = renderer.render_gbuffer(self.pscene, w, h, ids)
                 timings["gbuffer"] = time.perf_counter() - t0
             if "rgb" in want:

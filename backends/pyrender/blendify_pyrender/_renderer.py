@@ -48,6 +48,7 @@ from OpenGL.GL import (
     GL_MULTISAMPLE,
     GL_NEAREST,
     GL_PACK_ALIGNMENT,
+    GL_PROGRAM_POINT_SIZE,
     GL_READ_FRAMEBUFFER,
     GL_RED,
     GL_RENDERBUFFER,
@@ -55,7 +56,6 @@ from OpenGL.GL import (
     GL_RGBA,
     GL_RGBA8,
     GL_RGBA32F,
-    GL_TRIANGLES,
     GL_UNSIGNED_BYTE,
     GL_UNSIGNED_INT,
     glBindFramebuffer,
@@ -80,6 +80,7 @@ from OpenGL.GL import (
     glGetIntegerv,
     glGetString,
     glPixelStorei,
+    glPointSize,
     glPolygonMode,
     glReadBuffer,
     glReadPixels,
@@ -87,7 +88,7 @@ from OpenGL.GL import (
     glRenderbufferStorageMultisample,
     glViewport,
 )
-from pyrender.constants import BufFlags, RenderFlags
+from pyrender.constants import GLTF, BufFlags, RenderFlags
 
 from blendify_core.errors import RenderError
 
@@ -317,6 +318,7 @@ class FrameRenderer(pyrender.Renderer):
     def _draw_nodes(self, scene: Any, ids: dict[Any, int], shader: str, with_material: bool) -> None:
         """Draw the visible mesh nodes in ``ids`` (node -> instance id) with one of our shader pairs."""
         V, P = self._get_camera_matrices(scene)  # noqa: N806
+        cam_pos = scene.get_pose(scene.main_camera_node)[:3, 3]
         program = None
         for node in scene.mesh_nodes:
             inst_id = ids.get(node)
@@ -342,14 +344,17 @@ class FrameRenderer(pyrender.Renderer):
                     program.set_uniform("albedo_factor", np.asarray(prim.albedo_factor, dtype=np.float32))
                     if "HAS_BASE_COLOR_TEX" in defines:
                         self._bind_texture(tex, "base_color_texture", program)
+                if with_material:
+                    program.set_uniform("cam_pos", cam_pos)
                 prim._bind()
                 n_inst = 1 if prim.poses is None else len(prim.poses)
+                glDisable(GL_PROGRAM_POINT_SIZE)
+                if prim.mode == GLTF.POINTS:
+                    glPointSize(self.point_size)
                 if prim.indices is not None:
-                    glDrawElementsInstanced(
-                        GL_TRIANGLES, prim.indices.size, GL_UNSIGNED_INT, ctypes.c_void_p(0), n_inst
-                    )
+                    glDrawElementsInstanced(prim.mode, prim.indices.size, GL_UNSIGNED_INT, ctypes.c_void_p(0), n_inst)
                 else:
-                    glDrawArraysInstanced(GL_TRIANGLES, 0, len(prim.positions), n_inst)
+                    glDrawArraysInstanced(prim.mode, 0, len(prim.positions), n_inst)
                 prim._unbind()
                 self._reset_active_textures()
         if program is not None:

@@ -262,16 +262,21 @@ class PointLOD:
     """Point-cloud tessellation: the sphere mesh per point and whether it is a level-of-detail fallback."""
 
     name: str
-    subdivisions: int  # icosphere subdivisions, -1 = octahedron
+    subdivisions: int  # icosphere subdivisions, -1 = octahedron, -2 = screen-space squares (GL points)
     reduced: bool
 
 
 #: thresholds chosen by measurement (benchmarks/bench_pyrender_points.py)
 _LODS = (
     (20_000, PointLOD("icosphere-1 (80 triangles per point)", 1, False)),
-    (200_000, PointLOD("icosphere-0 (20 triangles per point)", 0, True)),
+    (60_000, PointLOD("icosphere-0 (20 triangles per point)", 0, True)),
+    (200_000, PointLOD("octahedron (8 triangles per point)", -1, True)),
 )
-_LOD_LARGE = PointLOD("octahedron (8 triangles per point)", -1, True)
+_LOD_LARGE = PointLOD(
+    "screen-space squares of the projected diameter at the cloud's median depth (GL points, shaded facing the camera)",
+    -2,
+    True,
+)
 
 
 def point_lod(n_points: int) -> PointLOD:
@@ -299,16 +304,29 @@ def _pointcloud(pc: PointCloud, mat: Material, notes: list[str]) -> tuple[Any, n
     lod = point_lod(n)
     if lod.reduced:
         notes.append(f"pointcloud LOD: {n} points drawn as {lod.name} instead of icosphere-1 spheres")
-    unit, tris = _unit_sphere(lod)
-    nv = len(unit)
     centre = (pts.min(axis=0) + pts.max(axis=0)) / 2.0 if n else np.zeros(3)
     local = (pts - centre).astype(np.float32)
     radii = pc.radii().astype(np.float32)
+    surf = surface_of(pc.colors_list[0])
+    if lod.subdivisions == -2:
+        pm, albedo = pbr_material(mat, surf, False, notes)
+        if pc.particle_emission_strength > 0:
+            pm.emissiveFactor = np.sqrt(surf.rgba[:3] * pc.particle_emission_strength)
+        prim = pyrender.Primitive(
+            positions=local,
+            color_0=None if surf.vertex_rgba is None else surf.vertex_rgba.astype(np.float32),
+            material=pm,
+            mode=pyrender.constants.GLTF.POINTS,
+        )
+        prim.albedo_factor = albedo
+        prim.point_diameter = float(np.mean(radii) * 2.0)  # world units; pixels are set per frame
+        return pyrender.Mesh(primitives=[prim]), centre
+    unit, tris = _unit_sphere(lod)
+    nv = len(unit)
     unit32 = unit.astype(np.float32)
     positions = (unit32[None] * radii[:, None, None] + local[:, None, :]).reshape(-1, 3)
     normals = np.broadcast_to(unit32, (n, nv, 3)).reshape(-1, 3)
     indices = (tris[None].astype(np.uint32) + (np.arange(n, dtype=np.uint32) * nv)[:, None, None]).reshape(-1, 3)
-    surf = surface_of(pc.colors_list[0])
     color_0 = None
     if surf.vertex_rgba is not None:
         color_0 = np.repeat(surf.vertex_rgba, nv, axis=0)

@@ -5,6 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from blendify_pyrender import PyrenderBackend
+from blendify_pyrender._platform import egl_available, osmesa_available, resolve_platform
+from pyrender_test_utils import alpha_centroids
+
 from blendify_core import (
     DiffuseMaterial,
     Scene,
@@ -15,9 +19,6 @@ from blendify_core import (
 from blendify_core.backend import Backend
 from blendify_core.errors import UnsupportedFeatureError
 from blendify_core.features import Capability
-from blendify_pyrender import PyrenderBackend
-from blendify_pyrender._platform import egl_available, osmesa_available, resolve_platform
-from pyrender_test_utils import alpha_centroids
 
 pytestmark = pytest.mark.pyrender
 ALL = ("rgb", "depth", "normal", "albedo", "instance")
@@ -230,6 +231,19 @@ def test_pointcloud_scene_renders(pyr):
     res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))
     assert (res.instance == 0).sum() > 100
     assert any(a.startswith("pointcloud:") for a in res.meta["approximations"])
+
+
+def test_large_point_cloud_uses_gl_points(pyr, monkeypatch):
+    from blendify_pyrender import _translate as tr
+
+    monkeypatch.setattr(tr, "point_lod", lambda n: tr._LOD_LARGE)  # the >200k level on a small cloud
+    scene = testing.pointcloud_scene(n=3000, resolution=(64, 64), point_size=0.05)
+    res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "depth", "normal", "instance"))
+    hit = res.instance == 0
+    assert hit.sum() > 300 and np.isfinite(res.depth[hit]).all()
+    np.testing.assert_allclose(np.linalg.norm(res.normal[hit], axis=1), 1.0, atol=1e-4)
+    assert any("GL points" in a for a in res.meta["approximations"])
+    assert res.rgba[..., 3][hit].mean() > 0.5
 
 
 def test_strict_refuses_approximations(pyr):

@@ -196,9 +196,10 @@ def test_cache_updates_only_what_changed(pyr):
 def test_point_cloud_lod_choice():
     from blendify_pyrender import _translate as tr
 
-    assert not tr.point_lod(1000).reduced
-    assert tr.point_lod(100_000).reduced and tr.point_lod(100_000).subdivisions == 0
-    assert tr.point_lod(1_000_000).subdivisions == -1
+    assert not tr.point_lod(1000).reduced and tr.point_lod(1000).subdivisions == 1
+    assert tr.point_lod(50_000).reduced and tr.point_lod(50_000).subdivisions == 0
+    assert tr.point_lod(100_000).subdivisions == -1
+    assert tr.point_lod(1_000_000).subdivisions == -2  # GL points
 
 
 def test_capability_table_declares_every_feature():

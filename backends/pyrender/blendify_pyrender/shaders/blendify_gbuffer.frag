@@ -8,6 +8,7 @@ in vec2 g_uv;
 in vec4 g_color;
 
 uniform vec4 albedo_factor;
+uniform vec3 cam_pos;
 uniform float instance_id;
 #ifdef HAS_BASE_COLOR_TEX
 uniform sampler2D base_color_texture;
@@ -27,11 +28,13 @@ void main()
 {
     vec3 n = g_world_normal;
     if (dot(n, n) < 1e-20) {
-        n = cross(dFdx(g_world_position), dFdy(g_world_position));
-    }
-    n = normalize(n);
-    if (!gl_FrontFacing) {
-        n = -n;
+        // no normals (points drawn as screen-space squares): face the camera, as pyrender shades them
+        n = normalize(cam_pos - g_world_position);
+    } else {
+        n = normalize(n);
+        if (!gl_FrontFacing) {
+            n = -n;
+        }
     }
     vec3 albedo = albedo_factor.rgb * g_color.rgb;
 #ifdef HAS_BASE_COLOR_TEX
