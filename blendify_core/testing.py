@@ -450,7 +450,7 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "unreferenced_vertices": lambda: _hc_mesh(np.vstack([tri, rng.normal(size=(50, 3)) * 100]), [[0, 1, 2]]),
         "single_triangle": lambda: _hc_mesh(tri - 0.3, [[0, 1, 2]]),
         "coincident_points": lambda: _hc_points(np.zeros((100, 3))),
-        "single_point": lambda: _hc_points(np.zeros((1, 3)), size=0.3),
+        "single_point": lambda: _hc_points(np.zeros((1, 3)), size=0.8),
         "colinear_points": lambda: _hc_points(np.stack([np.linspace(-1, 1, 50), np.zeros(50), np.zeros(50)], 1)),
         "colors_0_and_1": lambda: _hc_colors(),
         "texture_1x1_and_odd": lambda: _hc_textures(),
