@@ -286,14 +286,14 @@ def round_trip_scene(scale: float = 1.0, texture_file: Path | None = None) -> Sc
         PrincipledBSDFMaterial(roughness=0.3, metallic=0.2, coat_weight=0.1),
         VertexColors(vc),
         tag="pyramid",
-        translation=(1, 2, 3),
+        translation=(0.2, 0.1, 0.3),
         rotation_mode="eulerXYZ",
         rotation=(10, 20, 30),
     )
     tex = (rng.uniform(0, 1, (8, 8, 3)) * 255).astype(np.uint8)
     uv = FacesUV(rng.uniform(0, 1, (2, 3, 2)))
     s.renderables.add_mesh(
-        np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float) + 5,
+        np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float) + (-1.5, -0.5, 0.0),
         [[0, 1, 2], [0, 2, 3]],
         [DiffuseMaterial(), PrincipledBSDFMaterial(metallic=1.0, roughness=0.2)],
         [TextureColors(tex, uv), UniformColors((0.2, 0.4, 0.6))],
@@ -336,7 +336,7 @@ def round_trip_scene(scale: float = 1.0, texture_file: Path | None = None) -> Sc
         K=k,
         rotation_mode="look_at",
         rotation=(0, 0, 0),
-        translation=(3, -4, 5),
+        translation=(1.5, -2.0, 2.5),
         tag="cam",
     )
     return s
@@ -584,6 +584,7 @@ def test_exported_blend_renders_the_same_picture(tmp_path: Path):
     img = np.load(tmp_path / "r.exr.npy")
     ref = np.asarray(res.rgba, dtype=np.float32)
     assert img.shape == ref.shape
+    assert ref[..., 3].mean() > 0.15 and ref[..., :3].mean() > 0.03  # the objects are in view and lit
     assert float(np.abs(img - ref).max()) < 1e-3
     # export and attach leave the shared in-process backend usable: the same render again
     attach_blend(Scene(), out, with_camera=True)
