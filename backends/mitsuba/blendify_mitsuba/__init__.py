@@ -28,9 +28,12 @@ __all__ = ["MitsubaBackend", "MitsubaNative", "DEFAULT_MAX_ANALYTIC_SPHERES"]
 
 log = logging.getLogger("blendify_mitsuba")
 
-#: point clouds up to this many points become analytic spheres, larger ones one merged icosphere mesh
-#: (measured in benchmarks/results/mitsuba_pointcloud.md)
-DEFAULT_MAX_ANALYTIC_SPHERES = 20000
+#: point clouds up to this many points become analytic spheres, larger ones one merged icosphere mesh.
+#: Measured (benchmarks/results/mitsuba_pointcloud_*.md): in scalar_rgb analytic spheres load and render
+#: faster than the merged mesh up to ~100k points (load_dict of the 1.6M-triangle mesh of 20k icospheres
+#: takes ~7 s); in the JIT variants one BSDF per sphere makes rendering slow (20k spheres: 22 s vs 1.2 s),
+#: the merged mesh wins from ~1000 points on.
+DEFAULT_MAX_ANALYTIC_SPHERES = {"scalar": 100_000, "jit": 500}
 
 # mi.set_variant is process-global: every use of the engine holds this lock and sets its variant
 _ENGINE_LOCK = threading.RLock()
@@ -136,27 +139,30 @@ class MitsubaBackend(Backend):
     Options: ``variant`` (None = the fastest variant that passes a subprocess probe, else
     ``scalar_rgb``; or a variant name such as "scalar_rgb", "llvm_ad_rgb"; an unusable JIT variant falls
     back to ``scalar_rgb`` with the reason in ``result.meta["variant_reason"]``) and
-    ``max_analytic_spheres`` (point clouds up to this size are analytic spheres).
+    ``max_analytic_spheres`` (point clouds up to this size are analytic spheres, larger ones the IR's merged
+    icosphere mesh; None = the measured default of the variant, see DEFAULT_MAX_ANALYTIC_SPHERES).
     """
 
     name = "mitsuba"
     engine = "mitsuba"
     qualities = ("final", "draft", "preview")
 
-    def __init__(
-        self, variant: str | None = None, max_analytic_spheres: int = DEFAULT_MAX_ANALYTIC_SPHERES, **options: Any
-    ) -> None:
+    def __init__(self, variant: str | None = None, max_analytic_spheres: int | None = None, **options: Any) -> None:
         super().__init__(**options)
         from ._variant import KNOWN_VARIANTS
 
         if variant is not None and (not isinstance(variant, str) or variant not in KNOWN_VARIANTS):
             raise InvalidSceneError(f"variant: expected None or one of {list(KNOWN_VARIANTS)}, got {variant!r}")
-        if isinstance(max_analytic_spheres, bool) or not isinstance(max_analytic_spheres, (int, np.integer)):
-            raise InvalidSceneError(f"max_analytic_spheres: expected an integer >= 0, got {max_analytic_spheres!r}")
-        if max_analytic_spheres < 0:
-            raise InvalidSceneError(f"max_analytic_spheres: expected an integer >= 0, got {max_analytic_spheres}")
+        if max_analytic_spheres is not None and (
+            isinstance(max_analytic_spheres, bool)
+            or not isinstance(max_analytic_spheres, (int, np.integer))
+            or max_analytic_spheres < 0
+        ):
+            raise InvalidSceneError(
+                f"max_analytic_spheres: expected None or an integer >= 0, got {max_analytic_spheres!r}"
+            )
         self.requested_variant = variant
-        self.max_analytic_spheres = int(max_analytic_spheres)
+        self._max_analytic_spheres = None if max_analytic_spheres is None else int(max_analytic_spheres)
         self._choice: Any = None
 
     # -- discovery -------------------------------------------------------------------------------
@@ -186,6 +192,13 @@ class MitsubaBackend(Backend):
     @property
     def variant(self) -> str:
         return self.variant_choice.variant
+
+    @property
+    def max_analytic_spheres(self) -> int:
+        """Point clouds up to this size become analytic spheres (default depends on the variant)."""
+        if self._max_analytic_spheres is not None:
+            return self._max_analytic_spheres
+        return DEFAULT_MAX_ANALYTIC_SPHERES["scalar" if self.variant.startswith("scalar") else "jit"]
 
     def _set_variant(self) -> Any:
         variant = self.variant  # resolve (and probe) before the first import of mitsuba/drjit
