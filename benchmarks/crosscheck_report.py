@@ -110,7 +110,7 @@ def statistical_checks(status: dict) -> list[str]:
                 f"a new seed **{'passes' if z.passed else 'FAILS'}** "
                 f"({z.accept_fraction:.2%} pixel-channels accept, global p = {z.global_p:.2g}); "
                 f"the same image x 1.02 **{'passes' if biased.passed else 'fails'}** "
-                f"(global p = {biased.global_p:.2g}, {biased.n_tile_reject}/{biased.tile_p.size} tiles reject)"
+                f"(global p = {biased.global_p:.2g}, {biased.n_tile_reject}/{biased.n_tiles} tiles reject)"
             )
     for light in ("area", "background"):
         if ("cycles", light) in refs and ("mitsuba", light) in refs:
