@@ -2,14 +2,14 @@
 
 Meshify: the vertices of ../shared/data/bunny.ply with synthetic sRGB colours (a smooth one and a
 high-frequency one, both functions of position) are reconstructed into a textured mesh; the texture
-colour error is measured at every input point (texture looked up bilinearly at the UV of the point's
-closest surface point, compared with the point's colour, mean absolute error in 8-bit sRGB levels).
-The "leave-one-out" row is the intrinsic limit of the colour signal at the scan's density: each point's
-colour predicted from its 3 nearest OTHER points with the same inverse-distance weighting.
+colour error is measured at the input points (reproduction) and, for a mesh built from 90% of the
+points, at the 10% held out (prediction), texture looked up bilinearly at the UV of the point's closest
+surface point, mean absolute error in 8-bit sRGB levels. Results: results/meshify.md.
 
 Normals: points sampled on a unit sphere, angular error against the true normals, wall time.
+Results: results/meshify_normals.md.
 
-    uv run --no-sync python benchmarks/bench_meshify.py [--quick] [--out benchmarks/results]
+    uv run --no-sync python benchmarks/bench_meshify.py [--quick] [--part all|meshify|normals]
 """
 
 from __future__ import annotations
@@ -51,42 +51,56 @@ def texture_error(res, p: np.ndarray, cols: np.ndarray) -> tuple[float, float, f
     return float(err.mean()), float(np.percentile(err, 99)), float(np.sqrt(dist).mean())
 
 
-def leave_one_out(p: np.ndarray, cols: np.ndarray) -> float:
+def idw_predict(train: np.ndarray, cols: np.ndarray, query: np.ndarray, exclude_self: bool) -> np.ndarray:
     from scipy.spatial import cKDTree
 
-    d, nn = cKDTree(p).query(p, k=4)
-    d, nn = d[:, 1:], nn[:, 1:]
+    k = 4 if exclude_self else 3
+    d, nn = cKDTree(train).query(query, k=k)
+    if exclude_self:
+        d, nn = d[:, 1:], nn[:, 1:]
     w = 1.0 / np.maximum(d, 1e-12)
     w /= w.sum(1, keepdims=True)
-    pred = np.einsum("nk,nkc->nc", w, cols[nn])
-    return float(np.abs(np.round(pred * 255) - cols * 255).mean())
+    return np.einsum("nk,nkc->nc", w, cols[nn])
+
+
+def _run(method: str, p: np.ndarray, cols: np.ndarray, budget: int | None):
+    if method == "implicit (no Open3D)":
+        with mock.patch.dict(sys.modules, {"open3d": None}):  # vertex clustering instead of quadric
+            return meshify_pointcloud(p, cols, target_faces=budget, method="implicit")
+    return meshify_pointcloud(p, cols, target_faces=budget, method=method)
 
 
 def bench_meshify(quick: bool) -> list[str]:
     p, _, _ = bunny_points()
+    rng = np.random.default_rng(1)
+    held = np.zeros(len(p), dtype=bool)
+    held[rng.choice(len(p), size=len(p) // 10, replace=False)] = True
     rows = [
-        "| colours | method | target faces | faces | texture | sRGB MAE (levels) | p99 | mean dist to surface "
-        "| normals s | reconstruct s | simplify s | texture s | total s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| colours | method | target faces | faces | texture | MAE at the points | p99 | MAE held-out 10% "
+        "| mean dist to surface | normals s | reconstruct s | simplify s | texture s | total s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     meshify_pointcloud(p[:2000], synthetic_colours(p[:2000], "smooth"), target_faces=500)  # warm-up (imports)
     budgets = [None, 5000] if quick else [None, 10000, 2000]
+    methods = ("ball_pivoting", "poisson", "implicit", "implicit (no Open3D)")
     for kind in ("smooth", "stripes"):
         cols = synthetic_colours(p, kind)
-        limit = leave_one_out(p, cols)
-        rows.append(f"| {kind} | leave-one-out IDW (limit) | - | - | - | {limit:.2f} |" + " - |" * 7)
-        for method in ("ball_pivoting", "poisson", "implicit", "implicit (no Open3D)"):
+        loo = np.abs(np.round(idw_predict(p, cols, p, True) * 255) - cols * 255).mean()
+        ho = np.abs(np.round(idw_predict(p[~held], cols[~held], p[held], False) * 255) - cols[held] * 255).mean()
+        rows.append(
+            f"| {kind} | IDW of the 3 nearest other points (limit) | - | - | - | {loo:.2f} | - | {ho:.2f} |"
+            + " - |" * 6
+        )
+        for method in methods:
             for budget in budgets:
-                if method == "implicit (no Open3D)":
-                    with mock.patch.dict(sys.modules, {"open3d": None}):  # vertex clustering instead of quadric
-                        res = meshify_pointcloud(p, cols, target_faces=budget, method="implicit")
-                else:
-                    res = meshify_pointcloud(p, cols, target_faces=budget, method=method)
+                res = _run(method, p, cols, budget)
                 mae, p99, dist = texture_error(res, p, cols)
+                res_h = _run(method, p[~held], cols[~held], budget)
+                mae_h, _, _ = texture_error(res_h, p[held], cols[held])
                 t = res.timings
                 rows.append(
                     f"| {kind} | {method} | {budget or 'all'} | {len(res.faces)} | {res.texture.shape[0]}^2 | "
-                    f"{mae:.2f} | {p99:.1f} | {dist:.2e} | {t['normals']:.2f} | {t['reconstruct']:.2f} | "
+                    f"{mae:.2f} | {p99:.1f} | {mae_h:.2f} | {dist:.2e} | {t['normals']:.2f} | {t['reconstruct']:.2f} | "
                     f"{t['simplify']:.2f} | {t['texture']:.2f} | {t['total']:.2f} |"
                 )
                 print(rows[-1], flush=True)
@@ -133,48 +147,62 @@ def bench_normals(quick: bool) -> list[str]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="fewer configurations (for a smoke run)")
+    ap.add_argument("--part", choices=("all", "meshify", "normals"), default="all")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args()
+    import os
+
     import open3d
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    mesh_rows = bench_meshify(args.quick)
-    normal_rows = bench_normals(args.quick)
-    cpu = platform.processor() or platform.machine()
-    import os
-
-    text = [
-        "# meshify_pointcloud and estimate_normals",
-        "",
-        f"Machine: {os.cpu_count()} CPU cores ({cpu}), Python {platform.python_version()}, numpy {np.__version__}, "
-        f"Open3D {open3d.__version__}. Script: `benchmarks/bench_meshify.py`"
-        + (" (--quick)" if args.quick else "")
-        + f". Load average when the run ended: {os.getloadavg()[0]:.1f} (times are inflated when the machine "
-        "is shared with other jobs).",
-        "",
-        "## Point cloud to textured mesh (bunny.ply, 8,171 points, synthetic sRGB colours)",
-        "",
-        "Texture colour error at the input points (bilinear lookup at the closest surface point), in 8-bit sRGB "
-        "levels (0-255). 'texture' is the atlas side (8x8 texels per pair of triangles by default). Times in seconds "
-        "on the machine above; the first call in a process also pays Open3D's import (~1 s, excluded by a warm-up). "
-        "'implicit' = narrow-band signed distance + marching tetrahedra (numpy/scipy only), simplified with Open3D's "
-        "quadric decimation; 'implicit (no Open3D)' = the same with vertex clustering, i.e. the path taken when "
-        "Open3D is not installed.",
-        "",
-        *mesh_rows,
-        "",
-        "## Normals (points on a unit sphere)",
-        "",
-        "PCA on the 16 nearest neighbours; 'propagate' orients over a minimum spanning tree of the kNN graph "
-        "(outwards), 'viewpoint' towards the centre; None = unoriented (error measured up to sign).",
-        "",
-        *normal_rows,
-        "",
-    ]
-    name = "meshify_quick.md" if args.quick else "meshify.md"
-    (out / name).write_text("\n".join(text))
-    print(f"wrote {out / name}")
+    suffix = "_quick" if args.quick else ""
+    machine = (
+        f"Machine: {os.cpu_count()} CPU cores ({platform.processor() or platform.machine()}), Python "
+        f"{platform.python_version()}, numpy {np.__version__}, Open3D {open3d.__version__}. Script: "
+        f"`benchmarks/bench_meshify.py{' --quick' if args.quick else ''}`. Load average when the run ended: "
+        "{load:.1f} (times are inflated when the machine is shared with other jobs)."
+    )
+    if args.part in ("all", "meshify"):
+        rows = bench_meshify(args.quick)
+        text = [
+            "# meshify_pointcloud: point cloud to textured mesh",
+            "",
+            machine.format(load=os.getloadavg()[0]),
+            "",
+            "Input: the 8,171 vertices of bunny.ply with synthetic sRGB colours that are functions of position: "
+            "'smooth' (a few periods across the model) and 'stripes' (periods of about 12 point spacings). Colour "
+            "errors are mean absolute differences in 8-bit sRGB levels (0-255), looked up bilinearly in the texture "
+            "at the UV of each point's closest surface point. 'MAE at the points': the mesh built from all points, "
+            "measured at those points (reproduction). 'MAE held-out 10%': the mesh built from 90% of the points, "
+            "measured at the other 10% (prediction); the first row of each block is the limit of that prediction "
+            "for the colour signal at this density (inverse-distance weighting of the 3 nearest other points, "
+            "what the texture does per texel). 'texture' is the atlas side (8x8 texels per pair of triangles). "
+            "Times (seconds) are for the all-points run; Open3D's import is excluded by a warm-up. 'implicit' = "
+            "narrow-band signed distance + marching tetrahedra (numpy/scipy only) simplified with Open3D's quadric "
+            "decimation; 'implicit (no Open3D)' = the same with vertex clustering: the path taken without Open3D.",
+            "",
+            *rows,
+            "",
+        ]
+        (out / f"meshify{suffix}.md").write_text("\n".join(text))
+        print(f"wrote {out / f'meshify{suffix}.md'}")
+    if args.part in ("all", "normals"):
+        rows = bench_normals(args.quick)
+        text = [
+            "# estimate_normals and normals_from_mesh",
+            "",
+            machine.format(load=os.getloadavg()[0]),
+            "",
+            "Points on a unit sphere. PCA on the 16 nearest neighbours; 'propagate' orients over a minimum spanning "
+            "tree of the kNN graph (outwards), 'viewpoint' towards the centre; None = unoriented (error measured up "
+            "to sign). normals_from_mesh: points within 2% of an icosphere (20,480 faces), interpolated normals.",
+            "",
+            *rows,
+            "",
+        ]
+        (out / f"meshify_normals{suffix}.md").write_text("\n".join(text))
+        print(f"wrote {out / f'meshify_normals{suffix}.md'}")
 
 
 if __name__ == "__main__":
