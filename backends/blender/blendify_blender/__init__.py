@@ -51,6 +51,7 @@ class CyclesBackend(Backend):
     name = "cycles"
     engine = "bpy"
     qualities = ("final", "draft", "preview")
+    path_tracer = True
 
     def __init__(
         self,
@@ -75,7 +76,6 @@ class CyclesBackend(Backend):
         self.device = device.upper()
         self._translator: Any = None
         self._worker: Any = None
-        self._compute_type = ""
 
     # -- discovery ---------------------------------------------------------------------------------
     @classmethod
@@ -116,10 +116,8 @@ class CyclesBackend(Backend):
             from .translate import Translator
 
             _runtime.bpy_module()
-            if self.device == "GPU":
-                self._compute_type = _enable_gpu()
-            device = "GPU" if self._compute_type else "CPU"
-            self._translator = Translator(device=device, compute_device_type=self._compute_type)
+            gpu = _enable_gpu if self.device == "GPU" else None
+            self._translator = Translator(device=self.device, gpu_setup=gpu)
         return self._translator
 
     def _check_open(self) -> None:
@@ -171,8 +169,6 @@ class CyclesBackend(Backend):
         timings["translate"] = t1 - t0
         timings["render"] = t2 - t1
         result.meta["translation"] = dict(self._translator.last_stats)
-        if self._compute_type:
-            result.meta["device"] = f"GPU ({self._compute_type})"
         return result
 
     def clear(self) -> None:

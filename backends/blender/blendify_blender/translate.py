@@ -537,8 +537,9 @@ def apply_engine_settings(
         cy.denoiser = "OPENIMAGEDENOISE"
         cy.denoising_input_passes = "RGB_ALBEDO_NORMAL"
         cy.denoising_use_gpu = False
-    cy.use_adaptive_sampling = bool(settings.adaptive or settings.target_error is not None)
-    cy.adaptive_threshold = float(settings.target_error) if settings.target_error is not None else 0.01
+    # target_error is handled by the core (independent passes, CyclesBackend.path_tracer = True)
+    cy.use_adaptive_sampling = bool(settings.adaptive)
+    cy.adaptive_threshold = 0.01
     cy.adaptive_min_samples = 0
     cy.time_limit = float(settings.time_limit) if settings.time_limit else 0.0
     if settings.pixel_filter == "box":
@@ -633,13 +634,16 @@ class Translator:
     everything; the same scene only gets what changed: new/removed/modified renderables, moved
     objects (matrix only), lights/world when any light changed, camera and engine settings always."""
 
-    def __init__(self, device: str = "CPU", compute_device_type: str = "") -> None:
+    def __init__(self, device: str = "CPU", gpu_setup: Any = None) -> None:
         self.built: BuiltScene | None = None
         self._scene_ref: Any = None
         self._lights_key: Any = None
         self._transforms: dict[int, int] = {}
         self.device = device
-        self.compute_device_type = compute_device_type
+        #: called after every factory reset when device == "GPU" (the reset forgets the preferences);
+        #: returns the compute device type enabled, or "" to fall back to the CPU
+        self.gpu_setup = gpu_setup
+        self.compute_device_type = ""
         self.last_stats: dict[str, Any] = {}
 
     def _same_scene(self, scene: Any) -> bool:
@@ -690,6 +694,8 @@ class Translator:
         if not self._same_scene(scene):
             self.clear()
             _runtime.factory_reset()
+            if self.device == "GPU" and self.gpu_setup is not None:
+                self.compute_device_type = self.gpu_setup()
             self.built = BuiltScene(bscene=bpy.context.scene, generation=_runtime.generation())
             self._scene_ref = weakref.ref(scene.renderables)
             stats["new_scene"] = True
@@ -722,7 +728,8 @@ class Translator:
                 stats["built"] += 1
             else:
                 obj = entry.objects[0]
-                obj.pass_index = i + 1
+                if obj.pass_index != i + 1:  # an RNA write tags the depsgraph: only when it changed
+                    obj.pass_index = i + 1
                 if self._transforms.get(r.uid) != r.revision("transform"):
                     _set_matrix(obj, _object_matrix(r, entry))
                     self._transforms[r.uid] = r.revision("transform")
@@ -740,7 +747,8 @@ class Translator:
             self._lights_key = key
             stats["lights_rebuilt"] = True
         _apply_camera(built, scene.camera)
-        built.engine_settings = apply_engine_settings(sc, settings, scene, self.device, self.compute_device_type)
+        device = "GPU" if (self.device == "GPU" and self.compute_device_type) else "CPU"
+        built.engine_settings = apply_engine_settings(sc, settings, scene, device, self.compute_device_type)
         built.instance_tags = [r.tag for r in scene.renderables]
 
 

@@ -17,7 +17,7 @@ pytestmark = pytest.mark.cycles
 @pytest.mark.parametrize("kw", [{}, {"fy": 185.0}, {"orthographic": True}], ids=["square", "fx_ne_fy", "orthographic"])
 def test_camera_markers_land_within_0_1_px(cycles, kw):
     scene, pixels = testing.marker_scene(**kw)
-    r = bf.render(scene, backend=cycles, samples=32, outputs=("rgb", "depth", "instance"))
+    r = bf.render(scene, backend=cycles, samples=32, outputs=("rgb", "depth", "normal", "albedo", "instance"))
     assert r.rgba.shape == (120, 160, 4)
     err = np.linalg.norm(alpha_centroids(r.rgba, pixels) - pixels, axis=1)
     assert err.max() < 0.1, err
@@ -195,3 +195,48 @@ def test_seed_determinism(cycles):
     c = bf.render(scene, backend=cycles, samples=2, seed=4).rgba
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+def test_uint8_texture_decoded_like_the_ir(cycles):
+    scene = bf.Scene()
+    tex = np.full((4, 4, 3), 128, dtype=np.uint8)
+    tex[..., 2] = 30
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=float)
+    uv = bf.VertexUV(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float))
+    colors = bf.TextureColors(tex, uv)
+    scene.renderables.add_mesh(v, [[0, 1, 2, 3]], bf.DiffuseMaterial(), colors)
+    scene.set_orthographic_camera((16, 16), ortho_scale=2.0, translation=(0, 0, 3))
+    r = bf.render(scene, backend=cycles, samples=1, outputs=("albedo",))
+    np.testing.assert_allclose(r.albedo[8, 8], colors.linear_rgba_image()[0, 0, :3], rtol=1e-4)
+
+
+def test_emissive_points_and_materials_without_lights(cycles):
+    scene = bf.Scene()
+    scene.renderables.add_pointcloud(
+        np.zeros((1, 3)),
+        bf.DiffuseMaterial(),
+        bf.UniformColors((1.0, 0.5, 0.25), color_space="linear"),
+        point_size=1.0,
+        particle_emission_strength=2.0,
+    )
+    scene.set_orthographic_camera((16, 16), ortho_scale=2.0, translation=(0, 0, 3))
+    with pytest.warns(UserWarning, match="no lights"):
+        r = bf.render(scene, backend=cycles, samples=4, max_bounces=0)
+    np.testing.assert_allclose(r.rgba[8, 8, :3], [2.0, 1.0, 0.5], rtol=1e-3)
+
+
+def test_target_error_runs_passes(cycles):
+    scene = testing.plane_scene("area", resolution=(16, 16))
+    r = bf.render(scene, backend=cycles, samples=2, target_error=0.05, max_bounces=0)
+    assert r.meta["passes"] >= 4 and r.meta["estimated_error"] > 0
+
+
+def test_gpu_request_falls_back_to_cpu(caplog):
+    from blendify_blender import CyclesBackend
+
+    with CyclesBackend(device="GPU") as b:
+        r = bf.render(testing.plane_scene("sun", resolution=(8, 8)), backend=b, samples=1)
+    es = r.meta["engine_settings"]
+    if es["device"] == "CPU":
+        assert es["compute_device_type"] == "NONE"
+        assert any("GPU" in rec.message for rec in caplog.records)
