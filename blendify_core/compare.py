@@ -559,7 +559,7 @@ class CompareReport:
             ("instance", "agreement"),
             ("albedo", "mean_rel_error"),
         ):
-            if metric in self.metrics.get(out, {}):
+            if metric in self.metrics.get(out, {}) and not math.isnan(self.metrics[out][metric]):
                 key.append(f"{out}.{metric}={_fmt(self.metrics[out][metric])}")
         text = f"{head} at tier {self.tier!r}; " + ", ".join(key)
         if self.failures:
