@@ -232,9 +232,9 @@ def _strip_python(bpy: Any, new_ids: list[Any]) -> list[str]:
 
 
 @contextlib.contextmanager
-def _loaded_blend(path: Path) -> Iterator[tuple[list[Any], list[str]]]:
-    """Append all scenes of ``path`` safely; yields (scenes, removed-Python notes); removes every new ID
-    on exit. Auto-run must already be forced off by the caller."""
+def _loaded_blend(path: Path) -> Iterator[tuple[list[Any], list[str], list[Any]]]:
+    """Append all scenes of ``path`` safely; yields (scenes, removed-Python notes, all new IDs); removes
+    every new ID on exit. Auto-run must already be forced off by the caller."""
     bpy = _bpy()
     before = set(_all_ids(bpy))
     renamed: list[tuple[Any, str]] = []
@@ -255,7 +255,8 @@ def _loaded_blend(path: Path) -> Iterator[tuple[list[Any], list[str]]]:
         scenes = [s for s in dst.scenes if s is not None]
         if not scenes:
             raise InvalidSceneError(f"path: {str(path)!r} contains no scene")
-        yield scenes, removed
+        new_ids = [idb for ptr, idb in _all_ids(bpy).items() if ptr not in before]
+        yield scenes, removed, new_ids
     finally:
         leftover = [i for ptr, i in _all_ids(bpy).items() if ptr not in before]
         if leftover:
@@ -1394,18 +1395,32 @@ def _flip_uv_colors(c: Any) -> Any:
     return c
 
 
-def _render_visibility(sc: Any) -> None:
-    """Make the (temporary, appended) scene evaluate like a render: render visibility and modifier levels."""
-    for ob in sc.objects:
-        ob.hide_viewport = bool(ob.hide_render)
-        for md in ob.modifiers:
-            md.show_viewport = bool(md.show_render)
-            if md.type == "SUBSURF":
-                md.levels = md.render_levels
-            elif md.type == "MULTIRES":
-                md.levels = md.render_levels
-    for coll in sc.collection.children_recursive:
-        coll.hide_viewport = bool(coll.hide_render)
+def _render_visibility(bpy: Any, new_ids: list[Any], view_layer: Any) -> Iterator[str]:
+    """Make the appended (temporary) data evaluate like a render in the viewport depsgraph: render
+    visibility of objects and collections, no view-layer hiding, render levels of modifiers."""
+    for idb in new_ids:
+        if isinstance(idb, bpy.types.Object):
+            idb.hide_viewport = bool(idb.hide_render)
+            idb.show_instancer_for_viewport = bool(idb.show_instancer_for_render)
+            for md in idb.modifiers:
+                md.show_viewport = bool(md.show_render)
+                if md.type in ("SUBSURF", "MULTIRES"):
+                    md.levels = md.render_levels
+            for psys in idb.particle_systems:
+                if psys.settings.render_type == "PATH" or psys.settings.type == "HAIR":
+                    yield f"object {idb.name!r}: hair particles not parsed"
+                if psys.settings.display_percentage != 100:
+                    psys.settings.display_percentage = 100
+        elif isinstance(idb, bpy.types.Collection):
+            idb.hide_viewport = bool(idb.hide_render)
+    stack = [view_layer.layer_collection]
+    while stack:
+        lc = stack.pop()
+        lc.hide_viewport = False
+        stack.extend(lc.children)
+    for ob in view_layer.objects:
+        if not ob.hide_render and ob.hide_get(view_layer=view_layer):
+            ob.hide_set(False, view_layer=view_layer)
 
 
 def _saved_tag(obj: Any) -> str | None:
@@ -1485,7 +1500,7 @@ def _parse_blend(
 ) -> tuple[_Pending, _Parser, str]:
     parser = _Parser(bpy, p, texture_dir)
     pend = _Pending()
-    with scripts_auto_execute_disabled(), _loaded_blend(p) as (scenes, removed):
+    with scripts_auto_execute_disabled(), _loaded_blend(p) as (scenes, removed, new_ids):
         parser.notes.extend(removed)
         if scene_name is None:
             sc = scenes[0]
@@ -1500,8 +1515,9 @@ def _parse_blend(
             if not match:
                 raise InvalidSceneError(f"scene_name: {str(p)!r} has no scene {scene_name!r}")
             sc = match[0]
-        _render_visibility(sc)
         view_layer = next((vl for vl in sc.view_layers if vl.use), sc.view_layers[0])
+        for msg in _render_visibility(bpy, new_ids, view_layer):
+            parser.note(msg)
         with bpy.context.temp_override(scene=sc, view_layer=view_layer):
             dg = bpy.context.evaluated_depsgraph_get()
         dg.update()
@@ -1531,6 +1547,10 @@ def _parse_blend(
                 name = saved_tag
             if parent is None and orig.hide_render:
                 continue
+            if parent is None and orig.parent is not None and orig.parent.instance_type in ("VERTS", "FACES"):
+                continue  # children of vertex/face instancers render only as instances
+            if typ != "LIGHT" and not inst.show_self:
+                continue  # e.g. a vertex/face/particle instancer whose own geometry does not render
             matrix = _mat(inst.matrix_world)
             n_before = len(pend.meshes) + len(pend.points)
             if typ in _MESH_TYPES:

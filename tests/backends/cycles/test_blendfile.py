@@ -710,6 +710,23 @@ for i, x in enumerate((10.0, 20.0)):
     emp = bpy.data.objects.new(f"Spawner{i}", None)
     emp.instance_type, emp.instance_collection, emp.location = "COLLECTION", inst, (x, 0, 0)
     sc.collection.objects.link(emp)
+# hidden in the viewport only (eye icon): rendered, so parsed; hidden in renders: skipped
+eye = bpy.data.objects.new("EyeHidden", leaf_me)
+sc.collection.objects.link(eye)
+eye.location = (0, 0, 7)
+eye.hide_set(True)
+no_render = bpy.data.objects.new("NoRender", leaf_me)
+sc.collection.objects.link(no_render)
+no_render.hide_render = True
+# vertex instancing: the child appears at each parent vertex; the parent's own geometry does not render
+pverts = bpy.data.meshes.new("pverts")
+pverts.from_pydata([(0, 0, 0), (0, 3, 0)], [], [])
+vpar = bpy.data.objects.new("VertParent", pverts)
+sc.collection.objects.link(vpar)
+vpar.location, vpar.instance_type, vpar.show_instancer_for_render = (30, 0, 0), "VERTS", False
+vchild = bpy.data.objects.new("Child", leaf_me)
+sc.collection.objects.link(vchild)
+vchild.parent = vpar
 # mixed shading: a cube with five smooth faces and one flat face
 me4 = bpy.data.meshes.new("mixed")
 me4.from_pydata(cv, [], [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
@@ -755,12 +772,17 @@ def test_attach_hand_built_blend(hand_built: tuple[Path, dict[str, Any]], tmp_pa
     assert sorted(r.tag for r in added) == [
         "Corners",
         "Cube",
+        "EyeHidden",
         "Mixed",
         "Noisy",
         "Quad",
         "Spawner0/Leaf",
         "Spawner1/Leaf",
+        "VertParent/Child",
+        "VertParent/Child.001",
     ]
+    origins = sorted(tuple(np.round(world_corners(r)[0, 0], 6)) for r in added if r.tag.startswith("VertParent/"))
+    assert origins == [(30.0, 0.0, 0.0), (30.0, 3.0, 0.0)]
     for i, x in enumerate((10.0, 20.0)):  # collection instances at their empties' world transform
         np.testing.assert_allclose(
             world_corners(scene.renderables[f"Spawner{i}/Leaf"])[0], [[x, 0, 0], [x + 1, 0, 0], [x, 1, 0]], atol=1e-6
