@@ -109,12 +109,17 @@ def test_marker_centroids_match_exact_coverage(renders, backend, case):
     print(f"{backend} {case}: centroid error vs exact coverage (px) {np.round(err, 4).tolist()}")
     assert np.all(np.isfinite(got)), f"{backend}: a marker is missing: {got}"
     assert err.max() <= CENTROID_TOL[backend], f"{backend} {case}: errors {err} px"
-    if case == "orthographic":  # no perspective bias: an isolated marker's centroid is its projected centre
-        gaps = np.linalg.norm(pixels[:, None] - pixels[None], axis=-1) + np.eye(len(pixels)) * 1e9
-        isolated = gaps.min(axis=1) > 2 * WINDOW + 2
-        assert isolated.sum() >= 4
-        assert np.abs(want - pixels)[isolated].max() < 0.01
-        assert np.linalg.norm(got - pixels, axis=1)[isolated].max() <= CENTROID_TOL[backend]
+    # against the expected (projected) pixels, for markers with no neighbour inside their window: exact in
+    # orthographic views; in perspective the silhouette centroid is biased away from the projected centre
+    # (measured here: <= 0.07 px at the corners)
+    gaps = np.linalg.norm(pixels[:, None] - pixels[None], axis=-1) + np.eye(len(pixels)) * 1e9
+    isolated = gaps.min(axis=1) > 2 * WINDOW + 2
+    assert isolated.sum() >= 4
+    bias = 0.01 if case == "orthographic" else 0.08
+    assert np.abs(want - pixels)[isolated].max() < bias
+    to_pixels = np.linalg.norm(got - pixels, axis=1)[isolated]
+    print(f"{backend} {case}: distance to the projected pixels (px) {np.round(to_pixels, 4).tolist()}")
+    assert to_pixels.max() <= bias + CENTROID_TOL[backend]
 
 
 @pytest.mark.parametrize("case", list(CASES))
