@@ -59,7 +59,12 @@ _CAPS: dict[str, tuple[str, str]] = {
     "primitive.sphere": (E, "analytic sphere"),
     "primitive.ellipsoid": (E, "IR tessellation"),
     "primitive.curve": (E, "IR tessellation (tube along the polyline)"),
-    "shadow_catcher": (U, "not implemented in the Mitsuba backend (no built-in shadow catcher)"),
+    "shadow_catcher": (
+        A,
+        "emulated from two renders (with and without the other objects): where a pixel centre sees the catcher, "
+        "black with alpha = 1 - shadowed/unshadowed luminance; catcher edges against objects keep the plane's "
+        "colour; the catcher also reflects light onto objects",
+    ),
     "object.no_shadow": (U, "Mitsuba has no per-object shadow visibility"),
     "material.principled": (
         A,
@@ -127,6 +132,8 @@ class MitsubaNative:
     aniso: Any = None  # the square-pixel plan for fx != fy (see _aniso)
     coverage_scene: Any = None  # shapes only: coverage alpha (when compositing)
     sky_scene: Any = None  # background/environment only: what the sky adds behind partial pixels
+    catcher_scene: Any = None  # shadow catchers alone (unshadowed radiance)
+    catchers: list[int] = field(default_factory=list)  # renderable indices of the shadow catchers
     integrator: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     effects: Any = None
@@ -272,7 +279,9 @@ class MitsubaBackend(Backend):
                 raise RenderError(f"mitsuba: translating the scene failed: {type(exc).__name__}: {exc}") from exc
             try:
                 mi_scene = mi.load_dict(tr.scene_dict)
-                cov_scene = sky_scene = None
+                cov_scene = sky_scene = catcher_scene = None
+                if tr.catcher_dict is not None:
+                    catcher_scene = mi.load_dict(tr.catcher_dict)
                 if tr.coverage_dict is not None and tr.background_dict is not None:
                     cov_scene = mi.load_dict(tr.coverage_dict)
                     sky_scene = mi.load_dict(tr.background_dict)
@@ -288,10 +297,32 @@ class MitsubaBackend(Backend):
             aniso=plan,
             coverage_scene=cov_scene,
             sky_scene=sky_scene,
+            catcher_scene=catcher_scene,
+            catchers=tr.catchers,
             integrator=integrator,
             effects=effects,
             n_analytic_spheres=tr.n_analytic_spheres,
         )
+
+    def _catch_shadows(self, native: MitsubaNative, rgba: np.ndarray, settings: RenderSettings) -> np.ndarray:
+        """Shadow-catcher emulation: where a pixel centre sees a catcher, the pixel becomes black with
+        alpha = (1 - shadowed / unshadowed radiance) x coverage; the unshadowed radiance comes from a
+        render of the catchers alone (same seed and samples)."""
+        from ._render import cast_outputs, render_rgba
+
+        free = render_rgba(native.catcher_scene, native.spp, settings.seed)
+        cam = native.camera if native.aniso is None else native.aniso.camera
+        inst = cast_outputs(native.scene, cam, native.shapes, ("instance",), not native.variant.startswith("scalar"))
+        mask = np.isin(inst["instance"], native.catchers)
+        lum = np.array([0.2126, 0.7152, 0.0722], np.float32)
+        shadowed = rgba[..., :3] @ lum
+        unshadowed = free[..., :3] @ lum
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(unshadowed > 1e-8, shadowed / unshadowed, 1.0)
+        out = rgba.copy()
+        out[mask, :3] = 0.0
+        out[mask, 3] = np.clip(1.0 - ratio[mask], 0.0, 1.0) * free[mask, 3]
+        return out
 
     def render(self, native: MitsubaNative, settings: RenderSettings) -> RenderResult:
         if not isinstance(native, MitsubaNative):
@@ -318,6 +349,8 @@ class MitsubaBackend(Backend):
                         rgba[..., :3] -= (1.0 - alpha)[..., None] * sky
                         rgba[..., :3] = np.maximum(rgba[..., :3], 0.0)
                         rgba[..., 3] = alpha
+                    if native.catcher_scene is not None:
+                        rgba = self._catch_shadows(native, rgba, settings)
                     if native.aniso is not None:
                         from ._aniso import resample_rows
 
@@ -328,6 +361,7 @@ class MitsubaBackend(Backend):
                     out["rgba"] = rgba
                     timings["render_rgb"] = time.perf_counter() - t0
                 geo = tuple(o for o in ("depth", "normal", "albedo", "instance") if settings.wants(o))
+                geo = tuple(o for o in geo if o not in out)
                 if geo:
                     t0 = time.perf_counter()
                     out.update(
@@ -360,6 +394,7 @@ class MitsubaBackend(Backend):
             "seed": settings.seed,
             "pixel_filter": settings.pixel_filter,
             "alpha_compositing": native.coverage_scene is not None,
+            "shadow_catcher_emulated": native.catcher_scene is not None,
             "analytic_spheres": native.n_analytic_spheres,
             "timings": timings,
         }

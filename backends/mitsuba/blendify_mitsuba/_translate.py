@@ -56,6 +56,9 @@ class Translation:
     #: ``hide_emitters`` cannot be used): the shapes alone (coverage alpha) and the sky alone
     coverage_dict: dict[str, Any] | None = None
     background_dict: dict[str, Any] | None = None
+    #: shadow catchers: the scene with the catcher planes as the only renderables, and their indices
+    catcher_dict: dict[str, Any] | None = None
+    catchers: list[int] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
 
@@ -443,14 +446,11 @@ def translate_scene(
     }
     shapes: dict[str, ShapeInfo] = {}
     n_spheres = 0
+    catchers: list[int] = []
     for ri, r in enumerate(scene.renderables):
         prefix = f"r{ri:05d}"
         if isinstance(r, PlaneMesh) and r.shadow_catcher:
-            raise UnsupportedFeatureError(
-                f"renderable {r.tag!r}: shadow catchers are not supported by the mitsuba backend",
-                feature="shadow_catcher",
-                backend="mitsuba",
-            )
+            catchers.append(ri)
         if not r.emit_shadows:
             raise UnsupportedFeatureError(
                 f"renderable {r.tag!r}: emit_shadows=False has no Mitsuba equivalent",
@@ -531,7 +531,23 @@ def translate_scene(
             k: (environment_dict(scene.lights.environment) if k == "environment" else v) for k, v in sky.items()
         }
         background_dict = {**base, "sensor": camera_dict(cam, film, sampler), **sky_dict}
-    return Translation(d, shapes, n_spheres, coverage_dict=coverage_dict, background_dict=background_dict)
+    catcher_dict = None
+    if catchers:
+        # the catchers alone under the same lights: the unshadowed radiance of the shadow-catcher emulation
+        own = tuple(f"r{ri:05d}_" for ri in catchers)
+        catcher_dict = {k: v for k, v in d.items() if not k.startswith("r") or k.startswith(own)}
+        if "environment" in catcher_dict:
+            catcher_dict["environment"] = environment_dict(scene.lights.environment)
+        catcher_dict["sensor"] = camera_dict(cam, film, sampler)
+    return Translation(
+        d,
+        shapes,
+        n_spheres,
+        coverage_dict=coverage_dict,
+        background_dict=background_dict,
+        catcher_dict=catcher_dict,
+        catchers=catchers,
+    )
 
 
 def _wrap_mask(bsdf: dict[str, Any], material: Any, colors: Any) -> dict[str, Any]:

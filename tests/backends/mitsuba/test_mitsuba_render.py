@@ -179,6 +179,28 @@ def test_texture_orientation(scalar_backend, faces_uv):
         assert np.argmax(r.rgba[row, col, :3]) == int(np.argmax(rgb)) or rgb == [1, 1, 1]
 
 
+@pytest.mark.parametrize("color_space,expected", [("srgb", 0.2158605), ("linear", 128 / 255)])
+def test_file_texture(scalar_backend, tmp_path, color_space, expected):
+    from PIL import Image
+
+    from blendify_core.colors import FileTextureColors, VertexUV
+
+    tex = np.array([[[255, 0, 0], [0, 128, 0]], [[0, 0, 255], [128, 128, 128]]], dtype=np.uint8)
+    path = tmp_path / "tex.png"
+    Image.fromarray(tex).save(path)
+    scene = bf.Scene()
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=float)
+    uv = VertexUV(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float))
+    colors = FileTextureColors(path, uv, color_space=color_space, interpolation="closest")
+    scene.renderables.add_mesh(v, [[0, 1, 2, 3]], DiffuseMaterial(), colors, tag="q")
+    scene.set_orthographic_camera((32, 32), ortho_scale=2.0, translation=(0, 0, 3))
+    scene.lights.set_background_light(1.0)
+    r = _render(scalar_backend, scene, samples=4, outputs=("albedo",))
+    np.testing.assert_allclose(r.albedo[8, 8], [1, 0, 0], atol=1e-6)  # top-left red
+    np.testing.assert_allclose(r.albedo[8, 24], [0, expected, 0], rtol=1e-4)
+    np.testing.assert_allclose(r.albedo[24, 8], [0, 0, 1], atol=1e-6)
+
+
 def test_vertex_colours_and_outputs(scalar_backend):
     scene = bf.Scene()
     v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
@@ -286,11 +308,36 @@ def test_primitives_and_pointclouds_render(scalar_backend):
     assert np.mean(r1.instance != r2.instance) < 0.05
 
 
+def test_shadow_catcher_emulation(scalar_backend):
+    scene = testing.plane_scene("sun", resolution=(32, 32))
+    scene.renderables["plane"].shadow_catcher = True
+    scene.renderables.add_cube_mesh(
+        0.5, DiffuseMaterial(), UniformColors((0.8, 0.2, 0.2)), translation=(0, 0, 0.6), tag="cube"
+    )
+    r = _render(scalar_backend, scene, samples=16, outputs=("rgb", "instance"))
+    assert r.meta["shadow_catcher_emulated"]
+    # where the plane is seen: black, alpha = shadow; the sun comes from 20 deg off vertical (about X)
+    plane = r.instance == 0
+    sun = scene.lights["Sun_000"].direction
+    o, d = scene.camera.pixel_rays()
+    p = o - d * (o[:, 2:3] / d[:, 2:3])  # plane points (z = 0)
+    t = (0.6 - p[:, 2]) / -sun[2]
+    q = p - sun * t[:, None]  # where the ray towards the sun crosses the cube's top face height
+    inside = (np.abs(q[:, 0]) < 0.2) & (np.abs(q[:, 1]) < 0.2)
+    shadow = plane & inside.reshape(32, 32)
+    lit = plane & ~(np.abs(q[:, 0]) < 0.3).reshape(32, 32)
+    assert shadow.sum() > 5 and lit.sum() > 100
+    assert np.all(r.rgba[plane][:, :3] == 0)
+    assert r.rgba[..., 3][shadow].min() > 0.95
+    assert r.rgba[..., 3][lit].max() < 0.05
+    cube = r.instance == 1
+    assert np.all(r.rgba[..., 3][cube] == 1) and r.rgba[..., 0][cube].mean() > 0.2
+
+
 @pytest.mark.parametrize(
     "feature,build",
     [
         ("material.wireframe", "wire"),
-        ("shadow_catcher", "catcher"),
         ("object.no_shadow", "no_shadow"),
     ],
 )
@@ -300,8 +347,6 @@ def test_unsupported_features_are_clear_errors(scalar_backend, feature, build):
     scene = testing.plane_scene("sun", resolution=(16, 16))
     if build == "wire":
         scene.renderables.add_cube_mesh(0.5, PrincipledBSDFWireframeMaterial(), UniformColors((1, 1, 1)))
-    elif build == "catcher":
-        scene.renderables["plane"].shadow_catcher = True
     else:
         scene.renderables["plane"].emit_shadows = False
     with pytest.raises(bf.UnsupportedFeatureError, match=feature.replace(".", r"\.")):
