@@ -53,8 +53,10 @@ def test_srgb8_table_round_trips_every_byte():
 @settings(max_examples=200, deadline=None)
 @given(x=st.floats(0.0, 1.0))
 def test_encode_decode_round_trip(x):
-    assert abs(float(linear_to_srgb(srgb_to_linear(x))) - x) < 1e-12
-    assert abs(float(srgb_to_linear(linear_to_srgb(x))) - x) < 1e-12
+    # the IEC 61966-2-1 constants meet with a ~3e-8 mismatch at the knee (0.04045 vs 12.92 * 0.0031308)
+    tol = 1e-7 if 0.003 < x < 0.05 else 1e-12
+    assert abs(float(linear_to_srgb(srgb_to_linear(x))) - x) < tol
+    assert abs(float(srgb_to_linear(linear_to_srgb(x))) - x) < tol
 
 
 def test_dtypes_are_kept():
