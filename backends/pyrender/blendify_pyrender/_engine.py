@@ -119,16 +119,18 @@ def linearise_rgba8(img: np.ndarray) -> np.ndarray:
 
 def apply_coverage(rgba: np.ndarray, coverage: np.ndarray) -> np.ndarray:
     """Anti-aliased silhouettes from a plain (one sample per pixel) colour pass and a supersampled
-    coverage: pixels whose centre missed every surface take the mean colour of their covered 8-neighbours;
-    every pixel's straight colour is then weighted by its coverage (premultiplied)."""
-    hit = rgba[..., 3] > 0.5
+    coverage. The plain pass gives each pixel's straight colour and opacity (alpha < 1 only for
+    translucent materials); pixels whose centre missed every surface take the mean of their covered
+    8-neighbours; the output alpha is coverage x opacity (premultiplied colour)."""
+    opacity = rgba[..., 3].copy()
+    hit = opacity > 0
     h, w = hit.shape
+    straight = np.zeros((h, w, 3), dtype=np.float32)
+    np.divide(rgba[..., :3], opacity[..., None], out=straight, where=hit[..., None])
     cov = coverage.astype(np.float32, copy=True)
-    out = np.empty_like(rgba)
-    out[..., :3] = rgba[..., :3]
     ys, xs = np.nonzero((~hit) & (cov > 0))
     if len(ys):
-        acc = np.zeros((len(ys), 3), dtype=np.float32)
+        acc = np.zeros((len(ys), 4), dtype=np.float32)
         cnt = np.zeros(len(ys), dtype=np.float32)
         for dy in (-1, 0, 1):
             for dx in (-1, 0, 1):
@@ -138,13 +140,16 @@ def apply_coverage(rgba: np.ndarray, coverage: np.ndarray) -> np.ndarray:
                 ok = (yy >= 0) & (yy < h) & (xx >= 0) & (xx < w)
                 yy, xx = np.clip(yy, 0, h - 1), np.clip(xx, 0, w - 1)
                 m = ok & hit[yy, xx]
-                acc[m] += rgba[yy[m], xx[m], :3]
+                acc[m, :3] += straight[yy[m], xx[m]]
+                acc[m, 3] += opacity[yy[m], xx[m]]
                 cnt += m
-        fill = acc / np.maximum(cnt, 1.0)[:, None]
-        out[ys, xs, :3] = fill
-        cov[ys[cnt == 0], xs[cnt == 0]] = 0.0
-    out[..., :3] *= cov[..., None]
-    out[..., 3] = cov
+        mean = acc / np.maximum(cnt, 1.0)[:, None]
+        straight[ys, xs] = mean[:, :3]
+        opacity[ys, xs] = mean[:, 3]
+    alpha = cov * opacity
+    out = np.empty_like(rgba)
+    out[..., :3] = straight * alpha[..., None]
+    out[..., 3] = alpha
     return out
 
 

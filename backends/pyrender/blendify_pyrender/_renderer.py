@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 import pyrender
+import pyrender.renderer as _pyrender_renderer
 from OpenGL.GL import (
     GL_BLEND,
     GL_COLOR,
@@ -47,6 +48,8 @@ from OpenGL.GL import (
     GL_MAX_SAMPLES,
     GL_MULTISAMPLE,
     GL_NEAREST,
+    GL_ONE,
+    GL_ONE_MINUS_SRC_ALPHA,
     GL_PACK_ALIGNMENT,
     GL_PROGRAM_POINT_SIZE,
     GL_READ_FRAMEBUFFER,
@@ -56,10 +59,13 @@ from OpenGL.GL import (
     GL_RGBA,
     GL_RGBA8,
     GL_RGBA32F,
+    GL_SRC_ALPHA,
     GL_UNSIGNED_BYTE,
     GL_UNSIGNED_INT,
     glBindFramebuffer,
     glBindRenderbuffer,
+    glBlendFunc,
+    glBlendFuncSeparate,
     glBlitFramebuffer,
     glCheckFramebufferStatus,
     glClear,
@@ -124,6 +130,14 @@ def _shader_dir() -> str:
     atexit.register(shutil.rmtree, dst, True)
     _patched_dir = dst
     return dst
+
+
+def _blend_func_alpha_over(sfactor: int, dfactor: int) -> None:
+    """``glBlendFunc`` with the alpha channel composited "over" (correct coverage alpha)."""
+    if sfactor == GL_SRC_ALPHA:
+        glBlendFuncSeparate(sfactor, dfactor, GL_ONE, GL_ONE_MINUS_SRC_ALPHA)
+    else:
+        glBlendFunc(sfactor, dfactor)
 
 
 def _buffer_defines(primitive: Any) -> dict[str, int]:
@@ -306,13 +320,21 @@ class FrameRenderer(pyrender.Renderer):
 
     # -- passes ----------------------------------------------------------------------------------
     def render_color(self, scene: Any, width: int, height: int, samples: int, flags: int) -> np.ndarray:
-        """Lit colour pass: (H, W, 4) uint8, gamma 1/2.2 encoded (pyrender's shader), alpha = coverage."""
+        """Lit colour pass: (H, W, 4) uint8, gamma 1/2.2 encoded (pyrender's shader), alpha = coverage x
+        opacity. pyrender blends translucent materials with glBlendFunc(SRC_ALPHA, ONE_MINUS_SRC_ALPHA),
+        which also squares the destination alpha; during this call its blend function keeps alpha
+        "over"-composited (ONE, ONE_MINUS_SRC_ALPHA) instead."""
         self.viewport_width, self.viewport_height = width, height
         self._target = (width, height, samples)
         flags |= RenderFlags.OFFSCREEN | RenderFlags.RGBA | RenderFlags.SKIP_CULL_FACES
         if samples == 0:
             glDisable(GL_MULTISAMPLE)
-        color, _ = self.render(scene, flags)
+        original = _pyrender_renderer.glBlendFunc
+        _pyrender_renderer.glBlendFunc = _blend_func_alpha_over
+        try:
+            color, _ = self.render(scene, flags)
+        finally:
+            _pyrender_renderer.glBlendFunc = original
         return color
 
     def _draw_nodes(self, scene: Any, ids: dict[Any, int], shader: str, with_material: bool) -> None:

@@ -165,6 +165,24 @@ def test_anti_aliased_alpha_and_plain_frames(pyr):
     assert np.all(aa.rgba[..., :3] <= aa.rgba[..., 3:4] + 1e-6)
 
 
+@pytest.mark.parametrize("samples", [1, 8])
+def test_translucent_alpha_is_composited_over(pyr, samples):
+    scene = Scene()
+    r = scene.renderables
+    grey = UniformColors((0.5, 0.5, 0.5), color_space="linear")
+    r.add_plane_mesh(1.0, DiffuseMaterial(alpha=0.5), grey, tag="glass")
+    dark = UniformColors((0.2, 0.2, 0.2), color_space="linear")
+    r.add_plane_mesh(0.5, DiffuseMaterial(), dark, translation=(0.25, 0.25, -0.5), tag="behind")
+    scene.set_orthographic_camera((64, 64), ortho_scale=2.0, translation=(0, 0, 5.0))
+    scene.lights.set_background_light(1.0)
+    res = render(scene, backend=pyr, quality="preview", samples=samples)
+    over_bg, over_opaque = res.rgba[40, 20], res.rgba[20, 40]
+    assert over_bg[3] == pytest.approx(0.5, abs=0.01)
+    np.testing.assert_allclose(over_bg[:3] / over_bg[3], 0.5, rtol=0.03)  # straight colour kept
+    assert over_opaque[3] == 1.0
+    assert over_opaque[0] == pytest.approx(0.5 * 0.5 + 0.5 * 0.2, rel=0.1)  # blended in gamma space
+
+
 def test_opaque_background_option(pyr):
     scene, _ = testing.marker_scene()
     res = render(scene, backend=pyr, quality="preview", transparent_background=False)
