@@ -826,6 +826,8 @@ class _Parser:
         colors = self._color_source(inputs["Base Color"], where)
         if emission_from_color > 0:
             colors["emission_from_color"] = emission_from_color
+        if colors["kind"] in ("texture", "attribute") and self._alpha_value(node) is None:
+            colors["opaque"] = True  # Blender ignores the colour source's alpha: the IR must too
         return PrincipledBSDFMaterial(color_space="linear", **params), colors
 
     def _alpha_value(self, node: Any) -> float | None:
@@ -1029,6 +1031,8 @@ class _Parser:
                     self.note(f"object {name!r}: image texture without a UV map, used a uniform colour")
                 else:
                     kind, data, cs = col["image"]
+                    if col.get("opaque"):
+                        kind, data = _opaque_image(kind, data)
                     if kind == "file":
                         c = FileTextureColors(data, uvm, color_space=cs, interpolation=col["interpolation"])
                     else:
@@ -1038,7 +1042,8 @@ class _Parser:
                     vals = vertex_values(col["name"])
                     if float(vals[:, :3].max(initial=0.0)) > 1.0 or float(vals.min(initial=0.0)) < 0.0:
                         self.note(f"object {name!r}: colour attribute {col['name']!r} clipped to [0, 1]")
-                    c = VertexColors(np.clip(vals, 0.0, 1.0), color_space="linear")
+                    vals = np.clip(vals, 0.0, 1.0)
+                    c = VertexColors(vals[:, :3] if col.get("opaque") else vals, color_space="linear")
                 else:
                     self.note(f"object {name!r}: colour attribute {col['name']!r} not found, used white")
                     c = UniformColors((1.0, 1.0, 1.0), color_space="linear")
@@ -1383,6 +1388,20 @@ class _Parser:
         else:
             k = np.array([[intr["fx"], 0.0, intr["cx"]], [0.0, intr["fy"], intr["cy"]], [0.0, 0.0, 1.0]])
             pend.camera = ("persp", {"resolution": (w, h), "K": k, **common, **pose})
+
+
+def _opaque_image(kind: str, data: Any) -> tuple[str, Any]:
+    """An image whose alpha Blender does not use: files with a real alpha channel are read and their
+    RGB kept in memory (the IR would otherwise make the surface transparent)."""
+    from blendify_core.colors import load_image
+
+    img = load_image(data) if kind == "file" else data
+    if img.shape[2] != 4:
+        return kind, data
+    full = 255 if img.dtype == np.uint8 else 1.0
+    if kind == "file" and bool(np.all(img[..., 3] >= full)):
+        return kind, data
+    return "pixels", np.ascontiguousarray(img[..., :3])
 
 
 def _flip_uv_colors(c: Any) -> Any:

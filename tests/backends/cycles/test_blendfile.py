@@ -710,6 +710,18 @@ for i, x in enumerate((10.0, 20.0)):
     emp = bpy.data.objects.new(f"Spawner{i}", None)
     emp.instance_type, emp.instance_collection, emp.location = "COLLECTION", inst, (x, 0, 0)
     sc.collection.objects.link(emp)
+# an RGBA image whose alpha is NOT connected: Blender renders it opaque
+aimg = bpy.data.images.new("half_alpha", 2, 2, alpha=True)
+aimg.pixels.foreach_set(np.array([0.2, 0.4, 0.6, 0.5] * 4, np.float32))
+aimg.pack()
+am = bpy.data.materials.new("alpha_tex")
+at = am.node_tree.nodes.new("ShaderNodeTexImage")
+at.image = aimg
+am.node_tree.links.new(at.outputs["Color"], am.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+ame = leaf_me.copy()
+ame.uv_layers.new(name="UVMap")
+ame.materials.append(am)
+sc.collection.objects.link(bpy.data.objects.new("AlphaTex", ame))
 # hidden in the viewport only (eye icon): rendered, so parsed; hidden in renders: skipped
 eye = bpy.data.objects.new("EyeHidden", leaf_me)
 sc.collection.objects.link(eye)
@@ -770,6 +782,7 @@ def test_attach_hand_built_blend(hand_built: tuple[Path, dict[str, Any]], tmp_pa
     assert "ShaderNodeTexNoise" in msg  # the procedural material is listed
     assert datablock_ids() == before
     assert sorted(r.tag for r in added) == [
+        "AlphaTex",
         "Corners",
         "Cube",
         "EyeHidden",
@@ -787,6 +800,8 @@ def test_attach_hand_built_blend(hand_built: tuple[Path, dict[str, Any]], tmp_pa
         np.testing.assert_allclose(
             world_corners(scene.renderables[f"Spawner{i}/Leaf"])[0], [[x, 0, 0], [x + 1, 0, 0], [x, 1, 0]], atol=1e-6
         )
+    alpha_tex = scene.renderables["AlphaTex"].colors  # alpha not connected in Blender: opaque in the IR
+    assert not alpha_tex.has_alpha and alpha_tex.linear_rgba_image().shape == (2, 2, 4)
     mixed = scene.renderables["Mixed"]  # the flat face's 4 corners become their own vertices
     assert mixed.smooth and mixed.vertices.shape == (12, 3) and mixed.faces.shape == (12, 3)
     normals = mixed.vertex_normals()
