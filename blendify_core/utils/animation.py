@@ -301,9 +301,17 @@ def render_frames(
     outputs = render_kwargs.get("outputs", ("rgb",))
     outputs = (outputs,) if isinstance(outputs, str) else tuple(outputs)
     outputs = tuple("rgb" if o == "rgba" else o for o in outputs)
+    if video_path is not None and "rgb" not in outputs:
+        raise InvalidSceneError("video_path: a video needs the 'rgb' output; add 'rgb' to outputs")
+    from ..backend import get_backend_class
+
+    engine_version = backend.engine_version() if isinstance(backend, Backend) else None
+    if engine_version is None and not isinstance(backend, Backend):
+        engine_version = get_backend_class(backend_name).engine_version()
     settings_key = _jsonable(
         {
             "backend": backend_name,
+            "engine_version": engine_version,
             "quality": quality,
             "render_kwargs": {k: render_kwargs[k] for k in sorted(render_kwargs)},
         }
@@ -320,8 +328,6 @@ def render_frames(
             manifest = _read_manifest(manifest_path)
         if manifest_path.exists():
             _rewrite_manifest(manifest_path, manifest)
-    if video_path is not None and "rgb" not in outputs:
-        raise InvalidSceneError("video_path: a video needs the 'rgb' output; add 'rgb' to outputs")
     keep = keep_results or (fdir is None and video_path is None)
 
     report = FramesReport(backend=backend_name)
