@@ -467,3 +467,17 @@ def test_engine_errors_propagate_unchanged(fake_backend, simple_scene):
 
 def test_registry_cleanup(fake_backend):
     assert "fake" in backend_mod._registered
+
+
+def test_distortion_with_resolution_percentage(fake_backend):
+    d = DISTORTIONS["tangential"]
+    s = _distorted_scene(d, resolution=(80, 60))
+    s.camera.resolution_percentage = 50
+    r = bf.render(s, backend="fake", pattern="coords", outputs=("rgb", "instance"))
+    assert r.rgba.shape == (30, 40, 4) and r.instance.shape == (30, 40) and r.instance.dtype == np.int32
+    small = s.camera._scaled(0.5)
+    x, y = r.rgba[..., 0].astype(np.float64), r.rgba[..., 1].astype(np.float64)
+    xd, yd = opencv_distort(x, y, *d)
+    vv, uu = np.mgrid[0:30, 0:40]
+    err = np.hypot(small.fx * xd + small.cx - uu, small.fy * yd + small.cy - vv)
+    assert err.max() < 0.05
