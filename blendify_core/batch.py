@@ -724,6 +724,12 @@ def _run_ray(
     recycle_after: int | None,
     threads: int | None,
 ) -> tuple[int, int]:
+    import sys
+
+    if "ray" not in sys.modules:
+        # Under `uv run`, Ray would start every worker through `uv run` in a packaged copy of the working
+        # directory (re-syncing the environment per worker); use the driver's interpreter instead.
+        os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
     try:
         import ray
     except ImportError:
@@ -876,7 +882,9 @@ def render_many(
       ``workers`` is given, else 1) and ``max_calls=recycle_after`` (Ray's worker recycling). Uses the
       running Ray session if ``ray.init()`` was already called (e.g. ``ray.init(address="auto")`` on a
       cluster), else starts a local one (or connects to ``RAY_ADDRESS``) and shuts it down at the end.
-      Needs ``pip install 'blendify-core[ray]'``; blendify-core and the backends must be installed on
+      Unless ``RAY_ENABLE_UV_RUN_RUNTIME_ENV`` is set, Ray's ``uv run`` propagation is turned off (when
+      Ray is first imported here) so workers use the driver's interpreter. Needs
+      ``pip install 'blendify-core[ray]'``; blendify-core and the backends must be installed on
       every node and the outputs (and scene files given by path) must be on a shared filesystem. Scenes
       given as objects travel as scene-file bytes through Ray's object store.
     - any object with ``submit(fn, *args) -> future`` whose futures have ``done()`` and ``result()``
