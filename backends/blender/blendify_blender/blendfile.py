@@ -1611,14 +1611,16 @@ def _commit(
     taken_l = set(scene.lights.keys())
     old_bg, old_env, old_cam = scene.lights.background, scene.lights.environment, scene.camera
     try:
-        for name, spec in pend.meshes:
+        for name, spec in pend.meshes + pend.points:
             emit = spec.pop("emit_shadows", True)
-            r = scene.renderables.add_mesh(tag=_unique_tag(name, taken_r), **spec)
-            r.emit_shadows = emit
-            added_r.append(r)
-        for name, spec in pend.points:
-            emit = spec.pop("emit_shadows", True)
-            r = scene.renderables.add_pointcloud(tag=_unique_tag(name, taken_r), **spec)
+            add_r = scene.renderables.add_pointcloud if "point_size" in spec else scene.renderables.add_mesh
+            tag = _unique_tag(name, taken_r)
+            try:
+                r = add_r(tag=tag, **spec)
+            except InvalidSceneError as exc:  # data the IR rejects: skip this object, keep the rest
+                parser.note(f"object {name!r} not imported: {exc}")
+                taken_r.discard(tag)
+                continue
             r.emit_shadows = emit
             added_r.append(r)
         for name, kind, spec in pend.lights:
@@ -1628,7 +1630,12 @@ def _commit(
                 "spot": scene.lights.add_spot,
                 "area": scene.lights.add_area,
             }[kind]
-            added_l.append(add(tag=_unique_tag(name, taken_l), **spec))
+            tag = _unique_tag(name, taken_l)
+            try:
+                added_l.append(add(tag=tag, **spec))
+            except InvalidSceneError as exc:
+                parser.note(f"light {name!r} not imported: {exc}")
+                taken_l.discard(tag)
         background = None
         for kind, spec in pend.world:
             if kind == "environment":
