@@ -63,6 +63,7 @@ class _Entry:
     key: tuple[Any, ...] = ()
     offset: np.ndarray | None = None  # object-space centre folded into the object matrix
     timings: dict[str, float] = field(default_factory=dict)  # seconds per build step (benchmarks)
+    ids: list[Any] = field(default_factory=list)  # any other datablocks (removed with batch_remove)
 
     def add(self, collection: str, block: Any) -> Any:
         self.data.append((collection, block))
@@ -80,8 +81,18 @@ class _Entry:
                 getattr(bpy.data, coll).remove(block, do_unlink=True)
             except (ReferenceError, RuntimeError):
                 pass
+        alive = []
+        for block in self.ids:
+            try:
+                _ = block.name
+                alive.append(block)
+            except ReferenceError:
+                pass
+        if alive:
+            bpy.data.batch_remove(alive)
         self.objects.clear()
         self.data.clear()
+        self.ids.clear()
 
 
 @dataclass
@@ -94,6 +105,7 @@ class BuiltScene:
     world: _Entry = field(default_factory=_Entry)
     camera: _Entry = field(default_factory=_Entry)
     compositor: _Entry = field(default_factory=_Entry)
+    attached: _Entry = field(default_factory=_Entry)
     generation: int = -1
     engine_settings: dict[str, Any] = field(default_factory=dict)
     instance_tags: list[str] = field(default_factory=list)
@@ -103,7 +115,7 @@ class BuiltScene:
         return self.camera.objects[0] if self.camera.objects else None
 
     def all_entries(self) -> list[_Entry]:
-        return [*self.entries.values(), self.lights, self.world, self.camera, self.compositor]
+        return [*self.entries.values(), self.lights, self.world, self.camera, self.compositor, self.attached]
 
     def remove(self) -> None:
         """Delete every datablock this scene created (objects first)."""
@@ -519,6 +531,51 @@ def _rgba(rgb: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------------
+# attached .blend files
+# ---------------------------------------------------------------------------------------------------
+
+#: object types ``attach_blend`` parses into the IR (rendered from the IR) -- every other renderable
+#: type (volumes, hair curves, grease pencil, ...) is linked from the attached file itself
+_PARSED_TYPES = ("MESH", "CURVE", "SURFACE", "META", "FONT", "LIGHT", "CAMERA", "EMPTY", "POINTCLOUD")
+
+
+def _build_attached(scene: Any, sc: Any) -> _Entry:
+    """Append the scenes of ``scene.attached_blends`` (through blendfile.append_blend_scenes: auto-run
+    off, Python drivers and text blocks removed) and link the objects the IR could not represent into
+    the render scene; everything appended is owned by the returned entry."""
+    entry = _Entry(key=tuple(scene.attached_blends))
+    if not scene.attached_blends:
+        return entry
+    from . import blendfile
+
+    bpy = _runtime.bpy_module()
+    before = {idb.as_pointer() for idb in _all_ids(bpy)}
+    try:
+        for path in scene.attached_blends:
+            scenes, _notes = blendfile.append_blend_scenes(path)
+            for bs in scenes:
+                for obj in bs.objects:
+                    if obj.type not in _PARSED_TYPES and obj.name not in sc.collection.objects:
+                        sc.collection.objects.link(obj)
+                        obj.pass_index = 0
+    finally:
+        entry.ids = [idb for idb in _all_ids(bpy) if idb.as_pointer() not in before and idb != sc]
+    return entry
+
+
+def _all_ids(bpy: Any) -> list[Any]:
+    out: list[Any] = []
+    for name in dir(bpy.data):
+        coll = getattr(bpy.data, name, None)
+        if isinstance(coll, bpy.types.bpy_prop_collection) and name not in ("window_managers", "screens", "workspaces"):
+            try:
+                out.extend(i for i in coll if isinstance(i, bpy.types.ID))
+            except TypeError:
+                continue
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------
 # engine settings
 # ---------------------------------------------------------------------------------------------------
 
@@ -741,6 +798,11 @@ class Translator:
             built.entries.pop(uid).remove()
             self._transforms.pop(uid, None)
             stats["removed"] += 1
+        attached = tuple(getattr(scene, "attached_blends", ()))
+        if attached != built.attached.key:
+            built.attached.remove()
+            built.attached = _build_attached(scene, sc)
+            stats["attached_blends"] = len(attached)
         key = _lights_key(scene)
         if key != self._lights_key:
             built.lights.remove()
