@@ -151,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
         rep = bf.crosscheck(scene, backends=BACKENDS, samples=spp, scene_name=name)
         elapsed = time.perf_counter() - t0
         print(f"{name}: {elapsed:.1f} s {rep!r}")
-        Image.fromarray(rep.contact_sheet(tile=128)).save(out / "img" / f"crosscheck_{name}.png")
+        Image.fromarray(rep.contact_sheet(tile=96)).save(out / "img" / f"crosscheck_{name}.png")
         for (a, b), cr in rep.pairs.items():
             cells = [cr.metrics.get(o, {}).get(m) for o, m, _ in COLUMNS]
             verdict = "pass" if cr.passed else "FAIL: " + "; ".join(f.split(" (tier")[0] for f in cr.failures)

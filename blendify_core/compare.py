@@ -4,7 +4,9 @@
 a verdict against a named tolerance tier (:data:`TIERS`), human-readable failures and a heat-map diff
 image per output. ``crosscheck(scene)`` renders one scene with every available backend at comparable
 settings (box filter, no denoiser, no clamping, fixed seed) and compares every pair at the tier that fits
-the pair (path tracer vs path tracer, rasteriser vs path tracer) and the scene (delta lights or not).
+the pair (path tracer vs path tracer, rasteriser vs path tracer) and the scene (delta lights or not,
+Lambertian materials or not): :func:`choose_tier`. Statistical (noise-aware) comparison of path-traced
+images lives in :mod:`blendify_core.stats`.
 
 Metrics (``report.metrics[output][metric]``):
 
