@@ -30,14 +30,28 @@ _lock = threading.Lock()
 _display_refs: dict[int, int] = {}
 
 
+def _library_loadable(name: str, versions: tuple[str, ...]) -> bool:
+    """True when ``lib<name>.so`` (or a versioned file) can be opened, honouring LD_LIBRARY_PATH as
+    PyOpenGL does (``ctypes.util.find_library`` alone ignores it)."""
+    if ctypes.util.find_library(name) is not None:
+        return True
+    for suffix in ("",) + tuple("." + v for v in versions):
+        try:
+            ctypes.CDLL(f"lib{name}.so{suffix}")
+            return True
+        except OSError:
+            continue
+    return False
+
+
 def egl_available() -> bool:
-    """True when a libEGL can be found (cheap: no context is created)."""
-    return ctypes.util.find_library("EGL") is not None
+    """True when a libEGL can be loaded (no context is created)."""
+    return _library_loadable("EGL", ("1",))
 
 
 def osmesa_available() -> bool:
-    """True when libOSMesa can be found (Debian: ``apt-get install libosmesa6``)."""
-    return ctypes.util.find_library("OSMesa") is not None
+    """True when libOSMesa can be loaded (Debian: ``apt-get install libosmesa6``)."""
+    return _library_loadable("OSMesa", ("8", "6"))
 
 
 def _opengl_platform_in_use() -> str | None:
