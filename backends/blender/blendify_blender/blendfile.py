@@ -1189,10 +1189,11 @@ class _Parser:
         rgb = np.asarray(data.color, dtype=np.float64)
         if getattr(data, "use_temperature", False):
             rgb = rgb * np.asarray(data.temperature_color, dtype=np.float64)
-        if data.node_tree is not None and any(
-            n.type != "OUTPUT_LIGHT" and n.type != "EMISSION" for n in data.node_tree.nodes
-        ):
-            self.note(f"{where}: light node tree not parsed")
+        if getattr(data, "use_nodes", False) and data.node_tree is not None:
+            factor = self._light_nodes(data.node_tree, where)
+            if factor is not None:
+                power *= factor[0]
+                rgb = rgb * factor[1]
         color, k = _rgb01(rgb)
         power *= k
         normalize = bool(getattr(data, "normalize", True))
@@ -1258,6 +1259,19 @@ class _Parser:
             pend.lights.append((name, "area", {"shape": ir_shape, "size": size, "strength": power, **common}))
         else:
             self.note(f"{where}: light type {data.type} not supported")
+
+    def _light_nodes(self, tree: Any, where: str) -> tuple[float, np.ndarray] | None:
+        """(strength, colour) of a light's Emission node with constant inputs, or None (noted)."""
+        outs = [n for n in tree.nodes if n.type == "OUTPUT_LIGHT" and n.target in ("ALL", "CYCLES")]
+        out = ([n for n in outs if n.is_active_output] or outs or [None])[0]
+        src = self._link_from(out.inputs["Surface"]) if out is not None else None
+        if src is None:
+            return 0.0, np.ones(3)  # a light node tree with nothing connected emits nothing
+        node = src[0]
+        if node.type != "EMISSION" or node.inputs["Color"].is_linked or node.inputs["Strength"].is_linked:
+            self.note(f"{where}: light node tree ({node.bl_idname}) not parsed")
+            return None
+        return float(node.inputs["Strength"].default_value), np.asarray(node.inputs["Color"].default_value)[:3]
 
     # -- world / camera --------------------------------------------------------------------------
     def world(self, world: Any, pend: _Pending) -> None:

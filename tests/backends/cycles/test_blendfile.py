@@ -669,6 +669,10 @@ e = light("Ell", "AREA", energy=70, shape="ELLIPSE", size=1, size_y=3)
 e.location, e.scale = (3, 0, 4), (2, 1, 1)
 light("Sq", "AREA", energy=80, shape="SQUARE", size=0.7, exposure=1.0).location = (4, 0, 4)
 light("Raw", "AREA", energy=10, shape="SQUARE", size=2.0, normalize=False).location = (5, 0, 4)
+noded = light("Noded", "POINT", energy=10, temperature=3000, use_temperature=True)
+noded.data.use_nodes = True
+noded.data.node_tree.nodes["Emission"].inputs["Strength"].default_value = 3.0
+temperature_color = list(noded.data.temperature_color)
 light("Pt", "POINT", energy=100, shadow_soft_size=0.1).location = (0, 0, 5)
 light("Sun", "SUN", energy=3, angle=0.01).rotation_euler = (0.3, 0, 0)
 light("Spot", "SPOT", energy=200, spot_size=0.8, spot_blend=0.2, color=(1, 0.5, 0.25)).location = (0, 3, 3)
@@ -760,7 +764,7 @@ sc.collection.objects.link(cobj)
 bpy.context.view_layer.update()
 frame = [tuple(v) for v in cd.view_frame(scene=sc)]  # Blender's own view frame (camera space)
 bpy.data.libraries.write(out, {sc}, compress=True)
-print(json.dumps({"frame": frame, "cam_matrix": [list(r) for r in co.matrix_world]}))
+print(json.dumps({"frame": frame, "cam_matrix": [list(r) for r in co.matrix_world], "tcol": temperature_color}))
 """
 
 
@@ -848,6 +852,9 @@ def test_attach_hand_built_blend(hand_built: tuple[Path, dict[str, Any]], tmp_pa
     np.testing.assert_allclose(lights["Ell"].size, (2.0, 3.0), rtol=1e-6)  # object scale applied
     assert lights["Sq"].shape == "square" and lights["Sq"].strength == pytest.approx(160.0)  # exposure 1
     assert lights["Raw"].strength == pytest.approx(10.0 * 4.0)  # normalize off: energy x area
+    tcol = np.array(info["tcol"])  # temperature colour and the Emission node's strength folded in
+    noded = lights["Noded"]
+    np.testing.assert_allclose(noded.linear_color * noded.strength, tcol * 30.0, rtol=1e-5)
     assert lights["Rect"].strength == pytest.approx(50.0) and lights["Ell"].strength == pytest.approx(70.0)
     assert type(lights["Pt"]).__name__ == "PointLight" and lights["Pt"].shadow_soft_size == pytest.approx(0.1)
     assert lights["Spot"].spot_size == pytest.approx(0.8) and lights["Spot"].spot_blend == pytest.approx(0.2)
