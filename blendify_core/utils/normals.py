@@ -337,8 +337,12 @@ def closest_points_on_mesh(
         fid = vf[offs]
         tri = faces[fid]
         d, bary = _closest_on_triangles(points[pid], vertices[tri[:, 0]], vertices[tri[:, 1]], vertices[tri[:, 2]])
-        order = np.lexsort((d, pid))
-        firsts = order[np.r_[True, pid[order][1:] != pid[order][:-1]]]
+        # pid is non-decreasing: per-point minimum by reduceat, then the first candidate reaching it
+        starts = np.flatnonzero(np.r_[True, pid[1:] != pid[:-1]])
+        dmin = np.minimum.reduceat(d, starts)
+        group = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(pid)]))
+        hit = np.flatnonzero(d <= dmin[group])
+        firsts = hit[np.r_[True, group[hit][1:] != group[hit][:-1]]]
         tgt = pid[firsts]
         best_face[tgt] = fid[firsts]
         best_bary[tgt] = bary[firsts]
