@@ -9,7 +9,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import FakeBackend
+from core_fake_backend import FakeBackend, close_fake_instances
 
 import blendify_core as bf
 from blendify_core import backend as backend_mod
@@ -35,7 +35,7 @@ def engines(fake_backend):
         register_backend(n, cls)
     fake_backend.available = False  # keep the generic fake out of the automatic choice
     yield classes
-    bf.close_backends()
+    close_fake_instances()
     for n in classes:
         unregister_backend(n)
 
@@ -223,11 +223,11 @@ def test_backend_returning_wrong_outputs_is_a_render_error(fake_backend, simple_
         with pytest.raises(RenderError, match="no 'depth' output"):
             bf.render(simple_scene(), backend="sloppy", outputs=("depth",))
         Sloppy.mode = "shape"
-        bf.close_backends()
+        close_fake_instances()
         with pytest.raises(RenderError, match="shape"):
             bf.render(simple_scene(), backend="sloppy", outputs=("depth",))
         Sloppy.mode = "extra"
-        bf.close_backends()
+        close_fake_instances()
         r = bf.render(simple_scene(), backend="sloppy", outputs=("depth",))
         assert r.normal is None and r.depth.dtype == np.float32
     finally:
