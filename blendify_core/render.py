@@ -180,6 +180,11 @@ def render(
 
         render_cam, src = margin_camera(out_cam)  # type: ignore[arg-type]
     view = scene if render_cam is cam else scene.with_camera(render_cam)
+    from .recentre import needs_recentring, recentred_view
+
+    origin = None
+    if needs_recentring(view):
+        view, origin = recentred_view(view)
 
     if settings.target_error is not None and getattr(inst, "path_tracer", False):
         result = render_to_target(inst, view, settings)
@@ -207,6 +212,8 @@ def render(
     if fallback_notes:
         meta["backend_fallback"] = fallback_notes
     meta.setdefault("samples", settings.samples)
+    if origin is not None:
+        meta["recentred_origin"] = origin.tolist()
     if clip_warning:
         meta.setdefault("warnings", []).append(clip_warning)
     meta["scene_fingerprint"] = scene.fingerprint()

@@ -416,6 +416,8 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "origin": lambda: _hc_base(),
         "far_from_origin_1e6": lambda: _hc_base(offset=(1e6, -1e6, 1e6)),
         "tiny_scale_1e-4": lambda: _hc_base(scale=1e-4),
+        "world_vertices_origin": lambda: _hc_world_vertices((0.0, 0.0, 0.0)),
+        "world_vertices_far_1e6": lambda: _hc_world_vertices((-3e6, 2e6, 1e6)),
         "huge_scale_1e4": lambda: _hc_base(scale=1e4),
         "look_straight_down": lambda: _hc_camera(_hc_base(), translation=(0, 0, 4.0)),
         "look_straight_up": lambda: _hc_camera(_hc_base(), translation=(0, 0, -4.0)),
@@ -467,7 +469,27 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
 
 
 #: cases whose colour image must match another case's (same picture, different numbers)
-HARD_CASE_REFERENCE = {"far_from_origin_1e6": "origin", "tiny_scale_1e-4": "origin", "huge_scale_1e4": "origin"}
+HARD_CASE_REFERENCE = {
+    "far_from_origin_1e6": "origin",
+    "tiny_scale_1e-4": "origin",
+    "huge_scale_1e4": "origin",
+    "world_vertices_far_1e6": "world_vertices_origin",
+}
+
+
+def _hc_world_vertices(offset: Any) -> Scene:
+    """A torus mesh whose vertices are given in world coordinates around ``offset`` (identity pose), as
+    scans and simulation output usually are."""
+    from .geometry import torus
+
+    off = np.asarray(offset, dtype=np.float64)
+    t = torus(0.6, 0.25, 48, 24)
+    scene = _hc_base(offset=off)
+    scene.renderables.clear()
+    scene.renderables.add_mesh(
+        t.vertices + off, t.faces, DiffuseMaterial(), UniformColors((0.7, 0.5, 0.3)), smooth=True, tag="torus"
+    )
+    return scene
 
 
 def _hc_colors() -> Scene:

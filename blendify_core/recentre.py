@@ -1,0 +1,126 @@
+"""Re-centring far-away scenes in float64 before any engine sees them.
+
+Engines work in float32, whose spacing at 1e6 is 6 cm: a 1 m object a thousand kilometres from the origin
+would jitter and crack. :func:`recentred_view` returns a view of the scene translated so that the camera
+sits near the origin (and, for geometry given in far-away object coordinates, with the vertices shifted
+towards their own centre), computed in float64. Pictures, depth and normals are unchanged by a
+translation; only the numbers handed to the engine become small.
+
+The view keeps every object's ``uid``; its revisions are tuples that include the chosen origin, so a
+backend's cache stays valid while the origin does not move (the origin is snapped to a grid the size of
+the scene, so small camera moves keep it).
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+
+__all__ = ["needs_recentring", "recentred_view"]
+
+#: re-centre when coordinates exceed this many times the scene's size
+FAR_RATIO = 1e3
+
+
+def _scene_scale(scene: Any) -> tuple[float, float]:
+    """(largest coordinate magnitude, scene size) from the camera position and the bounds."""
+    cam = scene.camera
+    magnitude = float(np.abs(cam.translation).max())
+    bounds = scene.bounds()
+    if bounds is None:
+        return magnitude, 1.0
+    lo, hi = bounds
+    magnitude = max(magnitude, float(np.abs(lo).max()), float(np.abs(hi).max()))
+    centre = (lo + hi) / 2
+    size = max(float(np.linalg.norm(hi - lo)), float(np.linalg.norm(cam.translation - centre)), 1e-300)
+    return magnitude, size
+
+
+def _vertex_magnitude(r: Any) -> tuple[float, float]:
+    for attr in ("_vertices", "keypoints"):
+        v = getattr(r, attr, None)
+        if v is not None and len(v):
+            return float(np.abs(v).max()), float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    return 0.0, 1.0
+
+
+def needs_recentring(scene: Any) -> bool:
+    magnitude, size = _scene_scale(scene)
+    if magnitude > FAR_RATIO * size:
+        return True
+    for r in scene.renderables:
+        m, s = _vertex_magnitude(r)
+        if m > FAR_RATIO * max(s, 1e-300) and m > 1e3:
+            return True
+    return False
+
+
+def _snap(x: np.ndarray, grid: float) -> np.ndarray:
+    return np.round(x / grid) * grid
+
+
+class _Revisions:
+    """Revisions of a view object: the original's, tagged with the view's origin."""
+
+    def __init__(self, original: Any, key: Any, geometry_key: Any = None):
+        self._original = original
+        self._key = key
+        self._geometry_key = geometry_key
+
+    def __call__(self, kind: str) -> Any:
+        base = self._original.revision(kind)
+        if kind == "transform":
+            return (base, self._key)
+        if kind == "geometry" and self._geometry_key is not None:
+            return (base, self._geometry_key)
+        return base
+
+
+def _shift_object(obj: Any, origin: np.ndarray, key: Any) -> Any:
+    view = copy.copy(obj)
+    geometry_key = None
+    rot = obj.rotation_matrix
+    translation = obj.translation - origin
+    for attr in ("_vertices", "keypoints"):
+        v = getattr(obj, attr, None)
+        if v is None or not len(v):
+            continue
+        m, s = float(np.abs(v).max()), float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+        if m > FAR_RATIO * max(s, 1e-300) and m > 1e3:
+            c = _snap((v.max(axis=0) + v.min(axis=0)) / 2, max(s, 1e-12))
+            shifted = np.asarray(v, dtype=np.float64) - c
+            shifted.flags.writeable = False
+            setattr(view, attr, shifted)
+            translation = translation + rot @ c
+            geometry_key = ("shift", tuple(c.tolist()))
+    view._translation = translation
+    view._translation.flags.writeable = False
+    view.revision = _Revisions(obj, key, geometry_key)
+    return view
+
+
+def recentred_view(scene: Any) -> tuple[Any, np.ndarray]:
+    """A view of ``scene`` translated by ``-origin`` (float64) and the origin used."""
+    from .lights import LightsCollection
+    from .renderables import RenderablesCollection
+
+    magnitude, size = _scene_scale(scene)
+    grid = 2.0 ** np.ceil(np.log2(max(size, 1e-300)))
+    origin = _snap(scene.camera.translation, grid)
+    key = ("recentred", tuple(origin.tolist()))
+    view = scene.with_camera(_shift_object(scene.camera, origin, key))
+    renderables = RenderablesCollection()
+    for r in scene.renderables:
+        renderables._items[r.tag] = _shift_object(r, origin, key)
+    renderables.revision = (scene.renderables.revision, key)  # type: ignore[assignment]
+    lights = LightsCollection()
+    for light in scene.lights:
+        lights._lights[light.tag] = _shift_object(light, origin, key)
+    lights.background = scene.lights.background
+    lights.environment = scene.lights.environment
+    lights.revision = (scene.lights.revision, key)  # type: ignore[assignment]
+    view.renderables = renderables
+    view.lights = lights
+    return view, origin
