@@ -75,7 +75,8 @@ def blend_with_background(
       which darkens anti-aliased edges.)
 
     ``color``: the background, sRGB-encoded by default (``color_space="linear"`` for linear values);
-    0-255 integer triples are accepted. RGB images without alpha are returned unchanged (as RGB).
+    a triple of integers with some value above 1 is read as 0-255 (so (255, 255, 255) works, but (1, 1, 0)
+    means [0, 1] values). RGB images without alpha are returned unchanged (as RGB).
     """
     img = _as_image("rgba", rgba)
     if color_space not in ("srgb", "linear"):

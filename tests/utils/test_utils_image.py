@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 import blendify_core as bf
 from blendify_core.colorspace import linear_to_srgb, srgb_to_linear
@@ -104,3 +107,19 @@ def test_contact_sheet_mixed_inputs_and_labels():
         contact_sheet([])
     with pytest.raises(bf.InvalidSceneError, match=r"images\[1\]"):
         contact_sheet([np.zeros((2, 2)), "nope"])
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    img=arrays(np.uint8, st.tuples(st.integers(1, 6), st.integers(1, 6), st.just(4))),
+    bg=st.tuples(*[st.floats(0.0, 1.0)] * 3),
+)
+def test_uint8_blend_lies_between_foreground_and_background(img, bg):
+    out = blend_with_background(img, bg).astype(int)
+    fg = img[..., :3].astype(int)
+    b = np.broadcast_to(np.round(np.array(bg) * 255).astype(int), fg.shape)
+    assert np.all(out >= np.minimum(fg, b) - 1) and np.all(out <= np.maximum(fg, b) + 1)
+    opaque = img[..., 3] == 255
+    np.testing.assert_array_equal(out[opaque], fg[opaque])
+    clear = img[..., 3] == 0
+    assert np.all(np.abs(out[clear] - b[clear]) <= 1)
