@@ -242,19 +242,17 @@ def bsdf_dict(material: Any, color: Any) -> tuple[dict[str, Any], str]:
         inner = {"type": "diffuse", "reflectance": color}
         kind = "diffuse"
     else:
-        for key in ("roughness_map", "metallic_map", "normal_map"):
-            if v.get(key) is not None:
-                raise UnsupportedFeatureError(
-                    f"material: {key} is not translated by the mitsuba backend",
-                    feature=f"material.{key}",
-                    backend="mitsuba",
-                )
-        rough = float(v["roughness"])
+        rough: Any = float(v["roughness"])
+        metal: Any = float(v["metallic"])
+        if v.get("roughness_map") is not None:
+            rough = _data_texture(v["roughness_map"].values())
+        if v.get("metallic_map") is not None:
+            metal = _data_texture(v["metallic_map"].values())
         eta = _effective_eta(float(v["ior"]), float(v["specular_ior"]))
         inner = {
             "type": "principled",
             "base_color": color,
-            "metallic": float(v["metallic"]),
+            "metallic": metal,
             "roughness": rough,
             "eta": max(eta, 1.0001),
             "anisotropic": float(v["anisotropic"]),
@@ -264,9 +262,31 @@ def bsdf_dict(material: Any, color: Any) -> tuple[dict[str, Any], str]:
             "sheen": float(v["sheen_weight"]),
         }
         kind = "principled"
+    nmap = v.get("normal_map")
+    if nmap is not None:
+        inner = {"type": "normalmap", "normalmap": _normal_texture(nmap), "bsdf": inner}
     if kind == "principled" and float(v["transmission_weight"]) > 0:
         return inner, kind  # transmission needs both sides to be distinct
     return {"type": "twosided", "bsdf": inner}, kind
+
+
+def _data_texture(values: np.ndarray) -> dict[str, Any]:
+    """A raw (never colour-managed) single-channel bitmap; UVs are v-flipped like colour textures."""
+    data = np.ascontiguousarray(np.asarray(values, dtype=np.float32)[..., None])
+    return {"type": "bitmap", "data": mi.TensorXf(data), "raw": True, "filter_type": "bilinear"}
+
+
+def _normal_texture(nmap: Any) -> dict[str, Any]:
+    """The tangent-space normal map for Mitsuba's ``normalmap`` BSDF, with Blender's ``strength`` baked in
+    (n' = normalize(N + s (n - N)) with N = (0, 0, 1) in tangent space). Mitsuba's shading frame is
+    (dp/du, n x dp/du), Blender's tangent frame for UVs of the usual orientation; the v -> 1 - v flip of
+    the UVs does not change dp/du."""
+    n = nmap.normals().astype(np.float64)
+    s = float(nmap.strength)
+    n = np.stack([s * n[..., 0], s * n[..., 1], 1.0 + s * (n[..., 2] - 1.0)], axis=-1)
+    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+    data = np.ascontiguousarray(((n + 1.0) * 0.5).astype(np.float32))
+    return {"type": "bitmap", "data": mi.TensorXf(data), "raw": True, "filter_type": "bilinear"}
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -524,13 +544,20 @@ def translate_scene(
     coverage_dict = background_dict = None
     sky = {k: v for k, v in d.items() if k in ("environment", "background")}
     if composite and sky:
-        one_bounce = {"type": "path", "max_depth": 1, "hide_emitters": False}
-        base = {"type": "scene", "integrator": one_bounce, "sensor": camera_dict(cam, film, sampler)}
-        coverage_dict = {**base, **{k: v for k, v in d.items() if k.startswith("r")}}
+        # max_depth 2: Mitsuba's path integrator records a hit in the alpha only once it decides to continue
+        # the path (with max_depth 1 only emitters count); the scene has no lights, so this stays cheap
+        two = {"type": "path", "max_depth": 2, "hide_emitters": False}
+        one = {"type": "path", "max_depth": 1, "hide_emitters": False}
+        coverage_dict = {
+            "type": "scene",
+            "integrator": two,
+            "sensor": camera_dict(cam, film, sampler),
+            **{k: v for k, v in d.items() if k.startswith("r")},
+        }
         sky_dict = {
             k: (environment_dict(scene.lights.environment) if k == "environment" else v) for k, v in sky.items()
         }
-        background_dict = {**base, "sensor": camera_dict(cam, film, sampler), **sky_dict}
+        background_dict = {"type": "scene", "integrator": one, "sensor": camera_dict(cam, film, sampler), **sky_dict}
     catcher_dict = None
     if catchers:
         # the catchers alone under the same lights: the unshadowed radiance of the shadow-catcher emulation

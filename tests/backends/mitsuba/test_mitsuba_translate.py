@@ -250,7 +250,7 @@ def test_emission_builds_an_emitter_and_compositing_scenes(mi_scalar):
     from blendify_mitsuba._translate import translate_scene
 
     tr = translate_scene(scene, FILM, SAMPLER, INTEGRATOR, 10, composite=True)
-    assert tr.coverage_dict["integrator"]["max_depth"] == 1 and "background" not in tr.coverage_dict
+    assert tr.coverage_dict["integrator"]["max_depth"] == 2 and "background" not in tr.coverage_dict
     assert "r00000_sphere" in tr.coverage_dict
     assert "background" in tr.background_dict and "r00000_sphere" not in tr.background_dict
 
