@@ -149,6 +149,14 @@ class Material:
     def get(self, name: str) -> Any:
         return self._values[name]
 
+    def __copy__(self) -> Material:
+        # parameters live in one dict: a shallow copy must not share it, or setting an attribute on the
+        # copy would change the original
+        new = type(self).__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        new.__dict__["_values"] = dict(self._values)
+        return new
+
     def linear(self, name: str) -> np.ndarray:
         """A colour parameter as linear RGBA (4,) float64 (alpha is 1 when only RGB was given)."""
         p = self._param(name)
