@@ -533,3 +533,19 @@ def test_counterparts_of_scene_level_blendify_methods():
     for name in ("clear", "attach_blend", "export_blend", "set_camera_from_opencv", "save", "load", "fingerprint"):
         assert callable(getattr(bf.Scene, name)), name
     assert isinstance(bf.Scene.camera, property)
+
+
+def test_copied_material_is_independent():
+    import copy
+
+    mat = bf.MetalMaterial(roughness=0.3)
+    twin = copy.copy(mat)
+    twin.roughness = 0.9
+    assert mat.roughness == 0.3 and twin.roughness == 0.9
+    assert mat.revision == 0 and twin.revision == 1
+    deep = copy.deepcopy(mat)
+    deep.metallic = 0.1
+    assert mat.metallic == 0.9
+    changed = mat.copy(roughness=0.5)
+    assert type(changed) is bf.MetalMaterial and changed.roughness == 0.5 and mat.roughness == 0.3
+    assert mat.copy() == mat
