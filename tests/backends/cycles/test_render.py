@@ -240,3 +240,16 @@ def test_gpu_request_falls_back_to_cpu(caplog):
     if es["device"] == "CPU":
         assert es["compute_device_type"] == "NONE"
         assert any("GPU" in rec.message for rec in caplog.records)
+
+
+def test_wireframe_overlay(cycles):
+    scene = bf.Scene()
+    mat = bf.PrincipledBSDFWireframeMaterial(wireframe_thickness=0.05, wireframe_color=(1, 0, 0), specular_ior=0.0)
+    scene.renderables.add_plane_mesh(2.0, mat, bf.UniformColors((0, 0, 1)))
+    scene.set_orthographic_camera((40, 40), ortho_scale=2.0, translation=(0, 0, 3))
+    scene.lights.set_background_light(1.0)
+    r = bf.render(scene, backend=cycles, samples=8, outputs=("rgb", "albedo"))
+    assert r.rgba[10, 10, 2] > 0.5 and r.rgba[10, 10, 0] < 0.05  # face interior: blue
+    assert r.rgba[20, 0, 0] > 0.3 and r.albedo[20, 0, 0] > 0.3  # the border edge: red wire
+    diag = np.array([r.rgba[i, 39 - i, 0] for i in range(5, 35)])
+    assert diag.min() > 0.2  # the triangulation's diagonal (vertex 0 to 2) is an edge too
