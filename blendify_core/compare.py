@@ -329,7 +329,7 @@ def _psnr(test: np.ndarray, reference: np.ndarray) -> float:
 # ---------------------------------------------------------------------------------------------------
 # per-output metrics: each returns (metrics, diff image, legend)
 # ---------------------------------------------------------------------------------------------------
-def _rgb_metrics(a: RenderResult, b: RenderResult) -> tuple[dict[str, float], np.ndarray, str]:
+def _rgb_metrics(a: RenderResult, b: RenderResult, interior: np.ndarray) -> tuple[dict[str, float], np.ndarray, str]:
     ra = a.rgba[..., :3].astype(np.float64)  # type: ignore[index]
     rb = b.rgba[..., :3].astype(np.float64)  # type: ignore[index]
     aa = a.rgba[..., 3].astype(np.float64)  # type: ignore[index]
@@ -348,7 +348,7 @@ def _rgb_metrics(a: RenderResult, b: RenderResult) -> tuple[dict[str, float], np
     else:
         for k in ("mean_rel_error", "max_rel_error", "rel_mse", "mean_ratio", "ratio_error"):
             m[k] = math.nan
-    interior = covered & interior_mask(a, b)
+    interior = covered & interior
     m["n_interior"] = float(interior.sum())
     m["mean_rel_error_interior"] = float(rel[interior].mean()) if interior.any() else math.nan
     m["alpha_mean_abs_error"] = float(np.abs(aa - ab).mean())
@@ -723,22 +723,23 @@ def compare(
     both = (ma & mb) if (ma is not None and mb is not None) else None
     if both is None:
         both = np.ones(a.resolution[::-1], dtype=bool)  # type: ignore[index]
+    interior = interior_mask(a, b)
     metrics: dict[str, dict[str, float]] = {}
     diffs: dict[str, np.ndarray] = {}
     legends: dict[str, str] = {}
     for o in wanted:
         if o == "rgb":
-            res = _rgb_metrics(a, b)
+            res = _rgb_metrics(a, b, interior)
         elif o == "depth":
             res = _depth_metrics(a, b)
         elif o == "mask":
             res = _mask_metrics(ma, mb)  # type: ignore[arg-type]
         elif o == "normal":
-            res = _normal_metrics(a, b, both, interior_mask(a, b))
+            res = _normal_metrics(a, b, both, interior)
         elif o == "instance":
             res = _instance_metrics(a, b)
         else:
-            res = _albedo_metrics(a, b, both, interior_mask(a, b))
+            res = _albedo_metrics(a, b, both, interior)
         metrics[o], diffs[o], legends[o] = res
 
     failures: list[str] = []
@@ -1046,7 +1047,8 @@ def crosscheck(
 def crosscheck_main(argv: Sequence[str] | None = None) -> int:
     """``blendify crosscheck SCENE [-o FOLDER] [--backends ...] [--samples N] ...``: render a scene file
     with every available backend, write the contact sheet and the markdown report into FOLDER. Returns
-    0 when every pair passed, 1 when one failed, 2 on bad usage."""
+    0 when every pair passed, 1 when one failed (or fewer than two backends could render), 2 on bad
+    usage."""
     from .scene import Scene
 
     p = argparse.ArgumentParser(
@@ -1084,6 +1086,11 @@ def crosscheck_main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.write(f"blendify crosscheck: {exc}\n")
         return 2
     sys.stdout.write(f"{report!r}\n")
+    if not report.pairs:
+        sys.stderr.write(
+            "blendify crosscheck: fewer than two backends rendered the scene, nothing was compared "
+            f"(skipped: {report.skipped or 'none'}; errors: {report.errors or 'none'})\n"
+        )
     elapsed = time.perf_counter() - t0
     sys.stdout.write(f"wrote {folder / 'crosscheck.png'} and {folder / 'crosscheck.md'} ({elapsed:.1f} s)\n")
-    return 0 if report.passed else 1
+    return 0 if report.passed and report.pairs else 1

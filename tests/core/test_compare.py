@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import blendify_core as bf
 from blendify_core.backend import Backend, register_backend, unregister_backend
@@ -397,6 +399,26 @@ def test_crosscheck_with_fakes(fakes, tmp_path):
         bf.crosscheck(scene, backends=("fake-a", "fake-a"))
 
 
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), h=st.integers(8, 24), w=st.integers(8, 24))
+def test_random_results_identical_to_themselves_and_masks_symmetric(seed, h, w):
+    rng = np.random.default_rng(seed)
+    hit = rng.random((h, w)) < 0.6
+    rgba = np.where(hit[..., None], rng.random((h, w, 4)), 0).astype(np.float32)
+    rgba[..., 3] = hit
+    depth = np.where(hit, rng.uniform(1, 5, (h, w)), np.inf).astype(np.float32)
+    a = bf.RenderResult(rgba=rgba, depth=depth)
+    rep = bf.compare(a, bf.RenderResult(rgba=rgba.copy(), depth=depth.copy()), tier="identical")
+    assert rep.passed, rep.failures
+    hit2 = rng.random((h, w)) < 0.6
+    b = bf.RenderResult(depth=np.where(hit2, 2.0, np.inf).astype(np.float32))
+    m1 = bf.compare(a, b, outputs=("mask",)).metrics["mask"]
+    m2 = bf.compare(b, a, outputs=("mask",)).metrics["mask"]
+    assert m1 == m2  # every mask metric is symmetric
+    assert m1["n_disagree"] == (hit ^ hit2).sum()
+    assert m1["n_disagree_interior"] <= m1["n_disagree"]
+
+
 def test_crosscheck_main_cli(fakes, tmp_path, capsys):
     path = tmp_path / "scene.npz"
     depth_plane_scene().save(path)
@@ -406,6 +428,9 @@ def test_crosscheck_main_cli(fakes, tmp_path, capsys):
     assert (out / "crosscheck.png").exists() and (out / "crosscheck.md").exists()
     assert "fake-a/fake-b: PASS" in capsys.readouterr().out
     assert crosscheck_main([str(tmp_path / "missing.npz"), "-o", str(out)]) == 2
+    # one backend only: nothing compared -> 1
+    assert crosscheck_main([str(path), "-o", str(out), "--backends", "fake-a", "--samples", "2"]) == 1
+    assert "nothing was compared" in capsys.readouterr().err
     assert crosscheck_main(["--help"]) == 0
 
 
