@@ -182,6 +182,16 @@ def check_tag(name: str, value: Any) -> str:
     return value
 
 
+def as_path(name: str, value: Any) -> Any:
+    """Check a file path argument (str or os.PathLike) and return it as a ``pathlib.Path``."""
+    import os
+    from pathlib import Path
+
+    if not isinstance(value, (str, os.PathLike)) or (isinstance(value, str) and not value):
+        raise InvalidSceneError(f"{name}: expected a file path (str or os.PathLike), got {_describe(value)}")
+    return Path(value)
+
+
 def reject_unknown(where: str, kwargs: dict[str, Any], allowed: Iterable[str] = ()) -> None:
     unknown = sorted(set(kwargs) - set(allowed))
     if unknown:

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ._validate import as_path
 from .colorspace import linear_to_srgb
 from .errors import InvalidSceneError
 
@@ -121,7 +122,7 @@ class RenderResult:
     def save(self, path: str | os.PathLike[str], output: str = "rgb") -> Path:
         """Write ``.png`` (8-bit sRGB, straight alpha), ``.exr`` (linear float, needs ``openexr``) or
         ``.npz`` (every output, lossless), atomically, with provenance in PNG text / EXR header / npz."""
-        p = Path(path)
+        p = as_path("path", path)
         suffix = p.suffix.lower()
         if suffix not in (".png", ".exr", ".npz"):
             raise InvalidSceneError(f"path: expected a .png, .exr or .npz file name, got {str(path)!r}")

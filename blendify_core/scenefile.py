@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ._validate import as_path
 from .errors import InvalidSceneError
 
 FORMAT = "blendify-core-scene"
@@ -55,7 +56,7 @@ def _walk_paths(obj: Any, fn: Any) -> Any:
 def save_scene(scene: Any, path: str | os.PathLike[str], relative_paths: bool = True) -> None:
     from .result import atomic_write
 
-    p = Path(path)
+    p = as_path("path", path)
     if p.suffix.lower() != ".npz":
         raise InvalidSceneError(f"path: scene files end in .npz, got {str(path)!r}")
     arrays: dict[str, np.ndarray] = {}
@@ -73,7 +74,7 @@ def save_scene(scene: Any, path: str | os.PathLike[str], relative_paths: bool = 
 
 
 def load_scene(path: str | os.PathLike[str], allow_outside: bool = False) -> Any:
-    p = Path(path)
+    p = as_path("path", path)
     if not p.is_file():
         raise InvalidSceneError(f"path: no such scene file {str(path)!r}")
     try:
