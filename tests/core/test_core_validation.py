@@ -397,6 +397,10 @@ BAD_INPUTS = [
     ("result-save-missing-folder", lambda: rr().save("/nonexistent/folder/out.png"), "folder"),
     ("result-save-bad-suffix", lambda: rr().save("out.jpg"), "path"),
     ("result-save-missing-output", lambda: rr().save("out.png", output="depth"), "output"),
+    ("result-save-path-none", lambda: rr().save(None), "path"),
+    ("result-save-path-dict", lambda: rr().save({}), "path"),
+    ("scene-save-path-none", lambda: bf.Scene().save(None), "path"),
+    ("scene-load-path-int", lambda: bf.Scene.load(3), "path"),
     ("result-straight-without-rgb", lambda: RenderResult().to_srgb8(), "rgb"),
 ]
 
