@@ -573,3 +573,38 @@ def test_garbage_in_any_argument_is_a_clear_error_or_accepted(fn, base, name):
             assert str(exc), "empty message"
         except Exception as exc:  # noqa: BLE001 - the point of the test
             pytest.fail(f"{name}={junk!r:.40} raised {type(exc).__name__}: {exc}")
+
+
+RENDER_ARGUMENTS = [
+    "quality",
+    "samples",
+    "seed",
+    "outputs",
+    "threads",
+    "strict",
+    "denoise",
+    "max_bounces",
+    "time_limit",
+    "target_error",
+    "pixel_filter",
+    "clamp_direct",
+    "clamp_indirect",
+    "adaptive",
+    "transparent_background",
+    "effects",
+    "pattern",  # a backend option of the fake
+]
+
+
+@pytest.mark.usefixtures("fake_backend")
+@pytest.mark.filterwarnings("ignore::UserWarning")
+@pytest.mark.parametrize("name", RENDER_ARGUMENTS)
+def test_garbage_render_arguments_are_clear_errors(name):
+    scene = scene_with_camera()
+    for junk in GARBAGE + [2.5]:
+        try:
+            bf.render(scene, backend="fake", **{name: junk})
+        except BlendifyError as exc:
+            assert str(exc)
+        except Exception as exc:  # noqa: BLE001 - the point of the test
+            pytest.fail(f"render({name}={junk!r:.40}) raised {type(exc).__name__}: {exc}")
