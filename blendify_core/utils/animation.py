@@ -239,6 +239,7 @@ def render_frames(
     video_quality: float | None = 8.0,
     keep_results: bool = False,
     restore_camera: bool = True,
+    on_frame: Callable[[Any, int], Any] | None = None,
     **render_kwargs: Any,
 ) -> FramesReport:
     """Render a sequence of frames of ``scene`` with :func:`blendify_core.render`.
@@ -250,6 +251,10 @@ def render_frames(
       - a callable ``callback(scene, frame_index)`` that updates any IR object (move a mesh, recolour a
         point cloud, change a light) for frame ``frame_index`` in ``range(n_frames)``; it is called for
         every frame in order, including frames skipped on resume.
+
+    ``on_frame(scene, frame_index)``: called after the camera pose of a trajectory frame is applied, to
+    update other objects for that view (e.g. recolour a point cloud with
+    :func:`approximate_colors_from_camera` for the new camera).
 
     Output: ``frames_dir`` gets ``frame_00000.png``... (8-bit sRGB, straight alpha, written atomically;
     other requested ``outputs`` as ``depth_00000.png`` etc.) and a ``frames_manifest.jsonl`` recording each
@@ -279,6 +284,10 @@ def render_frames(
     ):
         raise InvalidSceneError(f"n_frames: expected a positive integer, got {n_frames!r}")
     poses, callback, count = _frame_plan(trajectory_or_callback, fps, n_frames, interpolation, smoothness)
+    if on_frame is not None and not callable(on_frame):
+        raise InvalidSceneError(
+            f"on_frame: expected a callable on_frame(scene, frame_index), got {_describe(on_frame)}"
+        )
     if poses is not None and scene.camera is None:
         raise InvalidSceneError("scene.camera: a trajectory moves the scene camera; set a camera first")
     from .image import _color3
@@ -348,6 +357,8 @@ def render_frames(
                 apply_pose(scene.camera, poses[i])
             else:
                 callback(scene, i)  # type: ignore[misc]
+            if on_frame is not None:
+                on_frame(scene, i)
             names = {o: (f"frame_{i:05d}.png" if o == "rgb" else f"{o}_{i:05d}.png") for o in outputs}
             done = False
             fingerprint = None

@@ -190,3 +190,29 @@ def test_real_backend_two_frames(tmp_path):
         scene, t, backend=name, quality="preview", samples=4, frames_dir=tmp_path, fps=1, progress=False
     )
     assert rep.skipped == [0, 1]
+
+
+def test_on_frame_recolours_a_point_cloud_for_each_camera(fake_backend, tmp_path):
+    from blendify_core.utils import approximate_colors_from_camera
+
+    scene = bf.Scene()
+    scene.set_perspective_camera((16, 16), fov_x=0.8, translation=(0, -3, 0))
+    pts = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    pc = scene.renderables.add_pointcloud(pts, bf.DiffuseMaterial(), bf.VertexColors(np.ones((2, 3))))
+    scene.lights.add_sun(strength=1.0)
+    seen = []
+
+    def recolour(s, i):
+        cols = approximate_colors_from_camera(s.camera, normals, np.ones((2, 3)), (0, 0, 0, 0), points=pts)
+        pc.update_colors(bf.VertexColors(cols))
+        seen.append(cols[:, 3].tolist())
+
+    t = Trajectory()
+    t.add_keypoint((0, -3, 0), (0, 0, 0), 0.0, rotation_mode="look_at")
+    t.add_keypoint((0, 3, 0), (0, 0, 0), 1.0, rotation_mode="look_at")
+    rep = render_frames(scene, [t[0], t[1]], backend=fake_backend.name, on_frame=recolour, progress=False)
+    assert len(rep.results) == 2
+    assert seen == [[1.0, 0.0], [0.0, 1.0]]  # the point facing each camera stays visible
+    with pytest.raises(bf.InvalidSceneError, match="on_frame"):
+        render_frames(scene, t, backend=fake_backend.name, on_frame=3)
