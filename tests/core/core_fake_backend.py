@@ -34,7 +34,7 @@ class FakeBackend(Backend):
 
     def __init__(self, pattern: str = "shade", **options: Any) -> None:
         super().__init__(**options)  # unknown options -> InvalidSceneError
-        if pattern not in ("shade", "coords", "blobs"):
+        if not isinstance(pattern, str) or pattern not in ("shade", "coords", "blobs"):
             raise bf.InvalidSceneError(f"pattern: expected 'shade', 'coords' or 'blobs', got {pattern!r}")
         self.pattern = pattern
         self.translated: list[Any] = []
