@@ -89,10 +89,14 @@ def add_meshified(scene: Any, result: MeshifyResult, material: Any = None, **kwa
 # -------------------------------------------------------------------------------------------------
 
 
+def _grid(n_faces: int) -> int:
+    """Cells per side of the atlas grid (two triangles per cell)."""
+    return int(np.ceil(np.sqrt(max(1, (n_faces + 1) // 2))))
+
+
 def _atlas_layout(n_faces: int, texture_size: int | None, cell: int | None) -> tuple[int, int, int]:
-    """(grid columns G, cell size in texels c, texture size G*c)."""
-    n_cells = max(1, (n_faces + 1) // 2)
-    grid = int(np.ceil(np.sqrt(n_cells)))
+    """(grid columns G, cell size in texels c, texture size: ``texture_size`` or G*c)."""
+    grid = _grid(n_faces)
     if texture_size is None:
         c = 8 if cell is None else int(cell)
     else:
@@ -102,7 +106,7 @@ def _atlas_layout(n_faces: int, texture_size: int | None, cell: int | None) -> t
             f"texture_size: {texture_size} texels across is too small for {n_faces} faces (each pair of "
             f"triangles needs a cell of at least 6x6 texels; use texture_size >= {6 * grid} or fewer faces)"
         )
-    return grid, c, grid * c
+    return grid, c, grid * c if texture_size is None else int(texture_size)
 
 
 def _local_corners(c: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -133,7 +137,7 @@ def atlas_uv(n_faces: int, texture_size: int | None = None, cell: int | None = N
 def _texel_owner(size: int, cell: int, n_faces: int, start: int, stop: int) -> tuple[np.ndarray, ...]:
     """For flat texel indices [start, stop): the owning face (-1 for unused cells) and the clamped
     barycentric coordinates (l0, l1, l2) of the texel centre in that face's atlas triangle."""
-    grid = size // cell
+    grid = _grid(n_faces)
     a_loc, b_loc, leg = _local_corners(cell)
     idx = np.arange(start, stop)
     row, col = idx // size, idx % size
@@ -143,7 +147,7 @@ def _texel_owner(size: int, cell: int, n_faces: int, start: int, stop: int) -> t
     la, lb = sx - cx * cell, ty - cy * cell
     upper = la + lb >= cell
     face = 2 * (cy * grid + cx) + upper
-    face = np.where(face < n_faces, face, -1)
+    face = np.where((face < n_faces) & (cx < grid) & (cy < grid), face, -1)
     # barycentrics in the right-isosceles local triangle, clamped to it
     l1 = np.where(upper, (b_loc[0, 0] - la) / leg, (la - a_loc[0, 0]) / leg)
     l2 = np.where(upper, (b_loc[0, 1] - lb) / leg, (lb - a_loc[0, 1]) / leg)
@@ -283,8 +287,9 @@ def meshify_pointcloud(
     (``voxel_size``, default 1.5 x the median spacing, at most 256 voxels across) and marching tetrahedra
     (smoother and more regular than ball pivoting, holes stay open).
     ``target_faces``: simplification budget (None = keep all): Open3D's quadric decimation, or vertex
-    clustering without Open3D. ``texture_size``: square texture side in texels, at most (None = 8x8 texels
-    per pair of triangles); ``knn``: input points blended per texel.
+    clustering without Open3D. ``texture_size``: square texture side in texels (None = 8x8 texels per
+    pair of triangles; with a given size, cells are as large as fit, any remainder stays unused);
+    ``knn``: input points blended per texel.
     """
     from .normals import _points, estimate_normals
 

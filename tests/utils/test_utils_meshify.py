@@ -137,7 +137,7 @@ def test_meshify_uint8_colours_and_given_normals(rng):
     res = meshify_pointcloud(
         pts, np.round(cols * 255).astype(np.uint8), normals=pts, target_faces=None, texture_size=1024
     )
-    assert res.texture.shape[0] <= 1024
+    assert res.texture.shape[:2] == (1024, 1024)
     mae, _ = _texture_error(res, pts, cols)
     assert mae < 0.02
 
@@ -170,3 +170,11 @@ def test_marching_tetrahedra_plane_is_connected_and_oriented():
     assert len(verts) == len(np.unique(np.round(verts, 9), axis=0))  # shared vertices, no duplicates
     area = 0.5 * np.linalg.norm(fn, axis=1).sum()
     assert area == pytest.approx(16.0)  # the 4 x 4 grid cells, exactly covered
+
+
+def test_given_texture_size_is_exact_and_the_remainder_is_unused():
+    uv, size, cell = atlas_uv(200, 257)
+    assert size == 257 and cell == 25  # 10 x 10 cells of 25 texels, 7 texels left over
+    owner = atlas_texel_faces(200, size, cell)
+    assert np.all(owner[:7, :] == -1) and np.all(owner[:, 250:] == -1)  # top rows and right columns
+    assert set(np.unique(owner)) == set(range(-1, 200))
