@@ -457,6 +457,51 @@ def _mutations():
     def background(s):
         s.lights.set_background_light(0.31)
 
+    def texture_pixel(s):
+        m = s.renderables["textured"]
+        tex = m.colors.texture.copy()
+        tex[0, 0, 0] ^= 1
+        m.update_colors(bf.TextureColors(tex, m.colors.uv_map))
+
+    def uv_nudge(s):
+        m = s.renderables["textured"]
+        uv = m.colors.uv_map.data.copy()
+        uv[0, 0] += 1e-6
+        m.update_colors(bf.TextureColors(m.colors.texture, bf.VertexUV(uv)))
+
+    def roughness_map(s):
+        s.renderables["textured"].material.roughness_map = None
+
+    def near_far(s):
+        s.set_perspective_camera((96, 72), fov_x=np.deg2rad(50), translation=(0, -6, 3), far=99.0)
+
+    def distortion(s):
+        s.set_perspective_camera((96, 72), fov_x=np.deg2rad(50), translation=(0, -6, 3), distortion=(1e-6, 0, 0, 0))
+
+    def principal_point(s):
+        s.set_perspective_camera((96, 72), fov_x=np.deg2rad(50), translation=(0, -6, 3), center=(47.5, 35.0))
+
+    def environment(s):
+        s.lights.set_environment_map(np.ones((2, 4, 3), np.float32))
+
+    def shadow_catcher(s):
+        s.renderables["ground"].shadow_catcher = True
+
+    def faces_material(s):
+        m = s.renderables["pyramid"]
+        s.renderables.remove(m)
+        s.renderables.add_mesh(
+            m.vertices, m.faces, m.materials, m.colors_list, faces_material=[1, 1, 0, 1], tag="pyramid"
+        )
+
+    def light_pose(s):
+        s.lights["Spot_000"].set_position("look_at", (0, 0, 0.001), translation=(2, -2, 3))
+
+    def material_colour_space(s):
+        s.renderables["emitter"].update_material(
+            bf.PrincipledBSDFMaterial(emission_color=(1, 0.5, 0.2), emission_strength=2.0, color_space="linear")
+        )
+
     def tag(s):
         obj = s.renderables["circle"]
         s.renderables.remove(obj)
