@@ -835,11 +835,20 @@ class CrosscheckReport:
     notes: list[str] = field(default_factory=list)
     settings: dict[str, Any] = field(default_factory=dict)
     scene_name: str = "scene"
+    #: backend -> ReferenceEstimate of its colour (``crosscheck(repeats=k)``, path tracers only)
+    estimates: dict[str, Any] = field(default_factory=dict, repr=False)
+    #: (a, b) -> ZTestResult of the two-sample test between two path tracers' estimates
+    ztests: dict[tuple[str, str], Any] = field(default_factory=dict)
 
     @property
     def passed(self) -> bool:
-        """Every pair passed its tier and no available backend failed to render."""
-        return not self.errors and all(r.passed for r in self.pairs.values())
+        """Every pair passed its tier (and its statistical test, with ``repeats``) and no available
+        backend failed to render."""
+        return (
+            not self.errors
+            and all(r.passed for r in self.pairs.values())
+            and all(z.passed for z in self.ztests.values())
+        )
 
     def summary(self) -> str:
         """Markdown report: settings, per-backend timings, skipped backends, pair verdicts and metrics."""
@@ -860,6 +869,15 @@ class CrosscheckReport:
         for n in self.notes:
             lines.append(f"- {n}")
         if self.notes:
+            lines.append("")
+        for (a, b), z in self.ztests.items():
+            verdict = "consistent" if z.passed else "DIFFERENT"
+            lines.append(
+                f"- statistical test {a} vs {b} ({self.settings.get('repeats')} renders each): **{verdict}**; "
+                f"{z.n_reject} pixel-channels and {z.n_tile_reject}/{z.n_tiles} tiles reject, "
+                f"global p = {z.global_p:.3g}" + (f" ({'; '.join(z.reasons)})" if z.reasons else "")
+            )
+        if self.ztests:
             lines.append("")
         for rep in self.pairs.values():
             lines.append(rep.summary())
@@ -953,6 +971,7 @@ def crosscheck(
     seed: int = 0,
     backend_options: Mapping[str, Mapping[str, Any]] | None = None,
     scene_name: str = "scene",
+    repeats: int = 1,
     **settings: Any,
 ) -> CrosscheckReport:
     """Render ``scene`` with each of ``backends`` and compare every pair.
@@ -966,6 +985,12 @@ def crosscheck(
     outputs a backend does not support are dropped for that backend (noted in ``report.notes``); a
     backend whose render raises is reported in ``report.errors`` (and the report does not pass).
     Pairs (a, b) follow the order of ``backends``; the later backend is the reference b.
+
+    ``repeats`` (>= 2): each path tracer renders the scene ``repeats`` times with seeds ``seed``,
+    ``seed + 1``, ...; its colour becomes the mean of the renders (geometry from the first), its mean and
+    variance estimate go to ``report.estimates``, and every path-tracer pair also gets a two-sample
+    statistical test (:meth:`ReferenceEstimate.compare`) in ``report.ztests``, which must pass too: are
+    the two engines' expected images equal, given their noise?
     """
     from .backend import available_backends
     from .render import render
@@ -988,7 +1013,10 @@ def crosscheck(
     skipped: dict[str, str] = {}
     errors: dict[str, str] = {}
     notes: list[str] = []
+    if not isinstance(repeats, (int, np.integer)) or repeats < 1:
+        raise InvalidSceneError(f"repeats: expected a positive integer, got {repeats!r}")
     fixed = dict(pixel_filter="box", denoise=False, clamp_direct=0.0, clamp_indirect=0.0, adaptive=False)
+    estimates: dict[str, Any] = {}
     for name in backends:
         st = status.get(name)
         if st is None:
@@ -1010,6 +1038,21 @@ def crosscheck(
                     **settings,
                     **dict(backend_options.get(name, {})),
                 )
+                if repeats > 1 and is_path_tracer(name) and results[name].rgba is not None:
+                    extra = [
+                        render(
+                            scene,
+                            backend=name,
+                            samples=samples,
+                            seed=seed + i,
+                            outputs=("rgb",),
+                            **fixed,
+                            **settings,
+                            **dict(backend_options.get(name, {})),
+                        ).rgba
+                        for i in range(1, repeats)
+                    ]
+                    estimates[name] = _average_repeats(results[name], extra, samples)
                 break
             except UnsupportedFeatureError as exc:
                 feat = getattr(exc, "feature", None) or ""
@@ -1032,7 +1075,10 @@ def crosscheck(
             a, b = names[i], names[j]
             t = tier if tier is not None else choose_tier(a, b, scene)
             pairs[(a, b)] = compare(results[a], results[b], tier=t, names=(a, b))
+    ztests = {(a, b): estimates[a].compare(estimates[b]) for (a, b) in pairs if a in estimates and b in estimates}
     used_settings = {"samples": samples, "seed": seed, **fixed, **settings}
+    if repeats > 1:
+        used_settings["repeats"] = repeats
     return CrosscheckReport(
         results=results,
         pairs=pairs,
@@ -1041,7 +1087,20 @@ def crosscheck(
         notes=notes,
         settings=used_settings,
         scene_name=scene_name,
+        estimates=estimates,
+        ztests=ztests,
     )
+
+
+def _average_repeats(first: RenderResult, extra: list[Any], samples: int | None) -> Any:
+    """Replace ``first.rgba`` by the mean of all repeats; return the ReferenceEstimate of the colour."""
+    from .stats import ReferenceEstimate
+
+    stack = [first.rgba] + [x for x in extra if x is not None]
+    est = ReferenceEstimate.from_images([x[..., :3] for x in stack], int(samples or 1))
+    first.rgba = np.mean(np.stack(stack), axis=0).astype(np.float32)
+    first.meta["repeats"] = len(stack)
+    return est
 
 
 def crosscheck_main(argv: Sequence[str] | None = None) -> int:
@@ -1063,6 +1122,12 @@ def crosscheck_main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--tier", default=None, help=f"tier for every pair (default: per pair); one of {sorted(TIERS)}")
     p.add_argument("--max-bounces", type=int, default=None)
+    p.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help="render each path tracer N times (seeds seed..seed+N-1) and add a statistical test per pair",
+    )
     try:
         args = p.parse_args(list(argv) if argv is not None else None)
     except SystemExit as exc:  # argparse exits on --help / errors; turn that into a return code
@@ -1079,6 +1144,7 @@ def crosscheck_main(argv: Sequence[str] | None = None) -> int:
             seed=args.seed,
             tier=args.tier,
             scene_name=Path(args.scene).name,
+            repeats=args.repeats,
             **extra,
         )
         folder = report.save(args.output)

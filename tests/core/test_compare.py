@@ -360,13 +360,40 @@ class FakeB(_FakeBase):
     gain = 1.003
 
 
+class _NoisyFake(_FakeBase):
+    """A fake path tracer: the constant colour plus seed-dependent Gaussian noise."""
+
+    def render(self, native, settings):
+        res = super().render(native, settings)
+        rng = np.random.default_rng(settings.seed + 1000 * ord(self.name[-1]))  # independent per fake
+        hit = res.rgba[..., 3] > 0
+        noise = rng.normal(size=res.rgba.shape[:2] + (3,)) * 0.1 / np.sqrt(settings.samples)
+        res.rgba[..., :3] += np.where(hit[..., None], noise, 0).astype(np.float32)
+        return res
+
+
+class NoisyA(_NoisyFake):
+    name = "noisy-a"
+
+
+class NoisyB(_NoisyFake):
+    name = "noisy-b"
+
+
+class NoisyBiased(_NoisyFake):
+    name = "noisy-biased"
+    gain = 1.02
+
+
 @pytest.fixture
 def fakes():
     register_backend(FakeA.name, FakeA)
     register_backend(FakeB.name, FakeB)
+    for cls in (NoisyA, NoisyB, NoisyBiased):
+        register_backend(cls.name, cls)
     yield
-    unregister_backend(FakeA.name)
-    unregister_backend(FakeB.name)
+    for cls in (FakeA, FakeB, NoisyA, NoisyB, NoisyBiased):
+        unregister_backend(cls.name)
     bf.close_backends()
 
 
@@ -417,6 +444,21 @@ def test_random_results_identical_to_themselves_and_masks_symmetric(seed, h, w):
     assert m1 == m2  # every mask metric is symmetric
     assert m1["n_disagree"] == (hit ^ hit2).sum()
     assert m1["n_disagree_interior"] <= m1["n_disagree"]
+
+
+def test_crosscheck_repeats_statistical_test(fakes):
+    scene = depth_plane_scene()
+    rep = bf.crosscheck(scene, backends=("noisy-a", "noisy-b", "noisy-biased"), samples=4, repeats=4)
+    assert set(rep.estimates) == {"noisy-a", "noisy-b", "noisy-biased"}
+    assert rep.results["noisy-a"].meta["repeats"] == 4
+    assert rep.settings["repeats"] == 4
+    assert rep.ztests[("noisy-a", "noisy-b")].passed
+    assert not rep.ztests[("noisy-a", "noisy-biased")].passed
+    assert not rep.ztests[("noisy-b", "noisy-biased")].passed
+    assert not rep.passed
+    assert "statistical test noisy-a vs noisy-b" in rep.summary()
+    with pytest.raises(bf.InvalidSceneError, match="repeats"):
+        bf.crosscheck(scene, backends=("noisy-a",), repeats=0)
 
 
 def test_crosscheck_main_cli(fakes, tmp_path, capsys):
