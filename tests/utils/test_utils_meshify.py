@@ -142,7 +142,7 @@ def test_meshify_uint8_colours_and_given_normals(rng):
     assert mae < 0.02
 
 
-def test_implicit_method_needs_no_open3d(monkeypatch, rng):
+def test_implicit_method_needs_no_open3d(monkeypatch, rng, tmp_path):
     """The dependency-free path: narrow-band signed distance + marching tetrahedra + vertex clustering."""
     monkeypatch.setitem(sys.modules, "open3d", None)
     pts, cols = _sphere_cloud(rng, 4000)
@@ -156,6 +156,9 @@ def test_implicit_method_needs_no_open3d(monkeypatch, rng):
     v, f = res.vertices, res.faces
     volume = np.einsum("ij,ij->i", v[f[:, 0]], np.cross(v[f[:, 1]], v[f[:, 2]])).sum() / 6.0
     assert volume == pytest.approx(4 / 3 * np.pi, rel=0.1)
+    res.save(tmp_path / "out")
+    assert {p.name for p in (tmp_path / "out").iterdir()} == {"mesh.ply", "texture.png", "faces_uv.npy"}
+    np.testing.assert_array_equal(np.load(tmp_path / "out" / "faces_uv.npy"), res.faces_uv)
 
 
 def test_marching_tetrahedra_plane_is_connected_and_oriented():
