@@ -92,7 +92,11 @@ _CAPS: dict[str, tuple[str, str]] = {
         "Mitsuba 'normalmap' (frame dp/du, n x dp/du; strength baked into the map); not compared with Cycles yet",
     ),
     "light.point": (E, "point, intensity = P / (4 pi)"),
-    "light.point.soft": (A, "rendered as a delta point light (radius ignored: hard shadows)"),
+    "light.point.soft": (
+        A,
+        "point lights: a sphere emitter of radiance P / (4 pi^2 r^2) (Blender's sphere light with soft falloff "
+        "off); spot lights: delta (radius ignored). The light's null surface also blocks other lights' shadow rays",
+    ),
     "light.sun": (E, "directional, irradiance = strength"),
     "light.sun.soft": (A, "delta directional light (angular diameter ignored: hard shadows)"),
     "light.spot": (E, "spot, intensity = P / (4 pi), cutoff = spot_size / 2"),
@@ -230,7 +234,7 @@ class MitsubaBackend(Backend):
         light only; 3 when a camera ray may have to pass through an area light's null surface) when
         ``settings.effects`` and the effect analysis finds no indirect light."""
         from blendify_core.effects import analyse_effects
-        from blendify_core.lights import AreaLight
+        from blendify_core.lights import AreaLight, PointLight
 
         effects = analyse_effects(scene)
         # hide_emitters gives a coverage alpha under a sky and hides area lights from the camera (as in
@@ -241,7 +245,11 @@ class MitsubaBackend(Backend):
         if settings.effects and not (
             effects.indirect_diffuse or effects.glossy or effects.transmission or effects.caustics
         ):
-            has_area = any(isinstance(light, AreaLight) and light.strength > 0 for light in scene.lights)
+            has_area = any(
+                light.strength > 0
+                and (isinstance(light, AreaLight) or (type(light) is PointLight and light.shadow_soft_size > 0))
+                for light in scene.lights
+            )
             max_depth = min(max_depth, 3 if has_area else 2)
         return {"type": "path", "max_depth": int(max_depth), "hide_emitters": hide}, effects
 

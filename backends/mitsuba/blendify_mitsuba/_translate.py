@@ -152,11 +152,22 @@ def light_dicts(scene: Any) -> dict[str, dict[str, Any]]:
                 "to_world": _mat(m @ _FLIP_Z),
             }
         elif isinstance(light, PointLight):
-            out[key] = {
-                "type": "point",
-                "intensity": _rgb(col * light.strength / (4.0 * math.pi)),
-                "position": [float(x) for x in light.translation],
-            }
+            r = float(light.shadow_soft_size)
+            if r > 0:
+                # Blender's sphere light (soft falloff off): a sphere emitter of radiance P / (4 pi^2 r^2)
+                out[key] = {
+                    "type": "sphere",
+                    "center": [float(x) for x in light.translation],
+                    "radius": r,
+                    "bsdf": {"type": "null"},
+                    "emitter": {"type": "area", "radiance": _rgb(col * light.strength / (4.0 * math.pi**2 * r * r))},
+                }
+            else:
+                out[key] = {
+                    "type": "point",
+                    "intensity": _rgb(col * light.strength / (4.0 * math.pi)),
+                    "position": [float(x) for x in light.translation],
+                }
         elif isinstance(light, SunLight):
             out[key] = {
                 "type": "directional",

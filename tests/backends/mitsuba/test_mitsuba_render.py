@@ -160,6 +160,18 @@ def test_light_units_match_blender_radiometry(scalar_backend, light, spp, tol):
     assert abs(ratio - 1) < tol
 
 
+def test_sphere_light_matches_point_light_irradiance(scalar_backend):
+    """A uniform sphere light's irradiance equals the point light's where it is fully visible; the sphere
+    (between the camera and the plane) is invisible to the camera, as Cycles lights are."""
+    scene = testing.plane_scene("point", resolution=(16, 16))
+    delta = _render(scalar_backend, scene, samples=4).rgba
+    scene.lights["Point_000"].shadow_soft_size = 0.3
+    sphere = _render(scalar_backend, scene, samples=64).rgba
+    ratio = sphere[2:14, 2:14, 0].sum() / delta[2:14, 2:14, 0].sum()
+    print(f"sphere light / point light = {ratio:.5f}")
+    assert abs(ratio - 1) < 0.005
+
+
 def test_background_light_units(scalar_backend):
     scene = testing.plane_scene("background", resolution=(16, 16))
     r = _render(scalar_backend, scene, samples=64)

@@ -130,6 +130,16 @@ def test_lights_radiometry(mi_scalar):
     assert d["background"]["type"] == "constant" and d["background"]["radiance"]["value"] == pytest.approx([0.5] * 3)
 
 
+def test_point_light_with_radius_is_a_sphere_emitter(mi_scalar):
+    scene = bf.Scene()
+    scene.lights.add_point(100.0, shadow_soft_size=0.2, translation=(0, 0, 2))
+    from blendify_mitsuba._translate import light_dicts
+
+    d = light_dicts(scene)["light0000"]
+    assert d["type"] == "sphere" and d["radius"] == 0.2 and d["bsdf"]["type"] == "null"
+    assert d["emitter"]["radiance"]["value"] == pytest.approx([100 / (4 * np.pi**2 * 0.04)] * 3)
+
+
 def test_environment_map_follows_equirect_uv(mi_scalar):
     """The envmap emitter must look up the texel that blendify_core.lights.equirect_uv names."""
     mi = mi_scalar
