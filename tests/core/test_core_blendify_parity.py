@@ -549,3 +549,18 @@ def test_copied_material_is_independent():
     changed = mat.copy(roughness=0.5)
     assert type(changed) is bf.MetalMaterial and changed.roughness == 0.5 and mat.roughness == 0.3
     assert mat.copy() == mat
+
+
+def test_deliberate_differences_are_in_the_migration_guide():
+    from pathlib import Path
+
+    readme = Path(__file__).resolve().parents[2] / "README.md"
+    if not readme.is_file():
+        pytest.skip(f"README.md not found at {readme}")
+    text = readme.read_text(encoding="utf-8")
+    assert "Migrating from blendify" in text
+    guide = text[text.index("Migrating from blendify") :]
+    for (_owner, param), (old, new, _why) in DELIBERATE.items():
+        assert param in guide, f"README migration guide does not mention {param} ({old!r} -> {new!r})"
+    for phrase in ('color_space="linear"', "center", "SystemExit", "bf.render"):
+        assert phrase in guide, phrase
