@@ -178,6 +178,7 @@ class MitsubaBackend(Backend):
         self.requested_variant = variant
         self._max_analytic_spheres = None if max_analytic_spheres is None else int(max_analytic_spheres)
         self._choice: Any = None
+        self._cache: tuple[Any, MitsubaNative] | None = None  # (key, native) of the last translation
 
     # -- discovery -------------------------------------------------------------------------------
     @classmethod
@@ -314,6 +315,39 @@ class MitsubaBackend(Backend):
             effects=effects,
             n_analytic_spheres=tr.n_analytic_spheres,
         )
+
+    def render_scene(self, scene: Any, settings: RenderSettings) -> RenderResult:
+        """Translate (unless the same scene content and translation settings were just translated) and
+        render. The cache key is the scene's content fingerprint, so any change re-translates."""
+        from blendify_core.errors import BackendUnavailableError
+
+        if self._closed:
+            raise BackendUnavailableError(f"{self.name}: this backend instance was closed")
+        t0 = time.perf_counter()
+        key = (
+            scene.fingerprint(),
+            settings.samples,
+            settings.pixel_filter,
+            settings.max_bounces,
+            settings.effects,
+            settings.transparent_background,
+            self.variant,
+        )
+        cached = self._cache is not None and self._cache[0] == key
+        native = self._cache[1] if cached else self.translate(scene, settings)
+        self._cache = (key, native)
+        t1 = time.perf_counter()
+        result = self.render(native, settings)
+        t2 = time.perf_counter()
+        result.meta["translate_cached"] = cached
+        timings = result.meta.setdefault("timings", {})
+        timings.setdefault("translate", t1 - t0)
+        timings.setdefault("render", t2 - t1)
+        return result
+
+    def close(self) -> None:
+        self._cache = None
+        super().close()
 
     def _catch_shadows(self, native: MitsubaNative, rgba: np.ndarray, settings: RenderSettings) -> np.ndarray:
         """Shadow-catcher emulation: where a pixel centre sees a catcher, the pixel becomes black with

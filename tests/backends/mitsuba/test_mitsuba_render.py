@@ -305,6 +305,20 @@ def test_emissive_surfaces_under_a_sky_keep_coverage_alpha(scalar_backend):
     assert ratio == pytest.approx(2.0, rel=0.05)
 
 
+def test_translation_is_cached_until_the_scene_changes():
+    scene = testing.plane_scene("sun", resolution=(16, 16))
+    with MitsubaBackend(variant="scalar_rgb") as b:
+        a = bf.render(scene, backend=b, samples=2)
+        c = bf.render(scene, backend=b, samples=2, seed=5)
+        assert not a.meta["translate_cached"] and c.meta["translate_cached"]
+        scene.lights["Sun_000"].strength = 6.0
+        d = bf.render(scene, backend=b, samples=2)
+        assert not d.meta["translate_cached"]
+        assert d.rgba[8, 8, 0] == pytest.approx(2 * a.rgba[8, 8, 0], rel=1e-5)
+        e = bf.render(scene, backend=b, samples=4)
+        assert not e.meta["translate_cached"]  # samples are part of the translated sensor
+
+
 def test_same_seed_same_image(scalar_backend):
     scene = testing.bunny_scene((32, 32))
     a = _render(scalar_backend, scene, samples=4, seed=3)
