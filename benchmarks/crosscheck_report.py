@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import norm
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "crossbackend"))
@@ -150,7 +151,7 @@ def statistical_crosscheck(status: dict, repeats: int = 4, spp: int = 64) -> lis
         rep = bf.crosscheck(build(), backends=("cycles", "mitsuba"), samples=spp, repeats=repeats, outputs=("rgb",))
         z = rep.ztests[("cycles", "mitsuba")]
         ratio = rep.pairs[("cycles", "mitsuba")].metrics["rgb"]["mean_ratio"]
-        gz = float(__import__("scipy.stats").stats.norm.isf(max(z.global_p, 1e-300) / 2))
+        gz = float(norm.isf(max(z.global_p, 1e-300) / 2))
         lines.append(
             f"| {name} | {'consistent' if z.passed else '**different**'} | {z.n_reject} / {z.n_tests} | "
             f"{z.n_tile_reject} / {z.n_tiles} | {gz:.1f} | {ratio:.4f} | {time.perf_counter() - t0:.1f} |"
