@@ -1,0 +1,284 @@
+"""Batch rendering benchmarks (issue 10).
+
+- ``throughput``: frames per minute of 100 small frames (64x48, a new random mesh each frame on the
+  primitives scene) through ``bf.render_many`` with 1 and 2 local pool workers.
+- ``memory``: RSS of one pool worker after each of 500 jobs (a new random mesh each job), without
+  recycling and with ``recycle_after=N``; used to choose ``DEFAULT_RECYCLE_AFTER``.
+
+Writes benchmarks/results/batch_<kind>_<backend>.{json,md,png}. The machine's load average is
+recorded before and after each run (this machine is shared; read the numbers with it).
+
+    uv run --no-sync python benchmarks/bench_batch.py throughput --backend mitsuba
+    uv run --no-sync python benchmarks/bench_batch.py memory --backend mitsuba --jobs 500 --recycle 100
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import blendify_core as bf
+from blendify_core.colors import UniformColors
+from blendify_core.materials import PrincipledBSDFMaterial
+from blendify_core.testing import primitives_scene
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def bench_scene(i: int, resolution: tuple[int, int] = (64, 48), n_points: int = 400) -> bf.Scene:
+    """The primitives scene plus a random convex mesh (about 2 * n_points triangles) unique to job ``i``."""
+    from scipy.spatial import ConvexHull
+
+    rng = np.random.default_rng(i)
+    scene = primitives_scene(resolution)
+    pts = rng.normal(size=(n_points, 3))
+    pts /= np.linalg.norm(pts, axis=1, keepdims=True)
+    pts *= rng.uniform(0.8, 1.2, size=(n_points, 1)) * 0.35
+    hull = ConvexHull(pts)
+    faces = hull.simplices.astype(np.int32)
+    # orient outwards
+    centre = pts.mean(axis=0)
+    v = pts[faces]
+    normal = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    flip = np.einsum("ij,ij->i", normal, v.mean(axis=1) - centre) < 0
+    faces[flip] = faces[flip][:, ::-1]
+    colour = tuple(float(c) for c in rng.uniform(0.2, 0.9, 3))
+    scene.renderables.add_mesh(
+        pts, faces, PrincipledBSDFMaterial(), UniformColors(colour), translation=(0.5, -1.0, 0.4), tag=f"blob{i}"
+    )
+    return scene
+
+
+def _machine() -> dict[str, Any]:
+    return {
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
+    }
+
+
+def _load() -> list[float]:
+    return [round(x, 2) for x in os.getloadavg()]
+
+
+def choose_backend(requested: str | None) -> str:
+    if requested:
+        return requested
+    status = bf.available_backends()
+    for name in ("cycles", "mitsuba", "pyrender"):
+        if name in status and status[name].available:
+            return name
+    raise SystemExit("no backend available")
+
+
+def run_throughput(backend: str, frames: int, samples: int, workers_list: list[int]) -> dict[str, Any]:
+    scenes_dir = Path(tempfile.mkdtemp(prefix="bench-batch-scenes-"))
+    paths = []
+    for i in range(frames):
+        p = scenes_dir / f"s{i}.npz"
+        bench_scene(i).save(p)
+        paths.append(p)
+    runs = []
+    for workers in workers_list:
+        out = Path(tempfile.mkdtemp(prefix="bench-batch-out-"))
+        jobs = [bf.RenderJob(p, out / f"f{i}.png", backend=backend, samples=samples) for i, p in enumerate(paths)]
+        load_before = _load()
+        t0 = time.perf_counter()
+        report = bf.render_many(jobs, workers=workers, progress=False)
+        wall = time.perf_counter() - t0
+        load_after = _load()
+        done = report.counts["done"]
+        per_job = [j.seconds for j in report if j.seconds is not None]
+        row = {
+            "workers": workers,
+            "threads_per_job": max(1, _machine()["cores"] // workers),
+            "frames": frames,
+            "done": done,
+            "failed": report.counts["failed"],
+            "wall_s": wall,
+            "frames_per_min": 60.0 * done / wall,
+            "median_job_s": float(np.median(per_job)) if per_job else None,
+            "load_before": load_before,
+            "load_after": load_after,
+            "first_failure": report.failed[0].reason if report.failed else None,
+        }
+        print(json.dumps(row))
+        runs.append(row)
+    return {"kind": "throughput", "backend": backend, "samples": samples, "machine": _machine(), "runs": runs}
+
+
+def run_memory(backend: str, jobs_n: int, samples: int, recycle_list: list[int | None]) -> dict[str, Any]:
+    runs = []
+    for recycle in recycle_list:
+        out = Path(tempfile.mkdtemp(prefix="bench-batch-mem-"))
+        jobs = [
+            bf.RenderJob(bench_scene(i), out / f"f{i}.png", backend=backend, samples=samples) for i in range(jobs_n)
+        ]
+        load_before = _load()
+        t0 = time.perf_counter()
+        report = bf.render_many(jobs, workers=1, recycle_after=recycle, progress=False, manifest=False)
+        wall = time.perf_counter() - t0
+        rss = [j.rss_mb for j in report]
+        workers = [j.worker for j in report]
+        row = {
+            "recycle_after": recycle,
+            "jobs": jobs_n,
+            "done": report.counts["done"],
+            "failed": report.counts["failed"],
+            "wall_s": wall,
+            "frames_per_min": 60.0 * report.counts["done"] / wall,
+            "rss_mb": rss,
+            "worker": workers,
+            "load_before": load_before,
+            "load_after": _load(),
+            "first_failure": report.failed[0].reason if report.failed else None,
+        }
+        valid = [r for r in rss if r is not None]
+        print(
+            json.dumps(
+                {k: v for k, v in row.items() if k not in ("rss_mb", "worker")}
+                | {"rss_first": valid[:1], "rss_last": valid[-1:], "rss_max": max(valid) if valid else None}
+            )
+        )
+        runs.append(row)
+    return {"kind": "memory", "backend": backend, "samples": samples, "machine": _machine(), "runs": runs}
+
+
+def _slope(rss: list[float | None], start: int) -> float | None:
+    y = np.array([r for r in rss[start:] if r is not None], dtype=float)
+    if len(y) < 10:
+        return None
+    x = np.arange(len(y), dtype=float)
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def write_throughput(data: dict[str, Any]) -> None:
+    name = f"batch_throughput_{data['backend']}"
+    (RESULTS / f"{name}.json").write_text(json.dumps(data, indent=1))
+    m = data["machine"]
+    lines = [
+        f"# Batch throughput: {data['backend']}, {data['runs'][0]['frames']} frames of 64x48, "
+        f"{data['samples']} samples",
+        "",
+        f"`bf.render_many` with the local process pool (scene files on disk, PNG outputs, JSON-lines manifest), "
+        f"{m['cores']} cores, {m['platform']}, Python {m['python']}. Each frame is the primitives scene plus a "
+        "random convex mesh unique to the frame. Wall time includes starting the workers and the engine.",
+        "",
+        "| workers | threads/job | done | failed | wall (s) | frames/min | median job (s) | load avg before -> after |",
+        "|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for r in data["runs"]:
+        lines.append(
+            f"| {r['workers']} | {r['threads_per_job']} | {r['done']} | {r['failed']} | {r['wall_s']:.1f} | "
+            f"**{r['frames_per_min']:.1f}** | {r['median_job_s']:.3f} | {r['load_before']} -> {r['load_after']} |"
+        )
+    if len(data["runs"]) >= 2:
+        a, b = data["runs"][0], data["runs"][1]
+        lines += [
+            "",
+            f"Speed-up {b['workers']} vs {a['workers']} worker(s): {b['frames_per_min'] / a['frames_per_min']:.2f}x.",
+        ]
+    lines += [
+        "",
+        "The load average is the machine's (1, 5, 15 min); other work was running on this shared machine, "
+        "so absolute numbers are pessimistic and the 1-vs-2 comparison is only indicative.",
+        "",
+    ]
+    (RESULTS / f"{name}.md").write_text("\n".join(lines))
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is missing: no plot written")
+        return
+    fig, ax = plt.subplots(figsize=(4.5, 3.2))
+    ax.bar([str(r["workers"]) for r in data["runs"]], [r["frames_per_min"] for r in data["runs"]], color="#4477aa")
+    ax.set_xlabel("workers")
+    ax.set_ylabel("frames per minute")
+    ax.set_title(f"render_many throughput ({data['backend']})")
+    fig.tight_layout()
+    fig.savefig(RESULTS / f"{name}.png", dpi=120)
+    plt.close(fig)
+
+
+def write_memory(data: dict[str, Any]) -> None:
+    name = f"batch_memory_{data['backend']}"
+    (RESULTS / f"{name}.json").write_text(json.dumps(data))
+    m = data["machine"]
+    lines = [
+        f"# Worker memory over {data['runs'][0]['jobs']} jobs: {data['backend']}, 64x48, {data['samples']} samples",
+        "",
+        f"One local pool worker renders every job (a new random mesh on the primitives scene each time); its RSS is "
+        f"read from /proc after each job. {m['cores']} cores, {m['platform']}.",
+        "",
+        "| recycle_after | done | failed | wall (s) | frames/min | RSS after job 1 (MiB) | RSS max (MiB) | "
+        "RSS last (MiB) | growth (MiB/job, after job 20, one process) | workers used | load avg before -> after |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for r in data["runs"]:
+        rss = r["rss_mb"]
+        valid = [x for x in rss if x is not None]
+        first_worker = r["worker"][0]
+        own = [x for x, w in zip(rss, r["worker"]) if w == first_worker]
+        slope = _slope(own, 20)
+        lines.append(
+            f"| {r['recycle_after'] or 'never'} | {r['done']} | {r['failed']} | {r['wall_s']:.1f} | "
+            f"{r['frames_per_min']:.1f} | {valid[0]:.0f} | {max(valid):.0f} | {valid[-1]:.0f} | "
+            f"{'n/a' if slope is None else f'{slope:.3f}'} | {len(set(r['worker']))} | "
+            f"{r['load_before']} -> {r['load_after']} |"
+        )
+    lines.append("")
+    (RESULTS / f"{name}.md").write_text("\n".join(lines))
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is missing: no plot written")
+        return
+    fig, ax = plt.subplots(figsize=(6.5, 3.6))
+    for r in data["runs"]:
+        label = f"recycle_after={r['recycle_after']}" if r["recycle_after"] else "no recycling"
+        ax.plot(np.arange(1, len(r["rss_mb"]) + 1), [np.nan if x is None else x for x in r["rss_mb"]], label=label)
+    ax.set_xlabel("job")
+    ax.set_ylabel("worker RSS after the job (MiB)")
+    ax.set_title(f"pool worker memory ({data['backend']})")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(RESULTS / f"{name}.png", dpi=120)
+    plt.close(fig)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("kind", choices=("throughput", "memory"))
+    parser.add_argument("--backend", default=None, help="default: cycles, else mitsuba, else pyrender")
+    parser.add_argument("--frames", type=int, default=100)
+    parser.add_argument("--jobs", type=int, default=500)
+    parser.add_argument("--samples", type=int, default=16)
+    parser.add_argument("--workers", default="1,2")
+    parser.add_argument("--recycle", type=int, default=100, help="recycle_after of the recycling run")
+    args = parser.parse_args()
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    backend = choose_backend(args.backend)
+    if args.kind == "throughput":
+        data = run_throughput(backend, args.frames, args.samples, [int(w) for w in args.workers.split(",")])
+        write_throughput(data)
+    else:
+        data = run_memory(backend, args.jobs, args.samples, [None, args.recycle])
+        write_memory(data)
+
+
+if __name__ == "__main__":
+    main()
