@@ -56,11 +56,9 @@ class Camera(Positionable):
         self.tag = tag
         self._resolution = _resolution(resolution)
         w, h = self._resolution
-        self.near = as_float("near", near, min_value=0.0, exclusive_min=True)
-        self.far = as_float("far", far, min_value=self.near, exclusive_min=True)
-        self.resolution_percentage = as_int(
-            "resolution_percentage", resolution_percentage, min_value=1, max_value=10000
-        )
+        self._near = as_float("near", near, min_value=0.0, exclusive_min=True)
+        self._far = as_float("far", far, min_value=self._near, exclusive_min=True)
+        self.resolution_percentage = resolution_percentage
         if center is None:
             self.cx, self.cy = (w - 1) / 2.0, (h - 1) / 2.0
         else:
@@ -95,8 +93,40 @@ class Camera(Positionable):
 
     @property
     def center(self) -> np.ndarray:
-        """Principal point (cx, cy) in OpenCV pixel coordinates."""
+        """Principal point (cx, cy) in OpenCV pixel coordinates (settable)."""
         return np.array([self.cx, self.cy])
+
+    @center.setter
+    def center(self, value: Any) -> None:
+        c = as_array("center", value, shape=(2,))
+        self.cx, self.cy = float(c[0]), float(c[1])
+
+    @property
+    def near(self) -> float:
+        """Near clip distance (world units, settable; must stay below ``far``)."""
+        return self._near
+
+    @near.setter
+    def near(self, value: float) -> None:
+        self._near = as_float("near", value, min_value=0.0, max_value=self._far, exclusive_min=True, exclusive_max=True)
+
+    @property
+    def far(self) -> float:
+        """Far clip distance (world units, settable; must stay above ``near``)."""
+        return self._far
+
+    @far.setter
+    def far(self, value: float) -> None:
+        self._far = as_float("far", value, min_value=self._near, exclusive_min=True)
+
+    @property
+    def resolution_percentage(self) -> int:
+        """Render at this percentage of ``resolution`` (1-10000, settable)."""
+        return self._resolution_percentage
+
+    @resolution_percentage.setter
+    def resolution_percentage(self, value: int) -> None:
+        self._resolution_percentage = as_int("resolution_percentage", value, min_value=1, max_value=10000)
 
     @property
     def viewdir(self) -> np.ndarray:
@@ -219,16 +249,33 @@ class PerspectiveCamera(Camera):
 
     @property
     def focal_dist(self) -> float:
-        """Focal length in pixels (fx; equals fy unless the pixels are non-square)."""
+        """Focal length in pixels (fx; equals fy unless the pixels are non-square). Setting it sets
+        fx = fy (square pixels)."""
         return self.fx
+
+    @focal_dist.setter
+    def focal_dist(self, value: float) -> None:
+        self.fx = self.fy = as_float("focal_dist", value, min_value=0.0, exclusive_min=True)
 
     @property
     def fov_x(self) -> float:
+        """Full horizontal field of view (radians). Setting it sets fx = fy (square pixels)."""
         return 2.0 * float(np.arctan(self.width / (2.0 * self.fx)))
+
+    @fov_x.setter
+    def fov_x(self, value: float) -> None:
+        a = as_float("fov_x", value, min_value=0.0, max_value=np.pi, exclusive_min=True, exclusive_max=True)
+        self.fx = self.fy = self.width / (2.0 * float(np.tan(a / 2.0)))
 
     @property
     def fov_y(self) -> float:
+        """Full vertical field of view (radians). Setting it sets fx = fy (square pixels)."""
         return 2.0 * float(np.arctan(self.height / (2.0 * self.fy)))
+
+    @fov_y.setter
+    def fov_y(self, value: float) -> None:
+        a = as_float("fov_y", value, min_value=0.0, max_value=np.pi, exclusive_min=True, exclusive_max=True)
+        self.fx = self.fy = self.height / (2.0 * float(np.tan(a / 2.0)))
 
     def _scale_intrinsics(self, sx: float, sy: float) -> None:
         self.fx *= sx
@@ -280,10 +327,19 @@ class OrthographicCamera(Camera):
         resolution_percentage: int = 100,
         **pose: Any,
     ):
-        self.ortho_scale = as_float("ortho_scale", ortho_scale, min_value=0.0, exclusive_min=True)
+        self.ortho_scale = ortho_scale
         if distortion is not None:
             raise InvalidSceneError("distortion: lens distortion applies to perspective cameras only")
         super().__init__(resolution, near, far, center, None, tag, resolution_percentage, **pose)
+
+    @property
+    def ortho_scale(self) -> float:
+        """Visible width in world units (settable)."""
+        return self._ortho_scale
+
+    @ortho_scale.setter
+    def ortho_scale(self, value: float) -> None:
+        self._ortho_scale = as_float("ortho_scale", value, min_value=0.0, exclusive_min=True)
 
     @property
     def pixel_size(self) -> float:
