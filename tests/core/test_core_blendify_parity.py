@@ -564,3 +564,30 @@ def test_deliberate_differences_are_in_the_migration_guide():
         assert param in guide, f"README migration guide does not mention {param} ({old!r} -> {new!r})"
     for phrase in ('color_space="linear"', "center", "SystemExit", "bf.render"):
         assert phrase in guide, phrase
+
+
+def test_camera_properties_are_settable_and_validated():
+    s = bf.Scene()
+    cam = s.set_perspective_camera((320, 240), focal_dist=200.0)
+    cam.fov_x = np.deg2rad(60)
+    assert np.isclose(cam.fov_x, np.deg2rad(60)) and cam.fx == cam.fy
+    cam.fov_y = np.deg2rad(40)
+    assert np.isclose(cam.fov_y, np.deg2rad(40)) and cam.fx == cam.fy
+    cam.focal_dist = 150.0
+    assert np.array_equal(cam.K[[0, 1], [0, 1]], [150.0, 150.0])
+    cam.center = (100.0, 80.0)
+    assert np.array_equal(cam.K[:2, 2], [100.0, 80.0])
+    cam.near, cam.far = 0.5, 20.0
+    assert (cam.near, cam.far) == (0.5, 20.0)
+    cam.resolution_percentage = 50
+    assert cam._scaled(0.5).width == 160
+    for name, value in [("near", 30.0), ("far", 0.1), ("fov_x", 0.0), ("focal_dist", -1.0), ("center", (1, 2, 3))]:
+        with pytest.raises(bf.InvalidSceneError, match=name):
+            setattr(cam, name, value)
+    with pytest.raises(bf.InvalidSceneError, match="resolution_percentage"):
+        cam.resolution_percentage = 0
+    ortho = s.set_orthographic_camera((64, 64), ortho_scale=2.0)
+    ortho.ortho_scale = 4.0
+    assert ortho.pixel_size == 4.0 / 64
+    with pytest.raises(bf.InvalidSceneError, match="ortho_scale"):
+        ortho.ortho_scale = 0.0
