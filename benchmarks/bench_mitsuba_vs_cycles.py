@@ -82,6 +82,9 @@ def _time_cycles(scene, settings, repeats: int) -> dict:
     }
 
 
+_LOAD = os.getloadavg()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=3)
@@ -143,7 +146,8 @@ def _write(rows, args, res) -> None:
         f"Scene: `blendify_core.testing.bunny_scene` (bunny with vertex colours, Principled roughness 0.6, on a "
         f"diffuse plane, background 0.2), {res[0]}x{res[1]}, {args.samples} spp, box filter, max_bounces 12 "
         "(Mitsuba path max_depth 14), denoiser/adaptive off. "
-        f"Machine: {platform.machine()}, {os.cpu_count()} cores, no GPU; best of {args.repeats}. "
+        f"Machine: {platform.machine()}, {os.cpu_count()} cores, no GPU, shared with other jobs (load average "
+        f"{_LOAD[0]:.1f} at the start, {os.getloadavg()[0]:.1f} at the end); best of {args.repeats}. "
         f"mitsuba {metadata.version('mitsuba')}, bpy {_version('bpy')}.",
         "",
         "`first` = first translate + render in the process (llvm: includes JIT compilation; the variant probe "
