@@ -32,6 +32,7 @@ from blendify_core.renderables import (
     CurveBezier,
     EllipsoidNURBS,
     Mesh,
+    MeshPrimitive,
     PlaneMesh,
     PointCloud,
     SphereNURBS,
@@ -106,6 +107,9 @@ class BuiltScene:
     camera: _Entry = field(default_factory=_Entry)
     compositor: _Entry = field(default_factory=_Entry)
     attached: _Entry = field(default_factory=_Entry)
+    #: primitive meshes shared by every primitive of the same shape (materials linked per object)
+    shared: _Entry = field(default_factory=_Entry)
+    shared_meshes: dict[tuple[Any, ...], tuple[Any, np.ndarray | None]] = field(default_factory=dict)
     generation: int = -1
     engine_settings: dict[str, Any] = field(default_factory=dict)
     instance_tags: list[str] = field(default_factory=list)
@@ -115,13 +119,22 @@ class BuiltScene:
         return self.camera.objects[0] if self.camera.objects else None
 
     def all_entries(self) -> list[_Entry]:
-        return [*self.entries.values(), self.lights, self.world, self.camera, self.compositor, self.attached]
+        return [
+            *self.entries.values(),
+            self.lights,
+            self.world,
+            self.camera,
+            self.compositor,
+            self.attached,
+            self.shared,
+        ]
 
     def remove(self) -> None:
         """Delete every datablock this scene created (objects first)."""
         for e in self.all_entries():
             e.remove()
         self.entries.clear()
+        self.shared_meshes.clear()
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -275,13 +288,15 @@ def _renderable_key(r: Any) -> tuple[Any, ...]:
     return (type(r), r.revision("geometry"), r.revision("appearance"), mats, cols)
 
 
-def _build_renderable(r: Any, index: int, sc: Any, mb: MaterialBuilder) -> _Entry:
+def _build_renderable(r: Any, index: int, sc: Any, mb: MaterialBuilder, built: BuiltScene | None = None) -> _Entry:
     entry = _Entry(key=_renderable_key(r))
     name = f"bf_{index}_{r.tag}"[:60]
     if isinstance(r, PointCloud):
         obj = _build_pointcloud(r, name, entry, mb)
     elif isinstance(r, CurveBezier):
         obj = _build_curve(r, name, entry, mb)
+    elif built is not None and isinstance(r, (MeshPrimitive, SphereNURBS, EllipsoidNURBS)):
+        obj = _build_shared_primitive(r, name, entry, mb, built)
     else:
         obj = _build_mesh_like(r, name, entry, mb)
     entry.objects.append(obj)
@@ -301,7 +316,7 @@ def _materials_for(r: Any, name: str, entry: _Entry, mb: MaterialBuilder, **kw: 
     return out
 
 
-def _build_mesh_like(r: Any, name: str, entry: _Entry, mb: MaterialBuilder) -> Any:
+def _build_mesh_like(r: Any, name: str, entry: _Entry, mb: MaterialBuilder, materials: bool = True) -> Any:
     bpy = _runtime.bpy_module()
     if isinstance(r, Mesh):
         verts, faces = r.vertices, r.faces
@@ -335,11 +350,46 @@ def _build_mesh_like(r: Any, name: str, entry: _Entry, mb: MaterialBuilder) -> A
             ca = me.color_attributes.new(_COLOR_ATTR.format(i), "FLOAT_COLOR", "POINT")
             ca.data.foreach_set("color", np.ascontiguousarray(c.linear_rgba, dtype=np.float32).ravel())
     t2 = time.perf_counter()
-    for mat in _materials_for(r, name, entry, mb):
-        me.materials.append(mat)
+    if materials:
+        for mat in _materials_for(r, name, entry, mb):
+            me.materials.append(mat)
     t3 = time.perf_counter()
     entry.timings.update(geometry=t1 - t0, vertex_colors=t2 - t1, materials=t3 - t2)
     return bpy.data.objects.new(name, me)
+
+
+def _primitive_key(r: Any) -> tuple[Any, ...]:
+    if isinstance(r, MeshPrimitive):
+        params = tuple(sorted((k, repr(v)) for k, v in r._params().items()))
+        fm = getattr(r, "_faces_material_poly", None)
+        return (type(r).__name__, params, r.smooth, None if fm is None else tuple(fm.tolist()), len(r.materials))
+    radius = r.radius.tolist() if isinstance(r.radius, np.ndarray) else r.radius
+    return (type(r).__name__, repr(radius), 1)
+
+
+def _build_shared_primitive(r: Any, name: str, entry: _Entry, mb: MaterialBuilder, built: BuiltScene) -> Any:
+    """A primitive whose mesh is shared with every other primitive of the same shape (one tessellation,
+    one upload); its materials sit in object-linked material slots."""
+    bpy = _runtime.bpy_module()
+    key = _primitive_key(r)
+    cached = built.shared_meshes.get(key)
+    if cached is None:
+        tmp = _Entry()
+        obj = _build_mesh_like(r, f"bf_shared_{len(built.shared_meshes)}_{type(r).__name__}", tmp, mb, materials=False)
+        me = obj.data
+        bpy.data.objects.remove(obj)
+        for _ in r.materials:
+            me.materials.append(None)
+        built.shared.data.append(("meshes", me))
+        built.shared_meshes[key] = cached = (me, tmp.offset)
+        entry.timings.update(tmp.timings)
+    me, entry.offset = cached
+    obj = bpy.data.objects.new(name, me)
+    for i, mat in enumerate(_materials_for(r, name, entry, mb)):
+        slot = obj.material_slots[i]
+        slot.link = "OBJECT"
+        slot.material = mat
+    return obj
 
 
 def _build_pointcloud(r: PointCloud, name: str, entry: _Entry, mb: MaterialBuilder) -> Any:
@@ -782,7 +832,7 @@ class Translator:
                 entry.remove()
                 entry = None
             if entry is None:
-                entry = _build_renderable(r, i, sc, mb)
+                entry = _build_renderable(r, i, sc, mb, built)
                 built.entries[r.uid] = entry
                 self._transforms[r.uid] = r.revision("transform")
                 stats["built"] += 1

@@ -117,7 +117,7 @@ def test_principled_inputs_and_wireframe(cycles, bpy):
     )
     scene.set_perspective_camera((32, 24), fov_x=0.8, translation=(0, 0, 5))
     cycles.translate(scene, resolve_settings())
-    nt = _obj(bpy, "s").data.materials[0].node_tree
+    nt = _obj(bpy, "s").material_slots[0].material.node_tree
     bsdfs = [n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"]
     assert len(bsdfs) == 2  # surface + wire colour
     p = bsdfs[0].inputs
@@ -134,12 +134,51 @@ def test_principled_inputs_and_wireframe(cycles, bpy):
     assert any(n.bl_idname == "ShaderNodeOutputAOV" and n.aov_name == "bf_albedo" for n in nt.nodes)
     g = [
         n
-        for n in _obj(bpy, "g").data.materials[0].node_tree.nodes
+        for n in _obj(bpy, "g").material_slots[0].material.node_tree.nodes
         if n.bl_idname in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic")
     ][0]
     assert g.distribution == "BECKMANN" and g.inputs["Roughness"].default_value == pytest.approx(0.1)
     me = _obj(bpy, "s").data
     assert me.has_custom_normals and len(me.vertices) > 1000  # the IR's shared sphere tessellation
+
+
+def test_identical_primitives_share_one_mesh(cycles, bpy):
+    scene = bf.Scene()
+    for i in range(5):
+        scene.renderables.add_sphere_nurbs(
+            0.2, bf.DiffuseMaterial(), bf.UniformColors((i / 5, 0, 0)), tag=f"s{i}", translation=(i, 0, 0)
+        )
+    scene.renderables.add_sphere_nurbs(0.3, bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1)), tag="big")
+    scene.renderables.add_cube_mesh(
+        1.0,
+        [bf.DiffuseMaterial(), bf.PlasticMaterial()],
+        [bf.UniformColors((1, 0, 0)), bf.UniformColors((0, 1, 0))],
+        faces_material=[0, 1, 0, 1, 0, 1],
+        tag="c",
+    )
+    scene.set_perspective_camera(
+        (16, 16), fov_x=0.8, translation=(0, -5, 0), rotation_mode="look_at", rotation=(0, 0, 0)
+    )
+    cycles.translate(scene, resolve_settings())
+    small = {_obj(bpy, f"s{i}").data.as_pointer() for i in range(5)}
+    assert len(small) == 1 and _obj(bpy, "big").data.as_pointer() not in small
+    cols = [
+        tuple(
+            _obj(bpy, f"s{i}")
+            .material_slots[0]
+            .material.node_tree.nodes["Principled BSDF"]
+            .inputs["Base Color"]
+            .default_value
+        )[0]
+        for i in range(5)
+    ]
+    assert len(set(cols)) == 5  # one material per object (object-linked slots)
+    c = _obj(bpy, "c")
+    mi = np.zeros(12, dtype=np.int32)
+    c.data.polygons.foreach_get("material_index", mi)
+    assert sorted(set(mi.tolist())) == [0, 1] and len(c.material_slots) == 2
+    r = bf.render(scene, backend=cycles, samples=1, outputs=("instance",))
+    assert {1, 2, 6} <= set(np.unique(r.instance).tolist())  # shared-mesh objects keep their own ids
 
 
 def test_pointclouds_native(cycles, bpy):
