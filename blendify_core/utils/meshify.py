@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import _describe, as_array
+from .._validate import _describe, as_array, as_float
 from ..errors import BackendUnavailableError, InvalidSceneError
 
 __all__ = [
@@ -268,7 +268,8 @@ def meshify_pointcloud(
     method: str = "ball_pivoting",
     radii: Any = None,
     poisson_depth: int = 8,
-    density_quantile: float = 0.02,
+    density_quantile: float = 0.0,
+    trim_distance: float | None = None,
     knn: int = 3,
     color_space: str = "srgb",
     voxel_size: float | None = None,
@@ -280,8 +281,10 @@ def meshify_pointcloud(
     with :func:`estimate_normals`, k=16, consistently oriented).
     ``method``: ``"ball_pivoting"`` (the blendify paper's; follows the points, keeps holes; ``radii``
     default = (1.5, 3) x the median nearest-neighbour spacing) or ``"poisson"`` (watertight, smooth;
-    ``poisson_depth`` octree depth; vertices in the lowest ``density_quantile`` of sample density are
-    removed, which trims the surface Poisson invents far from the points) -- both need Open3D (optional
+    ``poisson_depth`` octree depth; the surface Poisson invents to close holes is trimmed: vertices
+    farther than ``trim_distance`` from every point are removed, default 3 x the median spacing, 0 = keep
+    all; optionally also those in the lowest ``density_quantile`` of sample density, Open3D's usual
+    recipe, which also opens holes where the scan is merely sparse) -- both need Open3D (optional
     extra; BackendUnavailableError with the install command otherwise) -- or ``"implicit"``, which needs
     nothing beyond numpy/scipy: the signed distance to the points' tangent planes on a narrow-band grid
     (``voxel_size``, default 1.5 x the median spacing, at most 256 voxels across) and marching tetrahedra
@@ -313,6 +316,9 @@ def meshify_pointcloud(
         raise InvalidSceneError(f"texture_size: expected an integer >= 8 texels or None, got {texture_size!r}")
     if isinstance(knn, bool) or not isinstance(knn, (int, np.integer)) or knn < 1:
         raise InvalidSceneError(f"knn: expected a positive integer, got {knn!r}")
+    density_quantile = as_float("density_quantile", density_quantile, min_value=0.0, max_value=1.0, exclusive_max=True)
+    if trim_distance is not None:
+        trim_distance = as_float("trim_distance", trim_distance, min_value=0.0)
     o3d = _open3d() if method != "implicit" else _open3d_or_none()
 
     t0 = time.perf_counter()
@@ -366,9 +372,16 @@ def meshify_pointcloud(
                 raise InvalidSceneError(f"poisson_depth: expected 1-14, got {poisson_depth}")
             mesh, density = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=int(poisson_depth))
             density = np.asarray(density)
+            drop = np.zeros(len(density), dtype=bool)
             if density_quantile > 0 and len(density):
-                mesh.remove_vertices_by_mask(density < np.quantile(density, float(density_quantile)))
-            info["poisson_depth"] = int(poisson_depth)
+                drop |= density < np.quantile(density, float(density_quantile))
+            trim = 3.0 * spacing if trim_distance is None else float(trim_distance)
+            if trim > 0:
+                far, _ = cKDTree(p).query(np.asarray(mesh.vertices), k=1, workers=-1)
+                drop |= far > trim
+            if drop.any():
+                mesh.remove_vertices_by_mask(drop)
+            info.update(poisson_depth=int(poisson_depth), trim_distance=trim, vertices_trimmed=int(drop.sum()))
         mesh.remove_degenerate_triangles()
         mesh.remove_duplicated_triangles()
         mesh.remove_unreferenced_vertices()

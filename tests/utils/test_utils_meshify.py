@@ -181,3 +181,16 @@ def test_given_texture_size_is_exact_and_the_remainder_is_unused():
     owner = atlas_texel_faces(200, size, cell)
     assert np.all(owner[:7, :] == -1) and np.all(owner[:, 250:] == -1)  # top rows and right columns
     assert set(np.unique(owner)) == set(range(-1, 200))
+
+
+def test_poisson_trims_the_surface_it_invents(rng):
+    pytest.importorskip("open3d", reason="Open3D (optional extra for meshify_pointcloud) is not installed")
+    pts, cols = _sphere_cloud(rng, 6000)
+    upper = pts[:, 2] > 0.0  # an open hemisphere: Poisson closes it with a made-up surface
+    res = meshify_pointcloud(pts[upper], cols[upper], method="poisson", target_faces=None)
+    assert res.vertices[:, 2].min() > -0.1
+    assert res.info["vertices_trimmed"] > 0
+    kept = meshify_pointcloud(pts[upper], cols[upper], method="poisson", target_faces=None, trim_distance=0)
+    assert kept.vertices[:, 2].min() < -0.3
+    with pytest.raises(bf.InvalidSceneError, match="trim_distance"):
+        meshify_pointcloud(pts, cols, method="poisson", trim_distance=-1)
