@@ -877,7 +877,7 @@ def render_many(
       a new worker and the run goes on. ``timeout`` (seconds of rendering, from when the worker starts
       the render) kills the worker and fails the job. Scripts that call this must guard their entry
       point with ``if __name__ == "__main__":`` (the "spawn" start method re-imports the main module).
-    - ``"ray"`` (or ``"ray://host:port"`` / ``"auto"``-style addresses as ``"ray:ADDRESS"``): Ray tasks with
+    - ``"ray"``, ``"ray://host:port"`` (Ray client) or ``"ray:ADDRESS"`` (e.g. ``"ray:auto"``): Ray tasks with
       ``max_retries=0``, ``num_cpus`` = engine threads per job (default: ``cluster CPUs // workers`` when
       ``workers`` is given, else 1) and ``max_calls=recycle_after`` (Ray's worker recycling). Uses the
       running Ray session if ``ray.init()`` was already called (e.g. ``ray.init(address="auto")`` on a
@@ -896,6 +896,24 @@ def render_many(
       for good when one of its workers dies; use the default pool for crash isolation on one machine.
 
     ``progress``: one tqdm bar across all jobs (skipped ones included).
+
+    Examples::
+
+        jobs = [bf.RenderJob(s, f"out/{i:05d}.png", backend="cycles", samples=64) for i, s in enumerate(scenes)]
+        report = bf.render_many(jobs, workers=2, timeout=600)  # local pool; run it again to resume
+        print(report.summary())
+
+        import ray
+        ray.init(address="auto")  # an existing cluster (or nothing: a local one is started)
+        report = bf.render_many(jobs, executor="ray", workers=64)
+
+        from distributed import Client  # Dask
+        report = bf.render_many(jobs, executor=Client("tcp://scheduler:8786").get_executor(), workers=32)
+
+        import submitit  # Slurm: one Slurm job per frame
+        ex = submitit.AutoExecutor(folder="slurm_logs")
+        ex.update_parameters(timeout_min=30, cpus_per_task=4)
+        report = bf.render_many(jobs, executor=ex, workers=100)
     """
     t0 = time.perf_counter()
     jobs = list(jobs)
