@@ -85,6 +85,8 @@ _INTERIOR_METRICS = {
     "mask": frozenset(),
     "instance": frozenset(),
 }
+#: the pixel count behind the other metrics of each output (a NaN metric over 0 pixels is not a failure)
+_COUNT_KEYS = {"rgb": "n_covered", "depth": "n_both", "normal": "n_valid", "albedo": "n_both", "instance": "n_both"}
 #: metrics where larger is better (thresholds are minimums); every other metric is an upper bound
 HIGHER_IS_BETTER = frozenset({"ssim", "psnr", "iou", "agreement"})
 
@@ -755,9 +757,16 @@ def compare(
             if metric not in metrics[out]:
                 raise InvalidSceneError(f"tier: unknown metric {out}.{metric}; known: {sorted(metrics[out])}")
             value = metrics[out][metric]
-            if math.isnan(value) and metrics[out].get("n_interior", 1.0) == 0 and metric in _INTERIOR_METRICS[out]:
-                notes.append(f"{out}.{metric}: not checked, no interior pixels (objects of 1-2 px, e.g. small points)")
-                continue
+            if math.isnan(value):
+                count_key = "n_interior" if metric in _INTERIOR_METRICS[out] else _COUNT_KEYS.get(out, "")
+                if metrics[out].get(count_key, 1.0) == 0:
+                    what = (
+                        "interior pixels (objects of 1-2 px, e.g. small points)"
+                        if count_key == "n_interior"
+                        else ("pixels covered by both")
+                    )
+                    notes.append(f"{out}.{metric}: not checked, no {what}")
+                    continue
             higher = metric in HIGHER_IS_BETTER
             op = ">=" if higher else "<="
             ok = (value >= limit) if higher else (value <= limit)

@@ -204,6 +204,21 @@ def test_choose_tier():
     assert rep.tier == "raster" and rep.names == ("pyrender", "cycles")
 
 
+def test_empty_results_agree():
+    empty = bf.RenderResult(
+        rgba=np.zeros((H, W, 4), np.float32),
+        depth=np.full((H, W), np.inf, np.float32),
+        normal=np.zeros((H, W, 3), np.float32),
+        albedo=np.zeros((H, W, 3), np.float32),
+    )
+    for tier in TIERS:
+        rep = bf.compare(empty, empty, tier=tier)
+        assert rep.passed, (tier, rep.failures)
+    assert any("not checked" in n for n in bf.compare(empty, empty, tier="pathtracer").notes)
+    # but an object seen by one backend only fails on the mask
+    assert not bf.compare(make_result(), bf.RenderResult(depth=empty.depth), tier="geometry").passed
+
+
 def test_heat_map_range():
     img = heat_map(np.array([[0.0, 0.5, 1.0, np.nan]]), valid=np.array([[True, True, True, False]]))
     assert img.dtype == np.uint8 and img.shape == (1, 4, 3)
