@@ -232,16 +232,18 @@ def _strip_python(bpy: Any, new_ids: list[Any]) -> list[str]:
 
 
 @contextlib.contextmanager
-def _loaded_blend(path: Path) -> Iterator[tuple[list[Any], list[str], list[Any]]]:
-    """Append all scenes of ``path`` safely; yields (scenes, removed-Python notes, all new IDs); removes
-    every new ID on exit. Auto-run must already be forced off by the caller."""
+def _loaded_blend(path: Path) -> Iterator[tuple[list[tuple[str, Any]], list[str], list[Any]]]:
+    """Append all scenes of ``path`` safely; yields ((name in the file, scene) sorted by name,
+    removed-Python notes, all new IDs); removes every new ID on exit. Auto-run must already be forced
+    off by the caller."""
     bpy = _bpy()
     before = set(_all_ids(bpy))
     renamed: list[tuple[Any, str]] = []
     try:
         try:
             with bpy.data.libraries.load(str(path), link=False) as (src, dst):
-                dst.scenes = list(src.scenes)
+                src_names = list(src.scenes)
+                dst.scenes = list(src_names)
                 # session objects whose names the file uses are renamed for the duration, so the
                 # appended objects keep their own names (they become the IR tags)
                 for i, nm in enumerate(src.objects):
@@ -252,7 +254,8 @@ def _loaded_blend(path: Path) -> Iterator[tuple[list[Any], list[str], list[Any]]
         except (OSError, RuntimeError, ValueError) as exc:
             raise InvalidSceneError(f"path: Blender cannot read {str(path)!r} as a .blend file ({exc})") from None
         removed = _strip_python(bpy, [idb for ptr, idb in _all_ids(bpy).items() if ptr not in before])
-        scenes = [s for s in dst.scenes if s is not None]
+        # (name in the file, appended scene): appended scenes are renamed when the session has the name
+        scenes = sorted(((n, sc) for n, sc in zip(src_names, dst.scenes) if sc is not None), key=lambda x: x[0])
         if not scenes:
             raise InvalidSceneError(f"path: {str(path)!r} contains no scene")
         new_ids = [idb for ptr, idb in _all_ids(bpy).items() if ptr not in before]
@@ -1494,7 +1497,8 @@ def attach_blend(
         scene: the :class:`blendify_core.scene.Scene` to extend.
         path: the .blend file (never opened as the main file; embedded Python never runs).
         with_camera: also replace ``scene.camera`` by the file's scene camera.
-        scene_name: which scene of the file to import (default: the only one, or the first with a warning).
+        scene_name: which scene of the file to import (default: the only one, or the first by name, with a
+            warning).
         with_world: import the world's background (None: only when ``scene`` has no background or
             environment yet; True: replace it; False: never).
         texture_dir: where PACKED images are unpacked (default: :func:`default_texture_cache_dir`).
@@ -1536,18 +1540,19 @@ def _parse_blend(
     with scripts_auto_execute_disabled(), _loaded_blend(p) as (scenes, removed, new_ids):
         parser.notes.extend(removed)
         if scene_name is None:
-            sc = scenes[0]
+            scene_label, sc = scenes[0]
             if len(scenes) > 1:
                 parser.note(
-                    f"the file has {len(scenes)} scenes {[s.name for s in scenes]}; imported the first "
-                    "(pass scene_name= to choose)"
+                    f"the file has {len(scenes)} scenes {[n for n, _ in scenes]}; imported {scene_label!r}, the "
+                    "first by name (pass scene_name= to choose)"
                 )
         else:
-            # appended scenes may be renamed on a name clash: match on the name without the suffix
-            match = [s for s in scenes if s.name == scene_name or s.name.rsplit(".", 1)[0] == scene_name]
+            match = [(n, s) for n, s in scenes if n == scene_name]
             if not match:
-                raise InvalidSceneError(f"scene_name: {str(p)!r} has no scene {scene_name!r}")
-            sc = match[0]
+                raise InvalidSceneError(
+                    f"scene_name: {str(p)!r} has no scene {scene_name!r}; its scenes: {[n for n, _ in scenes]}"
+                )
+            scene_label, sc = match[0]
         view_layer = next((vl for vl in sc.view_layers if vl.use), sc.view_layers[0])
         for msg in _render_visibility(bpy, new_ids, view_layer):
             parser.note(msg)
@@ -1611,7 +1616,6 @@ def _parse_blend(
             if sc.camera is None:
                 raise InvalidSceneError(f"with_camera: scene {sc.name!r} of {str(p)!r} has no camera")
             parser.camera(sc, sc.camera.evaluated_get(dg), pend)
-        scene_label = sc.name
     return pend, parser, scene_label
 
 

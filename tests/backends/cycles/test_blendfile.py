@@ -248,6 +248,38 @@ def test_attach_file_linking_another_library(tmp_path: Path):
     assert datablock_ids() == before  # the indirectly loaded library is gone as well
 
 
+TWO_SCENES = """
+import bpy, sys, json
+bpy.ops.wm.read_factory_settings(use_empty=True)
+a = bpy.context.scene
+a.name = "A"
+b = bpy.data.scenes.new("B")
+for sc, name, n in ((a, "InA", 3), (b, "InB", 4)):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([(i, 0, 0) for i in range(n - 1)] + [(0, 1, 0)], [], [tuple(range(n))])
+    sc.collection.objects.link(bpy.data.objects.new(name, me))
+cam = bpy.data.objects.new("CamB", bpy.data.cameras.new("CamB"))
+b.collection.objects.link(cam)
+b.camera = cam
+b.render.resolution_x, b.render.resolution_y = 40, 20
+bpy.data.libraries.write(sys.argv[1], {a, b})
+print(json.dumps({"ok": True}))
+"""
+
+
+def test_attach_chooses_a_scene(tmp_path: Path):
+    path = tmp_path / "two.blend"
+    run_bpy_script(TWO_SCENES, str(path))
+    first = Scene()
+    with pytest.warns(BlendAttachWarning, match="2 scenes"):
+        added = attach_blend(first, path)
+    assert [r.tag for r in added] == ["InA"] and added.scene_name == "A"
+    second = Scene()
+    added = attach_blend(second, path, scene_name="B", with_camera=True)
+    assert [r.tag for r in added] == ["InB"] and second.camera.tag == "CamB"
+    assert tuple(second.camera.resolution) == (40, 20)
+
+
 def test_attach_bad_paths(tmp_path: Path):
     scene = Scene()
     missing = tmp_path / "missing.blend"
