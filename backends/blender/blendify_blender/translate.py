@@ -787,6 +787,10 @@ class Translator:
         """Remove every datablock of the cached scene (the bpy session is left empty, not reset)."""
         if self.built is not None and self.built.generation == _runtime.generation() and self._alive():
             self.built.remove()
+            bpy = _runtime.bpy_module()
+            for img in list(bpy.data.images):  # created by our renders ("Render Result", "Viewer Node")
+                if img.type in ("RENDER_RESULT", "COMPOSITING"):
+                    bpy.data.images.remove(img)
             try:
                 _runtime.bpy_module().data.orphans_purge(do_recursive=True)
             except Exception:  # pragma: no cover - best effort

@@ -316,7 +316,7 @@ def test_clear_removes_every_datablock(bpy):
         b.translate(testing.every_feature_scene(), resolve_settings())
         _runtime.factory_reset()
         baseline = _runtime.datablock_counts()
-        b.translate(testing.every_feature_scene(), resolve_settings())
+        b.render_scene(testing.every_feature_scene((16, 12)), resolve_settings(samples=1, outputs=("rgb", "albedo")))
         assert _runtime.datablock_counts()["objects"] > 10
         b.clear()
         assert _runtime.datablock_counts() == baseline
