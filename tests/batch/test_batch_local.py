@@ -195,6 +195,52 @@ def test_interrupted_run_resumes_without_losing_or_duplicating_outputs(tmp_path)
     assert all(r["status"] == "done" for r in records)
 
 
+def test_ctrl_c_stops_the_workers_and_keeps_the_manifest(tmp_path):
+    rows = []
+    for i in range(6):
+        tiny_scene(f"i{i}").save(tmp_path / f"i{i}.npz")
+        rows.append(
+            {
+                "scene": f"i{i}.npz",
+                "output": f"o/i{i}.png",
+                "backend": FAKE,
+                "action": "sleep",
+                "seconds": 30,
+                "log": str(tmp_path / "renders.log"),
+            }
+        )
+    rows[0].update(action="ok")
+    (tmp_path / "jobs.jsonl").write_text("\n".join(json.dumps(r) for r in rows))
+    script = tmp_path / "run.py"
+    script.write_text(
+        f"import sys; sys.path.insert(0, {str(HERE)!r})\n"
+        "from blendify_core.backend import register_backend\n"
+        f"register_backend({FAKE!r}, {TARGET!r})\n"
+        "from blendify_core.cli import main\n"
+        "if __name__ == '__main__':\n"
+        f"    raise SystemExit(main(['batch', {str(tmp_path / 'jobs.jsonl')!r}, '-w', '2', '--no-progress']))\n"
+    )
+    proc = subprocess.Popen([sys.executable, str(script)], stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while len(render_log(tmp_path)) < 3 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert len(render_log(tmp_path)) >= 3, "the workers did not start"
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130 and "interrupted" in err
+    time.sleep(0.5)
+    for pid in {pid for pid, _, _ in render_log(tmp_path)}:
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)  # every worker is gone
+    records = manifest_records(tmp_path / "o" / MANIFEST_NAME)
+    assert [r["status"] for r in records] == ["done"] and records[0]["output"].endswith("i0.png")
+    assert leftovers(tmp_path / "o") == []
+
+
 def test_workers_are_recycled_after_n_jobs(tmp_path):
     jobs = [job(tmp_path, f"r{i}") for i in range(8)]
     report = bf.render_many(jobs, workers=2, recycle_after=2, progress=False, manifest=False)
