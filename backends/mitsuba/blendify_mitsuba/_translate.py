@@ -26,7 +26,7 @@ from blendify_core.colors import FileTextureColors, TextureColors, UniformColors
 from blendify_core.errors import InvalidSceneError, UnsupportedFeatureError
 from blendify_core.geometry import TriMesh
 from blendify_core.lights import AreaLight, PointLight, SpotLight, SunLight
-from blendify_core.renderables import CurveBezier, Mesh, PlaneMesh, PointCloud, SphereNURBS
+from blendify_core.renderables import PlaneMesh, PointCloud, SphereNURBS
 
 __all__ = ["ShapeInfo", "Translation", "translate_scene", "camera_dict", "light_dicts"]
 
@@ -371,10 +371,10 @@ class _Part:
     faces: np.ndarray
     normals: np.ndarray | None
     uv: np.ndarray | None
-    vertex_rgba: np.ndarray | None
+    source: np.ndarray  # index of each part vertex in the renderable's vertex array
 
 
-def _split(tm: TriMesh, matrix: np.ndarray, faces_material: np.ndarray | None, n_mat: int, vcol: Any) -> list[Any]:
+def _split(tm: TriMesh, matrix: np.ndarray, faces_material: np.ndarray | None, n_mat: int) -> list[Any]:
     """Split a TriMesh by material; de-index per corner when UVs are per corner."""
     rot = matrix[:3, :3]
     v_world = _world(tm.vertices, matrix)
@@ -397,7 +397,7 @@ def _split(tm: TriMesh, matrix: np.ndarray, faces_material: np.ndarray | None, n
                     np.arange(len(idx)).reshape(-1, 3),
                     None if n_world is None else n_world[idx],
                     uv,
-                    None if vcol is None else vcol[idx],
+                    idx,
                 )
             )
         else:
@@ -408,7 +408,7 @@ def _split(tm: TriMesh, matrix: np.ndarray, faces_material: np.ndarray | None, n
                     inv.reshape(-1, 3),
                     None if n_world is None else n_world[used],
                     None,
-                    None if vcol is None else vcol[used],
+                    used,
                 )
             )
     return parts
@@ -426,7 +426,7 @@ def _emission(material: Any) -> np.ndarray | None:
 
 
 def _color_source(colors: Any, key: str) -> tuple[Any, np.ndarray | None, Any]:
-    """(Mitsuba reflectance value/texture, constant albedo or None, evaluable texture or None) and alpha."""
+    """(Mitsuba reflectance value/texture, constant albedo or None, evaluable texture or None)."""
     if isinstance(colors, UniformColors):
         c = colors.linear_rgba[:3]
         return _rgb(c), c, None
@@ -521,17 +521,8 @@ def translate_scene(
         tm = r.to_mesh()
         if tm.is_empty:
             continue
-        if isinstance(r, Mesh):
-            fm = r.faces_material
-        elif isinstance(r, CurveBezier) or not hasattr(r, "faces_material"):
-            fm = None
-        else:
-            fm = r.faces_material
-        vcol = None
-        for c in r.colors_list:
-            if isinstance(c, VertexColors):
-                vcol = c.linear_rgba
-        parts = _split(tm, matrix, fm, len(r.materials), vcol)
+        fm = getattr(r, "faces_material", None)  # meshes and mesh primitives: per-triangle slots
+        parts = _split(tm, matrix, fm, len(r.materials))
         for k, (mat, colors, part) in enumerate(zip(r.materials, r.colors_list, parts, strict=True)):
             if part is None:
                 continue
@@ -544,10 +535,11 @@ def translate_scene(
             em = _emission(mat)
             emitter = mi.load_dict({"type": "area", "radiance": _rgb(em)}) if em is not None else None
             attrs: dict[str, np.ndarray] = {}
-            if isinstance(colors, VertexColors) and part.vertex_rgba is not None:
-                attrs["vertex_color"] = part.vertex_rgba[:, :3]
+            if isinstance(colors, VertexColors):
+                rgba = colors.linear_rgba[part.source]
+                attrs["vertex_color"] = rgba[:, :3]
                 if colors.has_alpha:
-                    attrs["vertex_alpha"] = part.vertex_rgba[:, 3]
+                    attrs["vertex_alpha"] = rgba[:, 3]
             mesh = build_mesh(key, part.vertices, part.faces, part.normals, part.uv, attrs, bsdf, emitter)
             d[key] = mesh
             shapes[key] = ShapeInfo(ri, const, tex)

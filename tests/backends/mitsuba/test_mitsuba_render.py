@@ -238,6 +238,27 @@ def test_vertex_colours_and_outputs(scalar_backend):
     np.testing.assert_allclose(r.albedo[16, 16], UniformColors((0.8, 0.8, 0.8)).linear_rgba[:3], atol=1e-6)
 
 
+def test_per_face_materials_with_their_own_vertex_colours(scalar_backend):
+    scene = bf.Scene()
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    red = np.tile([1.0, 0.0, 0.0], (4, 1))
+    blue = np.tile([0.0, 0.0, 1.0], (4, 1))
+    scene.renderables.add_mesh(
+        v,
+        [[0, 1, 2], [0, 2, 3]],
+        [DiffuseMaterial(), DiffuseMaterial()],
+        [VertexColors(red, color_space="linear"), VertexColors(blue, color_space="linear")],
+        faces_material=[0, 1],
+        tag="quad",
+    )
+    scene.set_orthographic_camera((16, 16), ortho_scale=2.0, translation=(0, 0, 3))
+    scene.lights.set_background_light(1.0)
+    r = _render(scalar_backend, scene, samples=4, outputs=("albedo", "instance"))
+    np.testing.assert_allclose(r.albedo[14, 12], [1, 0, 0], atol=1e-6)  # below the diagonal: face 0
+    np.testing.assert_allclose(r.albedo[2, 3], [0, 0, 1], atol=1e-6)  # above it: face 1
+    assert np.all(r.instance == 0)
+
+
 def test_alpha_is_coverage_and_premultiplied(scalar_backend):
     scene = testing.plane_scene("sun", resolution=(32, 32))
     scene.renderables["plane"].set_position(translation=(1.5, 0, 0))  # covers x in [-0.5, 3.5]
