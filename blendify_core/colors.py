@@ -92,6 +92,29 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
     return arr
 
 
+def _image_header(path: str) -> tuple[int, bool] | None:
+    """(pixel count, has an alpha channel) from an image file's header without decoding the pixels, or
+    None when the header cannot be read that way."""
+    try:
+        if Path(path).suffix.lower() == ".exr":
+            import OpenEXR
+
+            with OpenEXR.File(str(path), header_only=True) as f:  # read inside: closing empties it
+                header = f.header()
+                box = header["dataWindow"]
+                pixels = int((box[1][0] - box[0][0] + 1) * (box[1][1] - box[0][1] + 1))
+                names = [str(getattr(c, "name", "")) for c in header.get("channels", [])]
+            if not names or not all(names):
+                return None
+            return pixels, any(n == "A" or n.endswith(".A") for n in names)
+        from PIL import Image
+
+        with Image.open(path) as im:  # lazy: reads the header only
+            return im.width * im.height, "A" in im.getbands() or "transparency" in im.info
+    except Exception:  # noqa: BLE001 - any doubt: fall back to decoding
+        return None
+
+
 def _check_image(name: str, texture: Any, *, max_value: float | None = 1.0) -> np.ndarray:
     arr = raw_array(name, texture)
     if arr.dtype.kind not in "uif" or arr.dtype.kind == "b":
@@ -324,8 +347,22 @@ class FileTextureColors(Colors):
         self.interpolation = as_choice("interpolation", interpolation, INTERPOLATIONS)
         self._cache: np.ndarray | None = None
 
+    #: above this many pixels, ``has_alpha`` trusts the file header instead of decoding the pixels
+    EXACT_ALPHA_LIMIT = 4096 * 4096
+
     @property
     def has_alpha(self) -> bool:
+        """Whether the texture has an alpha channel with a value below 1. Decided from the file header
+        when it has no alpha channel, or when the image is huge (conservatively True), so the core never
+        decodes a 30000x30000 texture just to analyse the scene; otherwise exact."""
+        if self._cache is None:
+            header = _image_header(self.texture_path)
+            if header is not None:
+                pixels, alpha = header
+                if not alpha:
+                    return False
+                if pixels > self.EXACT_ALPHA_LIMIT:
+                    return True
         img = self.image()
         return img.shape[2] == 4 and bool(np.any(img[..., 3] < (255 if img.dtype == np.uint8 else 1.0)))
 
