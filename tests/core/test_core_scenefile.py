@@ -750,3 +750,42 @@ def test_random_scene_round_trips_bit_for_bit(tmp_path, q1, q2, q3, t, rough, co
     loaded = bf.Scene.load(tmp_path / "r.npz")
     assert_same_scene(s, loaded)
     assert loaded.fingerprint() == s.fingerprint()
+
+
+# ---------------------------------------------------------------------------------------------------
+# file textures stay lazy: the IR never decodes their pixels
+# ---------------------------------------------------------------------------------------------------
+
+
+def test_file_textures_are_never_decoded_by_the_core(tmp_path, shared_data, monkeypatch):
+    import blendify_core.colors as colors_mod
+
+    def forbidden(path):
+        raise AssertionError(f"the core decoded {path}")
+
+    monkeypatch.setattr(colors_mod, "load_image", forbidden)
+    scene = full_scene(tmp_path, shared_data, env_from_file=True)  # RGB jpg texture + environment
+    tex = scene.renderables["fuze_quads"].colors
+    assert tex.has_alpha is False  # from the file header
+    from blendify_core.features import scene_features
+
+    scene_features(scene, ("rgb", "depth"))
+    bf.analyse_effects(scene)
+    scene.fingerprint()  # hashes the file bytes, does not decode them
+    scene.save(tmp_path / "lazy.npz")
+    loaded = bf.Scene.load(tmp_path / "lazy.npz")
+    assert loaded.fingerprint() == scene.fingerprint()
+    assert tex._cache is None
+
+
+def test_has_alpha_is_exact_for_small_rgba_files_and_conservative_for_huge_ones(tmp_path, monkeypatch):
+    opaque = _write_png(tmp_path / "opaque.png", np.full((4, 4, 4), 255, np.uint8))
+    see_through = np.full((4, 4, 4), 255, np.uint8)
+    see_through[0, 0, 3] = 10
+    clear = _write_png(tmp_path / "clear.png", see_through)
+    uv = bf.VertexUV(np.zeros((3, 2)))
+    assert bf.FileTextureColors(opaque, uv).has_alpha is False
+    assert bf.FileTextureColors(clear, uv).has_alpha is True
+    monkeypatch.setattr(bf.FileTextureColors, "EXACT_ALPHA_LIMIT", 8)  # pretend 4x4 is huge
+    big = bf.FileTextureColors(opaque, uv)
+    assert big.has_alpha is True and big._cache is None
