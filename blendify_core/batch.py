@@ -599,6 +599,7 @@ class _PoolWorker:
         self.job: int | None = None
         self.assigned_at = 0.0
         self.started_at: float | None = None
+        self.retired_at = 0.0
         self.count = 0
 
     def kill(self) -> None:
@@ -607,16 +608,23 @@ class _PoolWorker:
         self.proc.join(timeout=10)
         self.conn.close()
 
-    def stop(self) -> None:
+    def retire(self) -> None:
+        """Ask the worker to exit after closing its backends (without waiting for it)."""
+        self.retired_at = time.monotonic()
         try:
             self.conn.send(None)
         except (OSError, ValueError):
             pass
-        self.proc.join(timeout=30)
+
+    def reap(self, grace: float) -> bool:
+        """True once a retired worker has exited (killed when it takes longer than ``grace`` seconds)."""
+        if self.proc.is_alive() and time.monotonic() - self.retired_at < grace:
+            return False
         if self.proc.is_alive():
             self.proc.kill()
-            self.proc.join(timeout=10)
+        self.proc.join(timeout=10)
         self.conn.close()
+        return True
 
 
 def _run_local(run: _Run, pending: list[int], workers: int, recycle_after: int | None, threads: int) -> None:
@@ -626,6 +634,7 @@ def _run_local(run: _Run, pending: list[int], workers: int, recycle_after: int |
     ctx = multiprocessing.get_context("spawn")
     queue = list(reversed(pending))  # pop() from the end keeps job order
     pool: list[_PoolWorker] = []
+    retiring: list[_PoolWorker] = []
 
     def spawn() -> None:
         pool.append(_PoolWorker(ctx))
@@ -671,6 +680,9 @@ def _run_local(run: _Run, pending: list[int], workers: int, recycle_after: int |
                     deadlines.append(w.assigned_at + STARTUP_TIMEOUT)
                 elif run.timeout is not None:
                     deadlines.append(w.started_at + run.timeout)
+            retiring[:] = [w for w in retiring if not w.reap(30.0)]
+            if retiring:
+                deadlines.append(time.monotonic() + 0.5)
             wait_for = max(0.0, min(deadlines) - time.monotonic()) if deadlines else None
             handles = [w.conn for w in pool] + [w.proc.sentinel for w in pool]
             ready = set(wait(handles, timeout=wait_for))
@@ -692,7 +704,8 @@ def _run_local(run: _Run, pending: list[int], workers: int, recycle_after: int |
                     fail_and_replace(w, f"worker crashed: {_signal_name(w.proc.exitcode)}")
                     continue
                 if recycle_after and w.job is None and w.count >= recycle_after:
-                    w.stop()
+                    w.retire()  # exits in the background while its replacement starts
+                    retiring.append(w)
                     pool.remove(w)
                     if queue:
                         spawn()
@@ -706,9 +719,13 @@ def _run_local(run: _Run, pending: list[int], workers: int, recycle_after: int |
     finally:
         for w in pool:
             if w.job is None and w.proc.is_alive():
-                w.stop()
+                w.retire()
+                retiring.append(w)
             else:
                 w.kill()
+        for w in retiring:
+            w.proc.join(timeout=max(0.0, 30.0 - (time.monotonic() - w.retired_at)))
+            w.reap(0.0)
 
 
 # ---------------------------------------------------------------------------------------------------
