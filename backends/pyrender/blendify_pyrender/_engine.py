@@ -73,6 +73,7 @@ class Frame:
     notes: list[str] = field(default_factory=list)
     sync_seconds: float = 0.0
     rebuilt: int = 0
+    shadow_key: Any = None
 
 
 def _renderable_key(r: Any) -> tuple[Any, ...]:
@@ -229,6 +230,10 @@ class Engine:
                 self.pscene.remove_node(entry.node)
         self._sync_lights(scene.lights)
         self._sync_camera(scene.camera)
+        shadow_key = (
+            tuple((uid, e.key, e.transform_rev, e.casts_shadow) for uid, e in self.entries.items()),
+            self._lights_key,
+        )
         return Frame(
             scene=scene,
             nodes=nodes,
@@ -236,6 +241,7 @@ class Engine:
             notes=sorted(set(notes)),
             sync_seconds=time.perf_counter() - t0,
             rebuilt=rebuilt,
+            shadow_key=shadow_key,
         )
 
     @staticmethod
@@ -347,6 +353,7 @@ class Engine:
             self.entries[r.uid].node for r in frame.scene.renderables if not self.entries[r.uid].casts_shadow
         }
         renderer.no_shadow_lights = {node for node, _, casts in self._light_nodes if not casts}
+        renderer.shadow_key = (frame.shadow_key, "all")
         catchers = [
             (i, node)
             for i, (r, node) in enumerate(zip(frame.scene.renderables, frame.nodes))
@@ -425,11 +432,14 @@ class Engine:
         hidden = [n for n in self.pscene.mesh_nodes if n not in catcher_nodes and n.mesh.is_visible]
         for n in hidden:
             n.mesh.is_visible = False
+        key = self.renderer.shadow_key
+        self.renderer.shadow_key = (frame.shadow_key, "catchers")
         try:
             alone = self._color(frame, w, h, aa, flags)
         finally:
             for n in hidden:
                 n.mesh.is_visible = True
+            self.renderer.shadow_key = key
         lum_w = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
         inst = gbuf.instance
         mask = np.isin(inst, [i for i, _ in catchers])

@@ -91,11 +91,11 @@ def prepare_platform(platform: str) -> None:
     env = os.environ.get("PYOPENGL_PLATFORM")
     in_use = _opengl_platform_in_use()
     if in_use is not None and in_use != platform:
+        hint = f"create the backend with platform={in_use!r}, or " if in_use in PLATFORMS else ""
         raise BackendUnavailableError(
             f"pyrender: OpenGL was already imported in this process with the {in_use!r} platform, so the "
-            f"{platform!r} platform cannot be used any more (PyOpenGL binds its platform at first import). "
-            f"Create the backend with platform={in_use!r}, or set PYOPENGL_PLATFORM={platform} before "
-            "anything imports OpenGL."
+            f"{platform!r} platform cannot be used any more (PyOpenGL binds its platform at first import); "
+            f"{hint}set PYOPENGL_PLATFORM={platform} before anything imports OpenGL (pyrender included)"
         )
     if env is not None and env.lower() != platform and in_use is None:
         raise BackendUnavailableError(

@@ -204,6 +204,10 @@ class FrameRenderer(pyrender.Renderer):
         #: nodes that cast no shadow / lights that cast none / nodes hidden in the current pass
         self.no_shadow_nodes: set[Any] = set()
         self.no_shadow_lights: set[Any] = set()
+        #: identifies the shadow-casting state (geometry, poses, lights, hidden nodes); shadow maps are
+        #: view independent, so while it stays the same they are reused instead of re-rendered (None = always)
+        self.shadow_key: Any = None
+        self._shadow_done: dict[Any, Any] = {}
 
     # -- framebuffers ----------------------------------------------------------------------------
     def _framebuffer(self, kind: str, width: int, height: int, samples: int) -> dict[str, Any]:
@@ -304,11 +308,16 @@ class FrameRenderer(pyrender.Renderer):
 
     # -- shadow control --------------------------------------------------------------------------
     def _shadow_mapping_pass(self, scene: Any, light_node: Any, flags: int) -> None:
+        key = None if self.shadow_key is None else (self.shadow_key, self.point_size)
+        texture = light_node.light.shadow_texture
+        if key is not None and self._shadow_done.get(light_node) == (key, id(texture)):
+            return  # the map of this light is still valid (only the camera moved)
         self._shadow_light = light_node
         try:
             super()._shadow_mapping_pass(scene, light_node, flags)
         finally:
             self._shadow_light = None
+        self._shadow_done[light_node] = (key, id(texture))
 
     def _sorted_mesh_nodes(self, scene: Any) -> list[Any]:
         nodes = super()._sorted_mesh_nodes(scene)
