@@ -410,7 +410,10 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
 
     Each is tiny (32x32) except the heavy ones (2M triangles, 1M points), which are included only with
     ``include_heavy``. ``HARD_CASE_REFERENCE`` says which cases must render like another one."""
-    rng = np.random.default_rng(7)
+
+    def rng() -> np.random.Generator:  # a fresh generator per call: every builder is deterministic
+        return np.random.default_rng(7)
+
     tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
     cases: dict[str, Any] = {
         "origin": lambda: _hc_base(),
@@ -430,7 +433,7 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
             _hc_base(),
             rotation_mode="rotmat",
             translation=(0, 4.0, 0),
-            rotation=np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]) + 1e-4 * rng.standard_normal((3, 3)),
+            rotation=np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]) + 1e-4 * rng().standard_normal((3, 3)),
         ),
         "euler_gimbal_lock": lambda: _hc_camera(
             _hc_base(), rotation_mode="eulerXYZ", rotation=(90, 90, 0), translation=(4.0, 0, 0)
@@ -449,7 +452,7 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
             [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0], [-1, 0, 0]],
             [[0, 1, 2], [0, 1, 3], [1, 0, 4], [0, 2, 5], [5, 2, 0]],
         ),
-        "unreferenced_vertices": lambda: _hc_mesh(np.vstack([tri, rng.normal(size=(50, 3)) * 100]), [[0, 1, 2]]),
+        "unreferenced_vertices": lambda: _hc_mesh(np.vstack([tri, rng().normal(size=(50, 3)) * 100]), [[0, 1, 2]]),
         "single_triangle": lambda: _hc_mesh(tri - 0.3, [[0, 1, 2]]),
         "coincident_points": lambda: _hc_points(np.zeros((100, 3))),
         "single_point": lambda: _hc_points(np.zeros((1, 3)), size=0.8),
@@ -464,7 +467,7 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
     }
     if include_heavy:
         cases["mesh_2M_triangles"] = lambda: _hc_big_mesh()
-        cases["pointcloud_1M"] = lambda: _hc_points(rng.normal(size=(1_000_000, 3)) * 0.5, size=0.005)
+        cases["pointcloud_1M"] = lambda: _hc_points(rng().normal(size=(1_000_000, 3)) * 0.5, size=0.005)
     return cases
 
 
