@@ -57,3 +57,36 @@ def test_texture_pairwise(renders, pair, faces_uv, artifacts_dir):
     if not rep.passed:
         rep.save(artifacts_dir)
     assert rep.passed, rep.summary()
+
+
+def gradient_scene() -> bf.Scene:
+    """A quad with a 2x1 texture (black, white), bilinear: the albedo profile across the image shows in
+    which space each engine interpolates 8-bit sRGB textures."""
+    scene = bf.Scene()
+    tex = np.array([[[0, 0, 0], [255, 255, 255]]], dtype=np.uint8)
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=float)
+    uv = bf.VertexUV(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float))
+    scene.renderables.add_mesh(
+        v, np.array([[0, 1, 2, 3]]), bf.DiffuseMaterial(), bf.TextureColors(tex, uv, interpolation="linear"), tag="q"
+    )
+    scene.set_orthographic_camera((16, 4), ortho_scale=2.0, translation=(0, 0, 3.0))
+    scene.lights.set_background_light(1.0)
+    return scene
+
+
+#: measured: Cycles and pyrender interpolate the 8-bit sRGB texels, then decode (Blender's behaviour for
+#: byte images); Mitsuba decodes to linear first, then interpolates: half-way between a black and a white
+#: texel Cycles/pyrender give 0.21, Mitsuba 0.5 (and fuze.obj's textures come out 1-5 % brighter).
+INTERPOLATION_KNOWN = {"mitsuba": "Mitsuba interpolates textures in linear space, Cycles/pyrender in sRGB space"}
+
+
+def test_texture_interpolation_space_pairwise(renders, pair, request):
+    a, b = pair
+    for name in pair:
+        if name in INTERPOLATION_KNOWN:
+            request.applymarker(pytest.mark.xfail(reason=INTERPOLATION_KNOWN[name], strict=False))
+    ra = renders.get("gradient", a, gradient_scene, samples=16, outputs=("rgb", "albedo"))
+    rb = renders.get("gradient", b, gradient_scene, samples=16, outputs=("rgb", "albedo"))
+    pa, pb = ra.albedo[2, :, 0], rb.albedo[2, :, 0]
+    print(f"{a}: {np.round(pa, 3).tolist()}\n{b}: {np.round(pb, 3).tolist()}")
+    assert np.allclose(pa, pb, atol=0.01), f"{a} vs {b}: texture interpolation profiles differ"
