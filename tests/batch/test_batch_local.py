@@ -241,18 +241,22 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_manifest(tmp_path):
     assert leftovers(tmp_path / "o") == []
 
 
-def test_workers_are_recycled_after_n_jobs(tmp_path):
-    jobs = [job(tmp_path, f"r{i}") for i in range(8)]
+def test_workers_are_recycled_after_n_jobs_which_bounds_a_leak(tmp_path):
+    leak = 40.0  # MiB the fake engine keeps per render
+    jobs = [job(tmp_path, f"r{i}", leak_mb=leak) for i in range(8)]
     report = bf.render_many(jobs, workers=2, recycle_after=2, progress=False, manifest=False)
     assert report.ok
     per_worker = Counter(j.worker for j in report)
     assert len(per_worker) >= 4 and max(per_worker.values()) <= 2, per_worker
     pids = Counter(pid for pid, _, _ in render_log(tmp_path))
     assert pids == Counter({int(w.split(":")[1]): n for w, n in per_worker.items()})
+    base = min(j.rss_mb for j in report)
+    assert max(j.rss_mb for j in report) < base + 1.5 * leak  # at most 2 leaks per process
 
-    jobs = [job(tmp_path, f"s{i}") for i in range(6)]
+    jobs = [job(tmp_path, f"s{i}", leak_mb=leak) for i in range(6)]
     report = bf.render_many(jobs, workers=2, recycle_after=None, progress=False, manifest=False)
     assert len({j.worker for j in report}) <= 2
+    assert max(j.rss_mb for j in report) > base + 1.8 * leak  # without recycling the leak accumulates
 
 
 def test_engine_threads_do_not_oversubscribe(tmp_path):
