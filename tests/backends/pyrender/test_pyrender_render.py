@@ -221,6 +221,24 @@ def test_shadows_follow_the_scene(pyr):
     assert ground3.min() > 0.9 * ground3.max()
 
 
+def test_cached_shadow_maps_follow_moving_objects(pyr):
+    scene = _shadow_scene()
+    scene.lights.clear()
+    scene.lights.add_sun(3.0, angular_diameter=0.0, rotation_mode="eulerXYZ", rotation=(0, 40, 0))
+
+    def shadow_x() -> float:
+        res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"), samples=1)
+        dark = (res.instance == 0) & (res.rgba[..., 0] < 0.5 * res.rgba[..., 0][res.instance == 0].max())
+        return float(np.nonzero(dark)[1].mean())
+
+    x0 = shadow_x()
+    scene.camera.translation = (0.0, 0.0, 5.5)  # camera only: the cached maps stay valid
+    assert shadow_x() == pytest.approx(x0, abs=1.5)
+    scene.camera.translation = (0.0, 0.0, 5.0)
+    scene.renderables["ball"].translation = (0.5, 0.0, 0.6)  # the object moves: maps are re-rendered
+    assert shadow_x() > x0 + 5
+
+
 def test_shadow_catcher(pyr):
     scene = _shadow_scene(catcher=True)
     scene.lights.clear()
