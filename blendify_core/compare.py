@@ -1079,6 +1079,12 @@ def crosscheck(
                 break
     pairs: dict[tuple[str, str], CompareReport] = {}
     names = list(results)
+    n_pt = sum(is_path_tracer(n) for n in names)
+    if n_pt >= 1 and samples is not None and samples * max(repeats, 1) < 128 and not _delta_lights(scene):
+        notes.append(
+            f"samples={samples}: the colour tiers for area/sky light were measured at 256 spp; at fewer samples "
+            "Monte-Carlo noise alone may fail them (use more samples, or repeats=k for the statistical test)"
+        )
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
             a, b = names[i], names[j]
