@@ -1,6 +1,7 @@
 """Every canonical scene (xb_canonical.CANONICAL) through every available backend pair, compared at the
 tier ``choose_tier`` picks for the pair and the scene (the same run benchmarks/crosscheck_report.py
-documents in docs/crosscheck.md). Slow: 96-128 px renders at up to 256 spp."""
+documents in docs/crosscheck.md). Mostly slow (96-128 px renders at up to 256 spp); the per-face-material
+scene (Lambertian, delta sun, interreflections) runs by default."""
 
 from __future__ import annotations
 
@@ -35,9 +36,12 @@ KNOWN = {
 }
 
 
-@pytest.mark.slow
+#: cheap enough for the default run (the rest is @slow)
+FAST = ("faces_material",)
+
+
 @pytest.mark.parametrize("pair", PAIRS, ids=[f"{a}-{b}" for a, b in PAIRS])
-@pytest.mark.parametrize("name", list(CANONICAL))
+@pytest.mark.parametrize("name", [n if n in FAST else pytest.param(n, marks=pytest.mark.slow) for n in CANONICAL])
 def test_canonical_pair(renders, name, pair, artifacts_dir, request):
     a, b = pair
     require(a)
