@@ -20,15 +20,17 @@ Two rules decide the verdict (``rule=``):
   ``alpha`` (it is far lower) and it cannot see a bias confined to < 0.25 % of the pixels.
 
 A per-pixel test cannot see a small *global* bias hidden in per-pixel noise (a 2 % bias at 5 % per-pixel
-noise moves each Z by 0.4 while the Šidák threshold is ~5). So the test also aggregates: the differences
-and their variances are summed over square tiles and over the whole image (a normal test of the tile
-mean); those aggregate tests, Šidák-corrected over the tiles, must accept too. (Summing per-pixel
-statistics instead, Stouffer-style, is not calibrated on real renders: at 8 spp per-pixel means are skewed
-and their K-render variance estimates correlate with them; measured 2 false tile rejections in 8 Mitsuba
-renders.) A sampler that correlates pixels negatively (Cycles' blue-noise patterns: its image mean varies
-25x less than independent pixels would) only makes the aggregates conservative. That is what makes "a
-2 % bias fails" true at realistic noise levels while the false-failure rate stays ``alpha`` (the pixel,
-tile and global families get ``alpha / 3`` each; Bonferroni across the three families).
+noise moves each Z by 0.4 while the Šidák threshold is ~5). So the test also aggregates, per colour
+channel: the differences and their variances are summed over ``tile`` x ``tile`` squares and over the
+whole image (normal tests of the tile / image means, Šidák-corrected over tiles x channels and over the
+channels); they must accept too. That is what makes "a 2 % bias fails" true at realistic noise levels
+while the false-failure rate stays ``alpha``: the pixel, tile and global families get ``alpha / 3`` each
+(Bonferroni across the three). Design notes, measured on real renders: summing per-pixel statistics
+instead (Stouffer) is not calibrated at low sample counts (per-pixel means are skewed and their K-render
+variance estimates correlate with them: 2 false tile rejections in 8 Mitsuba renders at 8 spp); summing
+the channels of a pixel understates the variance (a white light on a grey surface gives the same noise in
+R, G and B); a sampler that correlates pixels negatively (Cycles: its image mean varies ~25x less than
+independent pixels would give) only makes the aggregates conservative.
 
 When the reference variance is *estimated* from K independent renders (:func:`estimate_reference`) the
 statistic follows a Student t distribution with K - 1 degrees of freedom, not a normal one; using the
