@@ -650,9 +650,11 @@ def _non_lambertian(scene: Any) -> bool:
     return any(f in used for f in _NON_DIFFUSE)
 
 
-def _resolve_tier(tier: Any, a: RenderResult, b: RenderResult) -> tuple[str, dict[str, dict[str, float]]]:
+def _resolve_tier(
+    tier: Any, a: RenderResult, b: RenderResult, scene: Any = None
+) -> tuple[str, dict[str, dict[str, float]]]:
     if tier is None or tier == "auto":
-        name = choose_tier(_backend_of(a), _backend_of(b))
+        name = choose_tier(_backend_of(a), _backend_of(b), scene)
         return name, TIERS[name]
     if isinstance(tier, str):
         if tier not in TIERS:
@@ -685,19 +687,21 @@ def compare(
     tier: str | Mapping[str, Mapping[str, float]] | None = "auto",
     outputs: Iterable[str] | None = None,
     names: tuple[str, str] | None = None,
+    scene: Any = None,
 ) -> CompareReport:
     """Compare render ``a`` with reference ``b``; see the module docstring for the metrics.
 
     ``tier``: a name from :data:`TIERS`, "auto" (from ``meta["backend"]`` of both results:
-    :func:`choose_tier`) or a dict output -> metric -> threshold. ``outputs``: the outputs to compare
-    (from "rgb", "depth", "mask", "normal", "albedo", "instance"); default: every output present in
-    both ("mask" whenever a hit mask can be derived from both). Requesting an output one of the
-    results lacks raises :class:`InvalidSceneError`.
+    :func:`choose_tier`; pass the rendered ``scene`` so it can tell delta lights and non-Lambertian
+    materials apart) or a dict output -> metric -> threshold. ``names``: labels for the report.
+    ``outputs``: the outputs to compare (from "rgb", "depth", "mask", "normal", "albedo", "instance");
+    default: every output present in both ("mask" whenever a hit mask can be derived from both).
+    Requesting an output one of the results lacks raises :class:`InvalidSceneError`.
     """
     if not isinstance(a, RenderResult) or not isinstance(b, RenderResult):
         raise InvalidSceneError(f"compare: expected two RenderResult, got {type(a).__name__} and {type(b).__name__}")
     _check_shapes(a, b)
-    tier_name, thresholds = _resolve_tier(tier, a, b)
+    tier_name, thresholds = _resolve_tier(tier, a, b, scene)
     attr = {"rgb": "rgba", "depth": "depth", "normal": "normal", "albedo": "albedo", "instance": "instance"}
     ma, mb = hit_mask(a), hit_mask(b)
 

@@ -202,6 +202,8 @@ def test_choose_tier():
     # auto tier from meta["backend"]
     rep = bf.compare(make_result(backend="pyrender"), make_result(backend="cycles"))
     assert rep.tier == "raster" and rep.names == ("pyrender", "cycles")
+    rep = bf.compare(make_result(backend="mitsuba"), make_result(backend="cycles"), scene=primitives_scene())
+    assert rep.tier == "pathtracer_material"
 
 
 def test_empty_results_agree():
