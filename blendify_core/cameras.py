@@ -53,7 +53,7 @@ class Camera(Positionable):
         resolution_percentage: int = 100,
         **pose: Any,
     ):
-        self.tag = tag
+        self._tag = tag
         self._resolution = _resolution(resolution)
         w, h = self._resolution
         self._near = as_float("near", near, min_value=0.0, exclusive_min=True)

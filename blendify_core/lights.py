@@ -57,7 +57,7 @@ class Light(Positionable):
         tag: str | None = None,
         **pose: Any,
     ):
-        self.tag = tag or ""
+        self._tag = tag or ""
         self._strength = as_float("strength", strength, min_value=0.0)
         self._color = _rgb("color", color)
         self._use_shadow = as_bool("use_shadow", use_shadow)
@@ -376,7 +376,7 @@ class LightsCollection:
             check_tag("tag", tag)
             if tag in self._lights:
                 raise InvalidSceneError(f"tag: a light tagged {tag!r} already exists in this scene")
-        light.tag = tag
+        light._tag = tag
         self._lights[tag] = light
         self.revision += 1
         return light
@@ -563,5 +563,5 @@ def light_from_dict(d: dict[str, Any]) -> Light:
     if cls is None:
         raise InvalidSceneError(f"scene file: unknown light kind {d.get('kind')!r}")
     light = cls(**d["params"], rotation=d["quaternion"], translation=d["translation"])
-    light.tag = d["tag"]
+    light._tag = d["tag"]
     return light

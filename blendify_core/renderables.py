@@ -65,7 +65,7 @@ class Renderable(Positionable):
     allowed_colors: tuple[type, ...] = (UniformColors,)
 
     def __init__(self, material: Any, colors: Any, tag: str = "", **pose: Any):
-        self.tag = tag
+        self._tag = tag
         self._emit_shadows = True
         self.materials: list[Material] = []
         self.colors_list: list[Colors] = []
@@ -892,7 +892,7 @@ class RenderablesCollection:
             check_tag("tag", tag)
             if tag in self._items:
                 raise InvalidSceneError(f"tag: a renderable tagged {tag!r} already exists in this scene")
-        obj.tag = tag
+        obj._tag = tag
         self._items[tag] = obj
         self.revision += 1
         return obj

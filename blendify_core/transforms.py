@@ -195,6 +195,18 @@ class Positionable:
         self._quaternion = frozen(np.array([1.0, 0.0, 0.0, 0.0]))
         self.set_position(rotation_mode=rotation_mode, rotation=rotation, translation=translation)
 
+    # -- name --------------------------------------------------------------------------------------
+    @property
+    def tag(self) -> str:
+        """The object's name in its scene (read-only, as in blendify: collections are keyed by it)."""
+        return self.__dict__.get("_tag", "")
+
+    @tag.setter
+    def tag(self, value: Any) -> None:
+        raise InvalidSceneError(
+            f"tag: read-only (got {value!r}); pass tag=... to add_*, or remove the object and add it again"
+        )
+
     # -- revisions -------------------------------------------------------------------------------
     def revision(self, kind: str) -> int:
         """How many times this object's ``kind`` ("transform", "geometry", "appearance") has changed."""
