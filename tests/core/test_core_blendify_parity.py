@@ -591,3 +591,17 @@ def test_camera_properties_are_settable_and_validated():
     assert ortho.pixel_size == 4.0 / 64
     with pytest.raises(bf.InvalidSceneError, match="ortho_scale"):
         ortho.ortho_scale = 0.0
+
+
+def test_tags_are_read_only_like_blendify():
+    s = bf.Scene()
+    sphere = s.renderables.add_sphere_nurbs(1.0, bf.PrincipledBSDFMaterial(), bf.UniformColors((1, 1, 1)), tag="ball")
+    light = s.lights.add_point(tag="key")
+    cam = s.set_perspective_camera((8, 8), fov_x=1.0)
+    for obj, name in ((sphere, "ball"), (light, "key"), (cam, "camera")):
+        with pytest.raises(bf.InvalidSceneError, match="tag"):
+            obj.tag = "renamed"
+        assert obj.tag == name
+    s.renderables.remove(sphere)  # the collection still finds it by its (unchanged) tag
+    s.lights.remove(light)
+    assert len(s.renderables) == 0 and len(s.lights) == 0
