@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT / "tests" / "crossbackend"))
 from xb_canonical import CANONICAL  # noqa: E402
 
 import blendify_core as bf  # noqa: E402
-from blendify_core.compare import TIERS, alpha_centroids  # noqa: E402
+from blendify_core.compare import TIER_NOTES, TIERS, alpha_centroids  # noqa: E402
 from blendify_core.stats import ReferenceEstimate  # noqa: E402
 from blendify_core.testing import marker_scene, plane_scene  # noqa: E402
 
@@ -309,7 +309,21 @@ def main(argv: list[str] | None = None) -> int:
         "(exit code 0 when every pair passes, 1 otherwise).",
         "",
     ]
-    doc += ["## Tolerance tiers (`blendify_core.compare.TIERS`)", "", *tiers, "", "## Scenes", "", *sections]
+    notes = [f"- `{t}`: {why}" for t, why in TIER_NOTES.items()]
+    doc += [
+        "## Tolerance tiers (`blendify_core.compare.TIERS`)",
+        "",
+        "CONV = docs/conventions.md (sections 5, 6, 11, 13: the lead's measurements with the same engine versions); "
+        "'measured' = this report. The per-number comments are next to `TIERS` in `blendify_core/compare.py`.",
+        "",
+        *notes,
+        "",
+        *tiers,
+        "",
+        "## Scenes",
+        "",
+        *sections,
+    ]
     doc.append(f"\nTotal time: {time.perf_counter() - t_all:.0f} s.\n")
     (out / "crosscheck.md").write_text("\n".join(doc))
     print(f"wrote {out / 'crosscheck.md'}")

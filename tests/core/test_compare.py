@@ -190,6 +190,12 @@ def test_outputs_selection_and_errors():
     assert rep.passed and rep.tier == "custom"
 
 
+def test_every_tier_documented():
+    from blendify_core.compare import TIER_NOTES
+
+    assert set(TIER_NOTES) == set(TIERS)
+
+
 def test_choose_tier():
     assert choose_tier("cycles", "mitsuba") == "pathtracer"
     assert choose_tier("cycles", "mitsuba", plane_scene("sun")) == "pathtracer_delta"
