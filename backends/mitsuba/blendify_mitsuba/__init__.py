@@ -42,8 +42,12 @@ E, A, U = "exact", "approximate", "unsupported"
 _CAPS: dict[str, tuple[str, str]] = {
     "mesh": (E, ""),
     "mesh.vertex_colors": (E, "mesh attribute 'vertex_color' (linear, interpolated like Cycles)"),
-    "mesh.texture": (E, "in-memory bitmap, linear float data, v -> 1 - v"),
-    "mesh.file_texture": (E, "8-bit PNG/JPEG read by Mitsuba (sRGB decoded unless linear); others via the IR"),
+    "mesh.texture": (
+        E,
+        "in-memory bitmap, v -> 1 - v; 8-bit sRGB textures with linear interpolation are upsampled in encoded "
+        "space (Cycles interpolates before decoding), up to 1M texels",
+    ),
+    "mesh.file_texture": (E, "read by Mitsuba (8-bit PNG/JPEG, nearest or linear data) or through the IR"),
     "mesh.faces_material": (E, "one Mitsuba mesh per material slot"),
     "mesh.smooth": (E, "vertex normals"),
     "pointcloud": (

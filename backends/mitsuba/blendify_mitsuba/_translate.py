@@ -340,12 +340,22 @@ def build_mesh(
     return mesh
 
 
+#: 8-bit sRGB textures with linear interpolation: Cycles interpolates the *encoded* bytes and decodes
+#: afterwards (a texel boundary between bytes 30 and 230 gives decode(130) = 0.22, Mitsuba's linear-space
+#: interpolation 0.40). To match, such textures are upsampled in encoded space (exact bilinear at the
+#: new texel centres), decoded, and interpolated by Mitsuba between those: the residual error shrinks as
+#: 1/k^2. Only textures up to this many texels are upsampled (larger ones are usually minified).
+SRGB_UPSAMPLE_MAX_TEXELS = 1024 * 1024
+
+
 def _texture_dict(colors: Any, channel: str = "rgb") -> dict[str, Any]:
     """A ``bitmap`` for texture colours (``channel`` "rgb" or "alpha")."""
     filt = "nearest" if colors.interpolation == "closest" else "bilinear"
-    if channel == "rgb" and isinstance(colors, FileTextureColors):
+    raw_img = colors.image()
+    srgb_bytes = raw_img.dtype == np.uint8 and colors.color_space == "srgb"
+    if channel == "rgb" and isinstance(colors, FileTextureColors) and (filt == "nearest" or not srgb_bytes):
         suffix = Path(colors.texture_path).suffix.lower()
-        if suffix in (".png", ".jpg", ".jpeg") and colors.image().dtype == np.uint8:
+        if suffix in (".png", ".jpg", ".jpeg") and raw_img.dtype == np.uint8:
             # Mitsuba decodes 8-bit sRGB itself unless raw=True (same meaning as the IR's colour space)
             return {
                 "type": "bitmap",
@@ -353,6 +363,18 @@ def _texture_dict(colors: Any, channel: str = "rgb") -> dict[str, Any]:
                 "raw": colors.color_space == "linear",
                 "filter_type": filt,
             }
+    if channel == "rgb" and filt == "bilinear" and srgb_bytes:
+        h, w = raw_img.shape[:2]
+        k = int(max(1, min(8, math.floor(math.sqrt(SRGB_UPSAMPLE_MAX_TEXELS / (h * w))))))
+        if k > 1:
+            from blendify_core.colorspace import srgb_to_linear
+
+            enc = raw_img.astype(np.float32)[..., :3] / 255.0
+            if enc.shape[2] == 1:
+                enc = np.repeat(enc, 3, axis=2)
+            up = _upsample_bilinear_repeat(enc, k)
+            data = np.asarray(srgb_to_linear(up), dtype=np.float32)
+            return {"type": "bitmap", "data": mi.TensorXf(np.ascontiguousarray(data)), "raw": True, "filter_type": filt}
     img = colors.linear_rgba_image()
     data = img[..., :3] if channel == "rgb" else img[..., 3:4]
     return {
@@ -361,6 +383,25 @@ def _texture_dict(colors: Any, channel: str = "rgb") -> dict[str, Any]:
         "raw": True,
         "filter_type": filt,
     }
+
+
+def _linear_weights(n: int, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """1-D bilinear (texel centres at (i + 0.5) / n, repeat wrap) sampled at the k n new texel centres:
+    indices i0, i1 and the weight of i1."""
+    x = (np.arange(n * k) + 0.5) / k - 0.5
+    x0 = np.floor(x)
+    f = (x - x0).astype(np.float32)
+    i0 = x0.astype(np.int64) % n
+    return i0, (i0 + 1) % n, f
+
+
+def _upsample_bilinear_repeat(img: np.ndarray, k: int) -> np.ndarray:
+    """(H, W, C) -> (k H, k W, C): the bilinear interpolant of ``img`` at the centres of a k-times finer grid."""
+    h, w = img.shape[:2]
+    r0, r1, fr = _linear_weights(h, k)
+    rows = img[r0] * (1.0 - fr)[:, None, None] + img[r1] * fr[:, None, None]
+    c0, c1, fc = _linear_weights(w, k)
+    return rows[:, c0] * (1.0 - fc)[None, :, None] + rows[:, c1] * fc[None, :, None]
 
 
 @dataclass

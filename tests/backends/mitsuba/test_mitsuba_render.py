@@ -191,6 +191,32 @@ def test_texture_orientation(scalar_backend, faces_uv):
         assert np.argmax(r.rgba[row, col, :3]) == int(np.argmax(rgb)) or rgb == [1, 1, 1]
 
 
+def test_srgb_textures_interpolate_encoded_values_like_cycles(scalar_backend):
+    """Cycles interpolates 8-bit sRGB texels before decoding them; so does the backend (upsampling)."""
+    from blendify_core.colors import TextureColors, VertexUV
+    from blendify_core.colorspace import srgb_to_linear
+
+    tex = (np.indices((8, 8)).sum(axis=0) % 2 * 200 + 30).astype(np.uint8)
+    scene = bf.Scene()
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=float)
+    uv = VertexUV(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float))
+    scene.renderables.add_mesh(v, [[0, 1, 2, 3]], DiffuseMaterial(), TextureColors(np.dstack([tex] * 3), uv), tag="q")
+    scene.set_orthographic_camera((64, 64), ortho_scale=2.0, translation=(0, 0, 3))
+    scene.lights.set_background_light(1.0)
+    r = _render(scalar_backend, scene, samples=1, outputs=("albedo",))
+    # reference: bilinear interpolation of the bytes (texel centres at (i + 0.5) / 8), then decode
+    x = (np.arange(64) + 0.5) / 64 * 8 - 0.5
+    i0 = np.floor(x).astype(int)
+    f = x - i0
+    t = tex.astype(np.float64) / 255
+    rows = t[np.clip(i0, 0, 7)] * (1 - f)[:, None] + t[np.clip(i0 + 1, 0, 7) % 8] * f[:, None]
+    ref = rows[:, np.clip(i0, 0, 7)] * (1 - f)[None] + rows[:, np.clip(i0 + 1, 0, 7) % 8] * f[None]
+    inner = slice(4, 60)  # away from the wrap-around border
+    err = np.abs(r.albedo[inner, inner, 0] - srgb_to_linear(ref[inner, inner]))
+    print(f"max |albedo - decode(bilinear(bytes))| = {err.max():.4f}")
+    assert err.max() < 0.01
+
+
 @pytest.mark.parametrize("color_space,expected", [("srgb", 0.2158605), ("linear", 128 / 255)])
 def test_file_texture(scalar_backend, tmp_path, color_space, expected):
     from PIL import Image
