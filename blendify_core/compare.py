@@ -530,6 +530,8 @@ class CompareReport:
     legends: dict[str, str] = field(default_factory=dict, repr=False)
     names: tuple[str, str] = ("a", "b")
     notes: list[str] = field(default_factory=list)
+    #: the compared results (a, b), kept so :meth:`save` can write them next to the diff maps
+    results: tuple[RenderResult, RenderResult] | None = field(default=None, repr=False, compare=False)
 
     def summary(self) -> str:
         """Markdown: verdict, failures, and a table of every metric with its threshold."""
@@ -554,14 +556,23 @@ class CompareReport:
         return "\n".join(lines) + "\n"
 
     def save(self, folder: str | os.PathLike[str]) -> Path:
-        """Write ``diff_<output>.png`` for every output, ``report.md`` and ``metrics.json`` into ``folder``
-        (created if needed); returns the folder."""
+        """Write ``diff_<output>.png`` for every output, the compared images (``a_<output>.png`` and
+        ``b_<output>.png``, 8-bit previews), ``report.md`` and ``metrics.json`` into ``folder`` (created if
+        needed); returns the folder."""
         from PIL import Image
 
         out = Path(folder)
         out.mkdir(parents=True, exist_ok=True)
         for name, img in self.diff_images.items():
             Image.fromarray(img).save(out / f"diff_{name}.png")
+        if self.results is not None:
+            for label, r in zip(("a", "b"), self.results):
+                for o in self.diff_images:
+                    if (
+                        o in ("rgb", "depth", "normal", "albedo", "instance")
+                        and getattr(r, "rgba" if o == "rgb" else o) is not None
+                    ):
+                        r.save(out / f"{label}_{o}.png", output=o)
         legend = "\n".join(f"- `diff_{k}.png`: {v}" for k, v in self.legends.items())
         (out / "report.md").write_text(self.summary() + "\nDiff images:\n\n" + legend + "\n")
         (out / "metrics.json").write_text(
@@ -815,6 +826,7 @@ def compare(
         legends=legends,
         names=(la, lb),
         notes=notes,
+        results=(a, b),
     )
 
 

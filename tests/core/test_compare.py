@@ -165,6 +165,7 @@ def test_required_keys_diff_images_and_repr(tmp_path):
     rep.save(tmp_path / "rep")
     names = sorted(p.name for p in (tmp_path / "rep").iterdir())
     assert "report.md" in names and "diff_rgb.png" in names and "diff_mask.png" in names
+    assert "a_rgb.png" in names and "b_depth.png" in names and "b_instance.png" in names
     data = json.loads((tmp_path / "rep" / "metrics.json").read_text())
     assert data["passed"] is False and data["tier"] == "pathtracer_delta"
 
