@@ -17,7 +17,12 @@ import numpy as np
 from ._validate import _describe, as_array, as_bool, as_choice, as_float, check_tag, frozen, raw_array, strict_arguments
 from .colors import COLOR_SPACES, _check_image, _to_linear, load_image
 from .errors import InvalidSceneError
-from .transforms import Positionable
+from .transforms import Positionable, ValidatedParam
+
+
+def _non_negative(obj: Any, name: str, value: Any) -> float:
+    return as_float(name, value, min_value=0.0)
+
 
 __all__ = [
     "Light",
@@ -127,6 +132,7 @@ class PointLight(Light):
 
     kind = "point"
     prefix = "Point"
+    shadow_soft_size = ValidatedParam(_non_negative, doc="Emitter radius in metres (soft shadows).")
 
     def __init__(
         self,
@@ -136,7 +142,7 @@ class PointLight(Light):
         use_shadow: bool = True,
         **kwargs: Any,
     ):
-        self.shadow_soft_size = as_float("shadow_soft_size", shadow_soft_size, min_value=0.0)
+        self.shadow_soft_size = shadow_soft_size
         super().__init__(strength, color, use_shadow, **kwargs)
 
     def _params(self) -> dict[str, Any]:
@@ -148,6 +154,9 @@ class SunLight(Light):
 
     kind = "sun"
     prefix = "Sun"
+    angular_diameter = ValidatedParam(
+        lambda obj, name, v: as_float(name, v, min_value=0.0, max_value=np.pi), doc="Angular diameter (radians)."
+    )
 
     def __init__(
         self,
@@ -157,7 +166,7 @@ class SunLight(Light):
         use_shadow: bool = True,
         **kwargs: Any,
     ):
-        self.angular_diameter = as_float("angular_diameter", angular_diameter, min_value=0.0, max_value=np.pi)
+        self.angular_diameter = angular_diameter
         super().__init__(strength, color, use_shadow, **kwargs)
 
     def _params(self) -> dict[str, Any]:
@@ -170,6 +179,14 @@ class SpotLight(Light):
 
     kind = "spot"
     prefix = "Spot"
+    spot_size = ValidatedParam(
+        lambda obj, name, v: as_float(name, v, min_value=np.deg2rad(1.0), max_value=np.pi),
+        doc="Full cone angle (radians, 1 to 180 degrees).",
+    )
+    spot_blend = ValidatedParam(
+        lambda obj, name, v: as_float(name, v, min_value=0.0, max_value=1.0), doc="Soft cone edge, 0 to 1."
+    )
+    shadow_soft_size = ValidatedParam(_non_negative, doc="Emitter radius in metres (soft shadows).")
 
     def __init__(
         self,
@@ -181,9 +198,9 @@ class SpotLight(Light):
         use_shadow: bool = True,
         **kwargs: Any,
     ):
-        self.spot_size = as_float("spot_size", spot_size, min_value=np.deg2rad(1.0), max_value=np.pi)
-        self.spot_blend = as_float("spot_blend", spot_blend, min_value=0.0, max_value=1.0)
-        self.shadow_soft_size = as_float("shadow_soft_size", shadow_soft_size, min_value=0.0)
+        self.spot_size = spot_size
+        self.spot_blend = spot_blend
+        self.shadow_soft_size = shadow_soft_size
         super().__init__(strength, color, use_shadow, **kwargs)
 
     def _params(self) -> dict[str, Any]:
@@ -213,18 +230,34 @@ class AreaLight(Light):
         use_shadow: bool = True,
         **kwargs: Any,
     ):
-        self.shape = as_choice("shape", shape, self.SHAPES)
-        if self.shape in ("square", "circle"):
-            if raw_array("size", size).ndim != 0:
-                raise InvalidSceneError(f"size: a {self.shape} area light takes one number, got {_describe(size)}")
-            s = as_float("size", size, min_value=0.0, exclusive_min=True)
-            self.size: tuple[float, float] = (s, s)
-        else:
-            arr = as_array("size", size, shape=(2,), min_value=0.0)
-            if np.any(arr <= 0):
-                raise InvalidSceneError(f"size: expected two positive numbers, got {arr.tolist()}")
-            self.size = (float(arr[0]), float(arr[1]))
+        self._shape = as_choice("shape", shape, self.SHAPES)
+        self.size = size
         super().__init__(strength, color, use_shadow, **kwargs)
+
+    def _check_size(self, name: str, size: Any) -> tuple[float, float]:
+        if self.shape in ("square", "circle"):
+            if raw_array(name, size).ndim != 0:
+                raise InvalidSceneError(f"{name}: a {self.shape} area light takes one number, got {_describe(size)}")
+            s = as_float(name, size, min_value=0.0, exclusive_min=True)
+            return (s, s)
+        arr = as_array(name, size, shape=(2,), min_value=0.0)
+        if np.any(arr <= 0):
+            raise InvalidSceneError(f"{name}: expected two positive numbers, got {arr.tolist()}")
+        return (float(arr[0]), float(arr[1]))
+
+    size = ValidatedParam(
+        lambda obj, name, v: obj._check_size(name, v),
+        doc="(size_x, size_y) in metres; set a number for square/circle lights, a pair for rectangle/ellipse.",
+    )
+
+    @property
+    def shape(self) -> str:
+        """The outline: square, circle, rectangle or ellipse (fixed at creation)."""
+        return self._shape
+
+    @shape.setter
+    def shape(self, value: Any) -> None:
+        raise InvalidSceneError(f"shape: fixed at creation (got {value!r}); add a new area light instead")
 
     @property
     def area(self) -> float:

@@ -174,6 +174,31 @@ def quaternion_from_rotation(
     )
 
 
+class ValidatedParam:
+    """A settable parameter of a positionable object: every assignment is checked with
+    ``check(obj, name, value)`` and, once the object exists, bumps its ``kind`` revision so backends
+    that cache by revision see the change."""
+
+    def __init__(self, check: Any, kind: str = "appearance", doc: str | None = None):
+        self.check = check
+        self.kind = kind
+        self.__doc__ = doc
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+        self.attr = "_" + name
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:
+            return self
+        return obj.__dict__[self.attr]
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        obj.__dict__[self.attr] = self.check(obj, self.name, value)
+        if "_revisions" in obj.__dict__:
+            obj._bump(self.kind)
+
+
 def compose_matrix(quaternion: np.ndarray, translation: np.ndarray) -> np.ndarray:
     m = np.eye(4)
     m[:3, :3] = quaternion_to_matrix(quaternion)
