@@ -605,3 +605,42 @@ def test_tags_are_read_only_like_blendify():
     s.renderables.remove(sphere)  # the collection still finds it by its (unchanged) tag
     s.lights.remove(light)
     assert len(s.renderables) == 0 and len(s.lights) == 0
+
+
+@pytest.mark.parametrize(
+    ("make", "name", "good", "bad"),
+    [
+        (lambda lights: lights.add_point(), "shadow_soft_size", 0.5, -1.0),
+        (lambda lights: lights.add_sun(), "angular_diameter", 0.1, 4.0),
+        (lambda lights: lights.add_spot(), "spot_size", 1.0, 0.0),
+        (lambda lights: lights.add_spot(), "spot_blend", 0.5, 1.5),
+        (lambda lights: lights.add_spot(), "shadow_soft_size", 0.0, np.nan),
+        (lambda lights: lights.add_area("rectangle", (1.0, 2.0)), "size", (2.0, 3.0), 1.0),
+        (lambda lights: lights.add_area("circle", 1.0), "size", 2.0, (1.0, 2.0)),
+        (lambda lights: lights.add_point(), "strength", 5.0, -5.0),
+        (lambda lights: lights.add_point(), "color", (0.5, 0.5, 0.5), (2.0, 0.0, 0.0)),
+    ],
+)
+def test_light_parameters_settable_validated_and_seen_by_backends(make, name, good, bad):
+    """Changing a light parameter bumps its appearance revision (backends cache lights by revision)."""
+    light = make(bf.Scene().lights)
+    rev = light.revision("appearance")
+    setattr(light, name, good)
+    value = getattr(light, name)
+    assert value == (tuple(good) if isinstance(good, tuple) else (good, good) if name == "size" else good)
+    assert light.revision("appearance") == rev + 1
+    with pytest.raises(bf.InvalidSceneError, match=name):
+        setattr(light, name, bad)
+    assert getattr(light, name) == value and light.revision("appearance") == rev + 1
+
+
+def test_area_shape_is_fixed_and_point_cloud_emission_is_tracked():
+    area = bf.Scene().lights.add_area("square", 1.0)
+    with pytest.raises(bf.InvalidSceneError, match="shape"):
+        area.shape = "circle"
+    pc = bf.Scene().renderables.add_pointcloud(np.zeros((3, 3)), bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1)))
+    rev = pc.revision("appearance")
+    pc.particle_emission_strength = 1.5
+    assert pc.particle_emission_strength == 1.5 and pc.revision("appearance") == rev + 1
+    with pytest.raises(bf.InvalidSceneError, match="particle_emission_strength"):
+        pc.particle_emission_strength = -1
