@@ -72,8 +72,10 @@ _CAPS: dict[str, tuple[str, str]] = {
     "object.no_shadow": (U, "Mitsuba has no per-object shadow visibility"),
     "material.principled": (
         A,
-        "Mitsuba 'principled' (Disney diffuse with retro-reflection, Schlick Fresnel; IOR from ior and "
-        "Specular IOR Level, alpha = roughness^2): dielectric speculars differ by ~5-10 % from Cycles",
+        "Mitsuba 'principled' (Disney diffuse with retro-reflection, Schlick Fresnel, no diffuse/specular "
+        "energy coupling; eta from IOR and Specular IOR Level, alpha = roughness^2). Measured on a red sphere "
+        "under a sun vs Cycles: red channel +6-7 %, dark channels (specular) +40-65 %; roughplastic was not "
+        "closer",
     ),
     "material.diffuse_only": (E, "Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
     "material.metallic": (A, "Mitsuba 'principled' metallic (measured 1.008 x Cycles on a sphere)"),
