@@ -601,6 +601,7 @@ class _PoolWorker:
         self.started_at: float | None = None
         self.retired_at = 0.0
         self.count = 0
+        self.ready = False
 
     def kill(self) -> None:
         if self.proc.is_alive():
@@ -642,8 +643,19 @@ def _run_local(run: _Run, pending: list[int], workers: int, recycle_after: int |
     def busy() -> list[_PoolWorker]:
         return [w for w in pool if w.job is not None]
 
+    startup_failures = 0
+
     def fail_and_replace(w: _PoolWorker, reason: str) -> None:
+        nonlocal startup_failures
+        if not w.ready and w.job is not None and startup_failures < 3:
+            # the worker died while starting (e.g. an import error): the job never ran, try it again
+            startup_failures += 1
+            queue.append(w.job)
+            run.release(w.job)
+            w.job = None
         if w.job is not None:
+            if not w.ready:
+                reason = f"worker failed to start ({reason}); see the worker's stderr"
             run.finish(w.job, {"status": "failed", "reason": reason, "pid": w.proc.pid})
             w.job = None
         w.kill()
@@ -655,6 +667,8 @@ def _run_local(run: _Run, pending: list[int], workers: int, recycle_after: int |
         for _ in range(min(workers, len(queue))):
             spawn()
         while queue or busy():
+            if not pool and queue:
+                spawn()
             now = time.monotonic()
             for w in list(pool):
                 if w.job is None and queue and w.proc.is_alive():
@@ -691,7 +705,10 @@ def _run_local(run: _Run, pending: list[int], workers: int, recycle_after: int |
                     try:
                         while w.conn.poll():
                             msg = w.conn.recv()
-                            if msg[0] == "start" and msg[1] == w.job:
+                            if msg[0] == "ready":
+                                w.ready = True
+                                startup_failures = 0
+                            elif msg[0] == "start" and msg[1] == w.job:
                                 w.started_at = time.monotonic()
                             elif msg[0] == "result" and msg[1] == w.job:
                                 run.finish(w.job, msg[2])

@@ -382,3 +382,25 @@ def test_bad_input_is_rejected_with_the_argument_name(tmp_path):
     with pytest.raises(InvalidSceneError, match="executor"):
         bf.render_many(jobs[:1], executor="slurm", progress=False)
     assert len(bf.render_many([], progress=False)) == 0
+
+
+def test_workers_that_cannot_start_fail_the_jobs_without_hanging(tmp_path):
+    script = tmp_path / "broken.py"
+    script.write_text(
+        f"import json, sys; sys.path.insert(0, {str(HERE)!r})\n"
+        "if __name__ == '__mp_main__':\n"
+        "    raise SystemExit(3)  # every worker process dies while starting\n"
+        "import blendify_core as bf\n"
+        "from batch_fake_backend import FAKE, TARGET, tiny_scene\n"
+        "bf.register_backend(FAKE, TARGET)\n"
+        "if __name__ == '__main__':\n"
+        f"    jobs = [bf.RenderJob(tiny_scene(t), {str(tmp_path)!r} + f'/{{t}}.png', backend=FAKE) for t in 'ab']\n"
+        "    report = bf.render_many(jobs, workers=1, progress=False, manifest=False)\n"
+        "    print(json.dumps([j.reason for j in report]))\n"
+    )
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    reasons = json.loads(out.stdout.strip().splitlines()[-1])
+    assert len(reasons) == 2
+    for r in reasons:
+        assert r is not None and "worker failed to start" in r and "exited with code 3" in r
