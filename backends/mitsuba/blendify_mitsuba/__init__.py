@@ -8,11 +8,13 @@ aborts the process that uses it).
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import logging
 import math
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -235,6 +237,21 @@ class MitsubaBackend(Backend):
                 raise RenderError(f"mitsuba: cannot set variant {variant!r}: {exc}") from exc
         return mi
 
+    @contextlib.contextmanager
+    def _engine(self) -> Iterator[Any]:
+        """Hold the engine lock with this backend's variant set; the previous variant (another backend's or
+        the user's own ``mi.set_variant``) is restored afterwards."""
+        with _ENGINE_LOCK:
+            import sys
+
+            previous = sys.modules["mitsuba"].variant() if "mitsuba" in sys.modules else None
+            mi = self._set_variant()
+            try:
+                yield mi
+            finally:
+                if previous is not None and previous != mi.variant():
+                    mi.set_variant(previous)
+
     # -- work --------------------------------------------------------------------------------------
     def integrator_for(self, scene: Any, settings: RenderSettings) -> tuple[dict[str, Any], Any]:
         """The integrator dictionary: ``path`` with max_depth = max_bounces + 2, or max_depth 2 (direct
@@ -276,8 +293,7 @@ class MitsubaBackend(Backend):
             plan = plan_square_pixels(cam, spp)  # non-square pixels: a resampled square-pixel render
             render_cam, spp = plan.camera, plan.spp
         integrator, effects = self.integrator_for(scene, settings)
-        with _ENGINE_LOCK:
-            mi = self._set_variant()
+        with self._engine() as mi:
             from ._translate import translate_scene
 
             film = {
@@ -380,8 +396,7 @@ class MitsubaBackend(Backend):
             raise InvalidSceneError(f"native: expected a MitsubaNative from translate(), got {type(native).__name__}")
         timings: dict[str, float] = {}
         out: dict[str, Any] = {}
-        with _ENGINE_LOCK:
-            self._set_variant()
+        with self._engine():
             if settings.threads is not None:
                 import drjit as dr
 

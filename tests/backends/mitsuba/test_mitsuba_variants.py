@@ -100,3 +100,15 @@ def test_llvm_variant_matches_scalar_geometry():
     np.testing.assert_allclose(a.normal, b.normal, atol=1e-4)
     np.testing.assert_allclose(a.albedo, b.albedo, atol=1e-5)
     assert abs(a.rgba[..., :3].mean() / b.rgba[..., :3].mean() - 1) < 0.03  # same image up to noise
+
+
+def test_the_users_variant_is_restored(scalar_backend):
+    import mitsuba as mi
+
+    mi.set_variant("scalar_spectral")
+    try:
+        r = bf.render(testing.plane_scene("sun", resolution=(8, 8)), backend=scalar_backend, samples=1)
+        assert r.meta["variant"] == "scalar_rgb"
+        assert mi.variant() == "scalar_spectral"
+    finally:
+        mi.set_variant("scalar_rgb")
