@@ -233,11 +233,14 @@ def child_warm(argv: list[str]) -> None:
 
 
 def _run(args: list[str]) -> dict:
-    p = subprocess.run([sys.executable, __file__, *args], capture_output=True, text=True, timeout=3600)
-    line = [x for x in p.stdout.splitlines() if x.startswith("RESULT ")]
-    if p.returncode != 0 or not line:
-        raise SystemExit(f"{args} failed:\n{p.stdout}\n{p.stderr}")
-    return json.loads(line[0][7:])
+    for attempt in range(3):  # the checkout is shared with other jobs: retry a transient failure
+        p = subprocess.run([sys.executable, __file__, *args], capture_output=True, text=True, timeout=3600)
+        line = [x for x in p.stdout.splitlines() if x.startswith("RESULT ")]
+        if p.returncode == 0 and line:
+            return json.loads(line[0][7:])
+        print(f"{args}: attempt {attempt + 1} failed:\n{p.stderr[-2000:]}", flush=True)
+        time.sleep(30)
+    raise SystemExit(f"{args} failed")
 
 
 def main() -> None:

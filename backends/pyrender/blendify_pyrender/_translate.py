@@ -269,8 +269,8 @@ class PointLOD:
 #: thresholds chosen by measurement (benchmarks/bench_pyrender_points.py)
 _LODS = (
     (20_000, PointLOD("icosphere-1 (80 triangles per point)", 1, False)),
-    (60_000, PointLOD("icosphere-0 (20 triangles per point)", 0, True)),
-    (200_000, PointLOD("octahedron (8 triangles per point)", -1, True)),
+    (50_000, PointLOD("icosphere-0 (20 triangles per point)", 0, True)),
+    (100_000, PointLOD("octahedron (8 triangles per point)", -1, True)),
 )
 _LOD_LARGE = PointLOD(
     "screen-space squares of the projected diameter at the cloud's median depth (GL points, shaded facing the camera)",

@@ -272,7 +272,7 @@ def test_pointcloud_scene_renders(pyr):
 def test_large_point_cloud_uses_gl_points(pyr, monkeypatch):
     from blendify_pyrender import _translate as tr
 
-    monkeypatch.setattr(tr, "point_lod", lambda n: tr._LOD_LARGE)  # the >200k level on a small cloud
+    monkeypatch.setattr(tr, "point_lod", lambda n: tr._LOD_LARGE)  # the >100k level on a small cloud
     scene = testing.pointcloud_scene(n=3000, resolution=(64, 64), point_size=0.05)
     res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "depth", "normal", "instance"))
     hit = res.instance == 0
