@@ -336,7 +336,7 @@ def write_report(rows: list) -> None:
         ax.set_yticks(range(len(sel)), labels, fontsize=8)
         ax.invert_yaxis()
         ax.set_xlabel("warm frame (ms), 512x512")
-        ax.set_title(f"{s}: blendify (blue) vs hand-written pyrender (grey)")
+        ax.set_title(f"{s}: blendify (blue), hand-written (grey)", fontsize=10)
     fig.tight_layout()
     fig.savefig(RESULTS / "pyrender_preview.png", dpi=110)
 
