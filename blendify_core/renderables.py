@@ -540,6 +540,30 @@ class PointCloud(Renderable):
 # ---------------------------------------------------------------------------------------------------
 
 
+def _positive(obj: Any, name: str, value: Any) -> float:
+    return as_float(name, value, min_value=0.0, exclusive_min=True)
+
+
+def _fixed(check: Any) -> Any:
+    """A parameter fixed at creation (the face count and per-face materials depend on it)."""
+
+    def fixed(obj: Any, name: str, value: Any) -> Any:
+        if "_revisions" in obj.__dict__:
+            raise InvalidSceneError(f"{name}: fixed at creation (got {value!r}); add a new object instead")
+        return check(name, value)
+
+    return fixed
+
+
+# geometry parameters of primitives: validated on assignment, and a change bumps revision("geometry")
+_SIZE = ValidatedParam(_positive, "geometry", "Edge length (world units).")
+_RADIUS = ValidatedParam(_positive, "geometry", "Radius (world units).")
+_NUM_VERTICES = ValidatedParam(
+    _fixed(lambda name, v: as_int(name, v, min_value=3, max_value=100000)), "geometry", "Vertices around the circle."
+)
+_FILL_TYPE = ValidatedParam(_fixed(lambda name, v: as_choice(name, v, FILL_TYPES)), "geometry", "Cap fill.")
+
+
 class MeshPrimitive(Renderable):
     """A parametric mesh (cube, circle, cylinder, plane). Colours: UniformColors (one per material).
     ``faces_material`` indexes the primitive's polygons (cube: 6 faces, plane: 1, ...)."""
@@ -612,6 +636,7 @@ class CubeMesh(MeshPrimitive):
 
     kind = "cube"
     prefix = "Cube"
+    size = _SIZE
 
     def __init__(self, size: float, material: Any, colors: Any, faces_material: Any = None, tag: str = "", **pose: Any):
         self.size = as_float("size", size, min_value=0.0, exclusive_min=True)
@@ -670,6 +695,7 @@ class CircleMesh(MeshPrimitive):
 
     kind = "circle"
     prefix = "Circle"
+    radius, num_vertices, fill_type = _RADIUS, _NUM_VERTICES, _FILL_TYPE
 
     def __init__(
         self,
@@ -702,6 +728,8 @@ class CylinderMesh(MeshPrimitive):
 
     kind = "cylinder"
     prefix = "Cylinder"
+    radius, num_vertices, fill_type = _RADIUS, _NUM_VERTICES, _FILL_TYPE
+    height = ValidatedParam(_positive, "geometry", "Height along Z (world units).")
 
     def __init__(
         self,
@@ -753,6 +781,7 @@ class PlaneMesh(MeshPrimitive):
 
     kind = "plane"
     prefix = "Plane"
+    size = _SIZE
 
     def __init__(
         self,
@@ -819,6 +848,7 @@ class SphereNURBS(ParametricPrimitive):
 
     kind = "sphere"
     prefix = "Sphere"
+    radius = _RADIUS
 
     def __init__(self, radius: float, material: Any, colors: Any, tag: str = "", **pose: Any):
         self.radius = as_float("radius", radius, min_value=0.0, exclusive_min=True)
@@ -837,11 +867,17 @@ class EllipsoidNURBS(ParametricPrimitive):
     kind = "ellipsoid"
     prefix = "Ellipsoid"
 
-    def __init__(self, radius: Any, material: Any, colors: Any, tag: str = "", **pose: Any):
-        r = as_array("radius", radius, shape=(3,))
+    @staticmethod
+    def _check_radius(obj: Any, name: str, value: Any) -> np.ndarray:
+        r = as_array(name, value, shape=(3,))
         if np.any(r <= 0):
-            raise InvalidSceneError(f"radius: expected three positive semi-axes, got {r.tolist()}")
-        self.radius = r
+            raise InvalidSceneError(f"{name}: expected three positive semi-axes, got {r.tolist()}")
+        return r
+
+    radius = ValidatedParam(_check_radius, "geometry", "Semi-axes (rx, ry, rz) in object space.")
+
+    def __init__(self, radius: Any, material: Any, colors: Any, tag: str = "", **pose: Any):
+        self.radius = radius
         super().__init__(material, colors, tag, **pose)
 
     def to_mesh(self, segments: int = 64, rings: int = 32) -> TriMesh:
@@ -862,13 +898,20 @@ class CurveBezier(ParametricPrimitive):
     kind = "curve"
     prefix = "Curve"
 
-    def __init__(self, keypoints: Any, radius: float, material: Any, colors: Any, tag: str = "", **pose: Any):
-        k = as_array("keypoints", keypoints, ndim=2)
+    @staticmethod
+    def _check_keypoints(obj: Any, name: str, value: Any) -> np.ndarray:
+        k = as_array(name, value, ndim=2)
         if k.shape[1] != 3 or k.shape[0] < 2:
-            raise InvalidSceneError(f"keypoints: expected shape (K >= 2, 3), got {_describe(k)}")
+            raise InvalidSceneError(f"{name}: expected shape (K >= 2, 3), got {_describe(k)}")
         if np.all(np.linalg.norm(k - k[0], axis=1) <= 1e-12 * max(1.0, float(np.abs(k).max()))):
-            raise InvalidSceneError("keypoints: all keypoints coincide; a curve needs two distinct points")
-        self.keypoints = k
+            raise InvalidSceneError(f"{name}: all keypoints coincide; a curve needs two distinct points")
+        return k
+
+    keypoints = ValidatedParam(_check_keypoints, "geometry", "(K >= 2, 3) polyline through the tube's centre.")
+    radius = _RADIUS
+
+    def __init__(self, keypoints: Any, radius: float, material: Any, colors: Any, tag: str = "", **pose: Any):
+        self.keypoints = keypoints
         self.radius = as_float("radius", radius, min_value=0.0, exclusive_min=True)
         super().__init__(material, colors, tag, **pose)
 
