@@ -644,3 +644,40 @@ def test_area_shape_is_fixed_and_point_cloud_emission_is_tracked():
     assert pc.particle_emission_strength == 1.5 and pc.revision("appearance") == rev + 1
     with pytest.raises(bf.InvalidSceneError, match="particle_emission_strength"):
         pc.particle_emission_strength = -1
+
+
+@pytest.mark.parametrize(
+    ("make", "name", "good", "bad"),
+    [
+        (lambda r, m, c: r.add_cube_mesh(1.0, m, c), "size", 2.0, 0.0),
+        (lambda r, m, c: r.add_plane_mesh(1.0, m, c), "size", 3.0, -1.0),
+        (lambda r, m, c: r.add_sphere_nurbs(1.0, m, c), "radius", 0.5, np.inf),
+        (lambda r, m, c: r.add_circle_mesh(1.0, m, c), "radius", 0.5, 0.0),
+        (lambda r, m, c: r.add_cylinder_mesh(1.0, 2.0, m, c), "height", 0.5, -2.0),
+        (lambda r, m, c: r.add_ellipsoid_nurbs((1, 2, 3), m, c), "radius", (3.0, 2.0, 1.0), (1.0, 0.0, 1.0)),
+        (lambda r, m, c: r.add_curve_nurbs([[0, 0, 0], [1, 0, 0]], 0.1, m, c), "radius", 0.2, 0.0),
+        (
+            lambda r, m, c: r.add_curve_nurbs([[0, 0, 0], [1, 0, 0]], 0.1, m, c),
+            "keypoints",
+            [[0, 0, 0], [0, 1, 0], [1, 1, 0]],
+            [[1, 1, 1], [1, 1, 1]],
+        ),
+    ],
+)
+def test_primitive_geometry_parameters_are_validated_and_tracked(make, name, good, bad):
+    obj = make(bf.Scene().renderables, bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1)))
+    rev = obj.revision("geometry")
+    setattr(obj, name, good)
+    assert np.array_equal(np.asarray(getattr(obj, name)), np.asarray(good, dtype=float))
+    assert obj.revision("geometry") == rev + 1
+    before = obj.to_mesh().vertices
+    with pytest.raises(bf.InvalidSceneError, match=name):
+        setattr(obj, name, bad)
+    assert np.array_equal(obj.to_mesh().vertices, before)
+
+
+def test_primitive_face_structure_is_fixed():
+    cyl = bf.Scene().renderables.add_cylinder_mesh(1.0, 1.0, bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1)))
+    for name, value in (("num_vertices", 8), ("fill_type", "TRIFAN")):
+        with pytest.raises(bf.InvalidSceneError, match=name):
+            setattr(cyl, name, value)
