@@ -92,7 +92,12 @@ _CAPS: dict[str, tuple[str, str]] = {
         "the coverage alpha is composited from two extra one-bounce passes",
     ),
     "material.alpha": (E, "mask BSDF with the material x colour alpha"),
-    "material.wireframe": (U, "no faithful wireframe overlay in Mitsuba"),
+    "material.wireframe": (
+        A,
+        "triangle edges as square tubes of side wireframe_thickness (world units) with the surface's BSDF in "
+        "the wireframe colour: geometry instead of Blender's Wireframe shader (protrudes by half the "
+        "thickness, casts shadows, also draws the diagonals of triangulated quads)",
+    ),
     "material.roughness_map": (A, "raw bitmap driving principled roughness (the principled BSDF's differences)"),
     "material.metallic_map": (A, "raw bitmap driving principled metallic (the principled BSDF's differences)"),
     "material.normal_map": (

@@ -529,13 +529,6 @@ def translate_scene(
                 feature="object.no_shadow",
                 backend="mitsuba",
             )
-        for m in r.materials:
-            if m.has_wireframe:
-                raise UnsupportedFeatureError(
-                    f"renderable {r.tag!r}: wireframe materials have no faithful Mitsuba translation",
-                    feature="material.wireframe",
-                    backend="mitsuba",
-                )
         matrix = r.matrix_world
         if isinstance(r, PointCloud):
             n_spheres += _add_pointcloud(d, shapes, r, ri, prefix, matrix, max_analytic_spheres)
@@ -584,6 +577,8 @@ def translate_scene(
             mesh = build_mesh(key, part.vertices, part.faces, part.normals, part.uv, attrs, bsdf, emitter)
             d[key] = mesh
             shapes[key] = ShapeInfo(ri, const, tex)
+            if mat.has_wireframe:
+                _add_wireframe(d, shapes, f"{prefix}_w{k:03d}", ri, mat, part)
     d.update(light_dicts(scene))
     coverage_dict = background_dict = None
     sky = {k: v for k, v in d.items() if k in ("environment", "background")}
@@ -619,6 +614,51 @@ def translate_scene(
         catcher_dict=catcher_dict,
         catchers=catchers,
     )
+
+
+def wire_tubes(vertices: np.ndarray, faces: np.ndarray, thickness: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every distinct triangle edge as an open square tube of side ``thickness`` centred on the edge and
+    extended by thickness / 2 at both ends (so corners close): (V, 3) vertices and (F, 3) triangles."""
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [0, 2]]]), axis=1)
+    edges = np.unique(edges, axis=0)
+    p0, p1 = vertices[edges[:, 0]], vertices[edges[:, 1]]
+    axis = p1 - p0
+    length = np.linalg.norm(axis, axis=1)
+    ok = length > 0
+    p0, p1, axis, length = p0[ok], p1[ok], axis[ok], length[ok]
+    axis /= length[:, None]
+    half = thickness / 2.0
+    p0, p1 = p0 - axis * half, p1 + axis * half
+    ref = np.where(np.abs(axis[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    side = np.cross(axis, ref)
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    up = np.cross(axis, side)
+    offsets = np.stack([side + up, up - side, -side - up, side - up], axis=1) * half  # (E, 4, 3)
+    verts = np.concatenate([p0[:, None] + offsets, p1[:, None] + offsets], axis=1)  # (E, 8, 3)
+    a = np.arange(4)
+    b = (a + 1) % 4
+    quads = np.concatenate([np.stack([a, b, b + 4], 1), np.stack([a, b + 4, a + 4], 1)])  # (8, 3)
+    tris = quads[None] + (8 * np.arange(len(p0)))[:, None, None]
+    return verts.reshape(-1, 3), tris.reshape(-1, 3)
+
+
+def _add_wireframe(
+    d: dict[str, Any], shapes: dict[str, ShapeInfo], key: str, ri: int, material: Any, part: _Part
+) -> None:
+    """The wireframe overlay as geometry: square tubes along the edges, with the surface's BSDF in the
+    wireframe colour (as the Cycles backend mixes a second Principled in that colour along the edges)."""
+    thickness = float(material.get("wireframe_thickness"))
+    if thickness <= 0 or len(part.faces) == 0:
+        return
+    verts, tris = wire_tubes(part.vertices, np.asarray(part.faces), thickness)
+    if len(tris) == 0:
+        return
+    wire = material.linear("wireframe_color")
+    bsdf_d, _ = bsdf_dict(material, _rgb(wire[:3]))
+    if wire[3] < 1.0:
+        bsdf_d = {"type": "mask", "opacity": float(wire[3]), "bsdf": bsdf_d}
+    d[key] = build_mesh(key, verts, tris, bsdf=mi.load_dict(bsdf_d))
+    shapes[key] = ShapeInfo(ri, np.asarray(wire[:3], dtype=np.float64))
 
 
 def _wrap_mask(bsdf: dict[str, Any], material: Any, colors: Any) -> dict[str, Any]:

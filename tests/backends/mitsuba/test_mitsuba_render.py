@@ -390,6 +390,25 @@ def test_primitives_and_pointclouds_render(scalar_backend):
     assert np.mean(r1.instance != r2.instance) < 0.05
 
 
+def test_wireframe_tubes_along_the_edges(scalar_backend):
+    from blendify_core.materials import PrincipledBSDFWireframeMaterial
+
+    scene = bf.Scene()
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float) * 0.8
+    mat = PrincipledBSDFWireframeMaterial(
+        wireframe_thickness=0.1, wireframe_color=(0, 0, 0, 1), specular_ior=0.0, roughness=1.0
+    )
+    scene.renderables.add_mesh(v, [[0, 1, 2, 3]], mat, UniformColors((0.8, 0.8, 0.8)), tag="quad")
+    scene.set_orthographic_camera((32, 32), ortho_scale=2.0, translation=(0, 0, 3))
+    scene.lights.set_background_light(1.0)
+    r = _render(scalar_backend, scene, samples=4, outputs=("albedo", "instance"))
+    grey = UniformColors((0.8, 0.8, 0.8)).linear_rgba[0]
+    diag = [(31 - i, i) for i in range(6, 26)]  # the fan triangulation's diagonal (0, 2)
+    assert all(r.albedo[p][0] == 0.0 for p in diag)  # the wire colour
+    assert r.albedo[8, 8, 0] == pytest.approx(grey) and r.albedo[24, 24, 0] == pytest.approx(grey)
+    assert np.all(r.instance[4:28, 4:28] == 0)
+
+
 def test_shadow_catcher_emulation(scalar_backend):
     scene = testing.plane_scene("sun", resolution=(32, 32))
     scene.renderables["plane"].shadow_catcher = True
@@ -419,18 +438,12 @@ def test_shadow_catcher_emulation(scalar_backend):
 @pytest.mark.parametrize(
     "feature,build",
     [
-        ("material.wireframe", "wire"),
         ("object.no_shadow", "no_shadow"),
     ],
 )
 def test_unsupported_features_are_clear_errors(scalar_backend, feature, build):
-    from blendify_core.materials import PrincipledBSDFWireframeMaterial
-
     scene = testing.plane_scene("sun", resolution=(16, 16))
-    if build == "wire":
-        scene.renderables.add_cube_mesh(0.5, PrincipledBSDFWireframeMaterial(), UniformColors((1, 1, 1)))
-    else:
-        scene.renderables["plane"].emit_shadows = False
+    scene.renderables["plane"].emit_shadows = False
     with pytest.raises(bf.UnsupportedFeatureError, match=feature.replace(".", r"\.")):
         _render(scalar_backend, scene, samples=1)
     # and the translator itself refuses too (when called without the core's capability check)
