@@ -409,6 +409,15 @@ def test_wireframe_tubes_along_the_edges(scalar_backend):
     assert np.all(r.instance[4:28, 4:28] == 0)
 
 
+def test_every_feature_scene_renders(scalar_backend):
+    scene = testing.every_feature_scene((48, 36))
+    r = _render(scalar_backend, scene, samples=4, outputs=ALL)
+    assert np.isfinite(r.rgba).all() and np.isfinite(r.normal).all() and np.isfinite(r.albedo).all()
+    visible = set(np.unique(r.instance)) - {-1}
+    assert len(visible) >= len(scene.renderables) - 2  # a couple of tiny objects may fall between pixels
+    assert r.meta["approximations"]
+
+
 def test_shadow_catcher_emulation(scalar_backend):
     scene = testing.plane_scene("sun", resolution=(32, 32))
     scene.renderables["plane"].shadow_catcher = True
