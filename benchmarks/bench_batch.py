@@ -228,13 +228,13 @@ def write_memory(data: dict[str, Any]) -> None:
     for r in data["runs"]:
         rss = r["rss_mb"]
         valid = [x for x in rss if x is not None]
-        first_worker = r["worker"][0]
+        first_worker = next((w for w, x in zip(r["worker"], rss) if x is not None), None)
         own = [x for x, w in zip(rss, r["worker"]) if w == first_worker]
         slope = _slope(own, 20)
         lines.append(
             f"| {r['recycle_after'] or 'never'} | {r['done']} | {r['failed']} | {r['wall_s']:.1f} | "
             f"{r['frames_per_min']:.1f} | {valid[0]:.0f} | {max(valid):.0f} | {valid[-1]:.0f} | "
-            f"{'n/a' if slope is None else f'{slope:.3f}'} | {len(set(r['worker']))} | "
+            f"{'n/a' if slope is None else f'{slope:.3f}'} | {len(set(r['worker']) - {None})} | "
             f"{r['load_before']} -> {r['load_after']} |"
         )
     lines.append("")
@@ -269,9 +269,14 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=16)
     parser.add_argument("--workers", default="1,2")
     parser.add_argument("--recycle", type=int, default=100, help="recycle_after of the recycling run")
+    parser.add_argument("--rewrite", action="store_true", help="rewrite the table and plot from the saved JSON")
     args = parser.parse_args()
     RESULTS.mkdir(parents=True, exist_ok=True)
     backend = choose_backend(args.backend)
+    if args.rewrite:
+        data = json.loads((RESULTS / f"batch_{args.kind}_{backend}.json").read_text())
+        (write_throughput if args.kind == "throughput" else write_memory)(data)
+        return
     if args.kind == "throughput":
         data = run_throughput(backend, args.frames, args.samples, [int(w) for w in args.workers.split(",")])
         write_throughput(data)
