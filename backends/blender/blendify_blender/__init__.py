@@ -12,6 +12,26 @@ Options (``bf.render(scene, backend="cycles", verbose=True)`` or ``CyclesBackend
   file); Blender keeps some memory it never frees, so long runs should use it.
 - ``worker_max_renders`` (100): with ``isolate``, restart the worker after this many renders.
 - ``device`` ("CPU"): "CPU" or "GPU" (GPU falls back to CPU with a logged reason when none is found).
+
+Translation (details in :mod:`.translate`, :mod:`.materials`, :mod:`.engine`; formulas from
+``shared/docs/CONVENTIONS.md``): meshes, colour attributes, UVs and texture pixels through bulk
+``foreach_set``; point clouds as native Cycles points (vertex-only mesh + Geometry Nodes Mesh to Points +
+Set Material, radius and colour as attributes); cubes/circles/cylinders/planes/spheres/ellipsoids from
+the IR's shared tessellation (one mesh per shape, shared by identical primitives); curves as bevelled
+POLY splines; one node-tree material per (object, slot) with the colour source feeding Base Color and the
+``bf_albedo`` AOV; lights in the IR's (Blender's) units with soft falloff off and area ``normalize`` on,
+invisible to camera rays; the world = background light + environment texture (nothing else);
+perspective cameras with ``HORIZONTAL`` sensor fit, lens from fx, principal point through the shift,
+fx != fy through the pixel aspect; orthographic cameras. Every Cycles setting is explicit (see
+``result.meta["engine_settings"]``); with ``settings.effects`` the per-type bounce limits and caustics
+follow :func:`blendify_core.analyse_effects`. A new scene starts from a factory reset; the same scene is
+updated incrementally (camera, lights and moved objects never rebuild meshes). Objects of attached .blend
+files that the IR cannot represent (hair, volumes, ...) are appended (safely) and rendered as they are.
+
+Outputs come from per-pass single-layer EXR files (a compositor File Output node; the multilayer writer
+fails with non-square pixels) in a private temporary directory removed after reading. Ctrl-C during an
+in-process render is honoured when Cycles finishes the frame (Cycles cannot be cancelled from the bpy
+module); with ``isolate=True`` it is immediate (the worker is killed and restarted on the next render).
 """
 
 from __future__ import annotations
