@@ -143,7 +143,21 @@ def _to_rgba(img: np.ndarray) -> np.ndarray:
     return np.concatenate([img, alpha], axis=2)
 
 
-class Colors:
+class _Immutable:
+    """Public attributes are set once (in ``__init__``): backends cache colour sources and data textures
+    by identity, so an in-place change would never reach them. Build a new one and pass it to
+    ``update_colors`` (or assign it to the material parameter) instead."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if not name.startswith("_") and name in self.__dict__:
+            raise InvalidSceneError(
+                f"{name}: a {type(self).__name__} cannot be changed in place; create a new one and pass it to "
+                "update_colors(...) (or assign it to the material)"
+            )
+        object.__setattr__(self, name, value)
+
+
+class Colors(_Immutable):
     """Base of colour sources. ``kind`` names the class for backends and scene files."""
 
     kind = "base"
@@ -228,7 +242,7 @@ class VertexColors(Colors):
         return {"kind": self.kind, "vertex_colors": prefix + "vertex_colors", "color_space": self.color_space}
 
 
-class UVMap:
+class UVMap(_Immutable):
     """Base of UV maps. UV (0, 0) is the bottom-left of the texture."""
 
     kind = "base"
@@ -385,7 +399,7 @@ class FileTextureColors(Colors):
         }
 
 
-class TextureMap:
+class TextureMap(_Immutable):
     """A non-colour data texture (roughness or metallic): an image (H, W[, C]) or a file path.
 
     Values are used as stored (never colour-managed); ``channel`` picks the channel of a multi-channel image.
@@ -395,15 +409,16 @@ class TextureMap:
     kind = "texture_map"
 
     def __init__(self, image_or_path: Any, channel: int = 0):
-        self.path: str | None = None
+        path: str | None = None
         self._image: np.ndarray | None = None
         if isinstance(image_or_path, (str, os.PathLike)):
             p = Path(image_or_path).expanduser()
             if not p.is_file():
                 raise InvalidSceneError(f"image_or_path: no such file {str(p)!r}")
-            self.path = str(p.resolve())
+            path = str(p.resolve())
         else:
             self._image = _check_image("image_or_path", image_or_path)
+        self.path = path
         if isinstance(channel, bool) or not isinstance(channel, (int, np.integer)) or channel < 0 or channel > 3:
             raise InvalidSceneError(f"channel: expected an integer channel index 0-3, got {channel!r}")
         self.channel = int(channel)
