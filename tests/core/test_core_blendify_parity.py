@@ -681,3 +681,23 @@ def test_primitive_face_structure_is_fixed():
     for name, value in (("num_vertices", 8), ("fill_type", "TRIFAN")):
         with pytest.raises(bf.InvalidSceneError, match=name):
             setattr(cyl, name, value)
+
+
+def test_colour_sources_cannot_change_in_place():
+    """Backends cache colour sources by identity: an in-place change would never reach them, so it is
+    refused with a pointer to update_colors."""
+    uniform = bf.UniformColors((0.5, 0.5, 0.5))
+    uv = bf.VertexUV(np.zeros((3, 2)))
+    tex = bf.TextureColors(np.zeros((2, 2, 3)), uv)
+    tmap = bf.TextureMap(np.zeros((2, 2)))
+    for obj, name, value in (
+        (uniform, "color", np.ones(3)),
+        (uniform, "color_space", "linear"),
+        (uv, "data", np.ones((3, 2))),
+        (tex, "uv_map", uv),
+        (tex, "interpolation", "closest"),
+        (tmap, "channel", 1),
+    ):
+        with pytest.raises(bf.InvalidSceneError, match="update_colors"):
+            setattr(obj, name, value)
+    assert np.array_equal(uniform.color, [0.5, 0.5, 0.5]) and uniform.color_space == "srgb"
