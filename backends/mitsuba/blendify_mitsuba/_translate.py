@@ -692,7 +692,10 @@ def _add_pointcloud(
         for i in range(n):
             c = per_point[i] if per_point is not None else uniform
             bsdf, _ = bsdf_dict(mat, _rgb(c))
-            bsdf = _wrap_mask(bsdf, mat, colors if per_point is None else UniformColors((1, 1, 1)))
+            own = colors
+            if per_point is not None:  # this point's alpha (linear RGBA: no decoding)
+                own = UniformColors((1.0, 1.0, 1.0, float(colors.linear_rgba[i, 3])), color_space="linear")
+            bsdf = _wrap_mask(bsdf, mat, own)
             key = f"{prefix}_p{i:07d}"
             shape = {"type": "sphere", "center": centres[i].tolist(), "radius": float(radii[i]), "bsdf": bsdf}
             em = _emission(mat)
@@ -713,6 +716,8 @@ def _add_pointcloud(
     if per_point is not None:
         refl: Any = mi.load_dict({"type": "mesh_attribute", "name": "vertex_color"})
         attrs["vertex_color"] = np.repeat(per_point, nv, axis=0)
+        if colors.has_alpha:
+            attrs["vertex_alpha"] = np.repeat(colors.linear_rgba[:, 3], nv)
         const, tex = None, refl
     else:
         refl, const, tex = _rgb(uniform), np.asarray(uniform, dtype=np.float64), None

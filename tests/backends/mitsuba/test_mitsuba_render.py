@@ -409,6 +409,21 @@ def test_wireframe_tubes_along_the_edges(scalar_backend):
     assert np.all(r.instance[4:28, 4:28] == 0)
 
 
+@pytest.mark.parametrize("max_spheres", [1000, 0])
+def test_pointcloud_per_point_alpha(max_spheres):
+    scene = bf.Scene()
+    pts = np.array([[-0.5, 0, 0], [0.5, 0, 0]], float)
+    cols = np.array([[1, 1, 1, 1.0], [1, 1, 1, 0.25]])
+    scene.renderables.add_pointcloud(pts, DiffuseMaterial(), VertexColors(cols), point_size=0.8, tag="p")
+    scene.set_orthographic_camera((32, 16), ortho_scale=2.0, translation=(0, 0, 3))
+    scene.lights.set_background_light(1.0)
+    with MitsubaBackend(variant="scalar_rgb", max_analytic_spheres=max_spheres) as b:
+        r = bf.render(scene, backend=b, samples=256)
+    assert r.rgba[8, 8, 3] == pytest.approx(1.0)
+    # the second sphere is 25 % opaque: front and back surfaces both mask (1 - 0.75^2 = 0.44)
+    assert r.rgba[8, 24, 3] == pytest.approx(1 - 0.75**2, abs=0.08)
+
+
 def test_every_feature_scene_renders(scalar_backend):
     scene = testing.every_feature_scene((48, 36))
     r = _render(scalar_backend, scene, samples=4, outputs=ALL)
