@@ -100,6 +100,8 @@ class MaterialBuilder:
         entry.add("images", img)
         img.name = name
         img.colorspace_settings.name = colorspace
+        if img.size[0] == 0 or img.size[1] == 0:  # Blender loads lazily: an unreadable file has no size
+            raise InvalidSceneError(f"texture_path: Blender cannot read {path!r} as an image")
         return img
 
     def _data_image(self, name: str, tex: Any, entry: Any) -> Any:

@@ -253,3 +253,24 @@ def test_wireframe_overlay(cycles):
     assert r.rgba[20, 0, 0] > 0.3 and r.albedo[20, 0, 0] > 0.3  # the border edge: red wire
     diag = np.array([r.rgba[i, 39 - i, 0] for i in range(5, 35)])
     assert diag.min() > 0.2  # the triangulation's diagonal (vertex 0 to 2) is an edge too
+
+
+def test_every_feature_scene_all_outputs(cycles):
+    scene = testing.every_feature_scene((48, 36))
+    outputs = ("rgb", "depth", "normal", "albedo", "instance")
+    r = bf.render(scene, backend=cycles, samples=2, outputs=outputs)
+    ids = set(np.unique(r.instance).tolist())
+    assert -1 in ids and len(ids - {-1}) >= len(scene.renderables) - 1  # (nearly) every object is seen
+    assert np.isfinite(r.rgba).all() and r.meta["approximations"] == []
+    es = r.meta["engine_settings"]
+    assert es["glossy_bounces"] > 0 and es["transparent_max_bounces"] > 0  # glossy + alpha in the scene
+
+
+def test_two_sided_shading(cycles):
+    scene = testing.plane_scene("sun")
+    scene.renderables["plane"].set_position(rotation_mode="eulerXYZ", rotation=(180, 0, 0))  # facing away
+    scene.lights.clear()
+    scene.lights.add_sun(3.0, angular_diameter=0.0)
+    scene.set_orthographic_camera((16, 16), ortho_scale=2.0, translation=(0, 0, 5.0))
+    r = bf.render(scene, backend=cycles, samples=4, max_bounces=0, outputs=("rgb", "normal"))
+    np.testing.assert_allclose(r.rgba[8, 8, 0], 0.5 / np.pi * 3.0, rtol=1e-3)

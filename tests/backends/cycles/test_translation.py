@@ -339,3 +339,22 @@ def test_texture_without_uv_is_a_clear_error(cycles):
     scene.set_perspective_camera((16, 16), fov_x=0.8, translation=(0, 0, 5))
     with pytest.raises(InvalidSceneError, match="uv_map"):
         cycles.translate(scene, resolve_settings())
+
+
+def test_unreadable_texture_file_is_a_clear_error(cycles, tmp_path):
+    bad = tmp_path / "broken.png"
+    bad.write_bytes(b"not a png")
+    scene = testing.plane_scene("sun", resolution=(8, 8))
+    # the IR reads files lazily; bypass its own check to reach Blender's loader
+    tex = bf.FileTextureColors.__new__(bf.FileTextureColors)
+    tex.texture_path, tex.uv_map, tex.color_space, tex.interpolation = (
+        str(bad),
+        bf.VertexUV(np.zeros((4, 2))),
+        "srgb",
+        "linear",
+    )
+    tex._cache = np.zeros((1, 1, 3), np.uint8)
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
+    scene.renderables.add_mesh(v, [[0, 1, 2, 3]], bf.DiffuseMaterial(), tex, tag="broken")
+    with pytest.raises(InvalidSceneError, match="broken.png"):
+        cycles.translate(scene, resolve_settings())
