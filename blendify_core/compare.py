@@ -163,18 +163,19 @@ TIERS: dict[str, dict[str, dict[str, float]]] = {
     # planes, 0.05 fuze, 0.085 point cloud (pyrender's coarser point spheres); FLIP <= 0.044 on the planes,
     # <= 0.067 on every other Lambertian scene. An area light (pyrender: a spot light) gives ratio 1.45.
     # Geometry keeps the tight tier (CONV §13; XC pixel-exact except pyrender's level-of-detail points).
-    # Albedo: pyrender samples textures with mipmaps, Mitsuba at the pixel centre: XC 4.6-6.6 % on fuze.
+    # Albedo: pyrender samples minified textures through mipmaps, the path tracers per sample / at the
+    # pixel centre: XC 4.6 % (Cycles) and 5.0 % (Mitsuba) on fuze.obj.
     "raster": {
         **_GEOMETRY,
         "rgb": {"ratio_error": 0.10, "flip": 0.08},
-        "albedo": {"mean_rel_error": 0.05},
+        "albedo": {"mean_rel_error": 0.08},
     },
     # pyrender vs a path tracer with non-Lambertian materials. CONV §6.2: pyrender/Mitsuba plastic 0.911,
     # 9.6 %. XC: FLIP 0.058-0.108 (bunny, orthographic bunny, primitives), ratio error <= 0.017.
     "raster_material": {
         **_GEOMETRY,
         "rgb": {"ratio_error": 0.10, "flip": 0.12},
-        "albedo": {"mean_rel_error": 0.05},
+        "albedo": {"mean_rel_error": 0.08},
     },
 }
 
@@ -192,7 +193,8 @@ TIER_NOTES: dict[str, str] = {
     "(CONV §6.2 plastic 7.3 % / 0.935; measured bunny 5.4 % / 0.981, primitives 5.5 % / 0.993).",
     "raster": "pyrender vs a path tracer, Lambertian: brightness ratio within 10 % and FLIP <= 0.08 (per-channel "
     "relative error is meaningless with pyrender's F0 = 0.04 lobe on dark channels; measured ratio <= 1.02 on "
-    "planes, FLIP <= 0.067); geometry as tight as the geometry tier; albedo <= 5 % (textures: mipmaps).",
+    "planes, FLIP <= 0.067); geometry as tight as the geometry tier; albedo <= 8 % (mipmapped textures: "
+    "measured 4.6-5.0 % on fuze.obj).",
     "raster_material": "pyrender vs a path tracer with non-Lambertian materials: ratio within 10 %, FLIP <= 0.12 "
     "(CONV §6.2 plastic 0.911 / 9.6 %; measured FLIP 0.058-0.108).",
 }

@@ -74,19 +74,17 @@ def gradient_scene() -> bf.Scene:
     return scene
 
 
-#: measured: Cycles and pyrender interpolate the 8-bit sRGB texels, then decode (Blender's behaviour for
-#: byte images); Mitsuba decodes to linear first, then interpolates: half-way between a black and a white
-#: texel Cycles/pyrender give 0.21, Mitsuba 0.5 (and fuze.obj's textures come out 1-5 % brighter).
-INTERPOLATION_KNOWN = {"mitsuba": "Mitsuba interpolates textures in linear space, Cycles/pyrender in sRGB space"}
+# All three interpolate 8-bit sRGB texels in encoded space, then decode (Blender's behaviour for byte
+# images): half-way between a black and a white texel the albedo is 0.21, not 0.5. Mitsuba decoded first
+# until this test caught it (fuze.obj came out 1-5 % brighter); it is a regression test now.
 
 
-def test_texture_interpolation_space_pairwise(renders, pair, request):
+def test_texture_interpolation_space_pairwise(renders, pair):
     a, b = pair
-    for name in pair:
-        if name in INTERPOLATION_KNOWN:
-            request.applymarker(pytest.mark.xfail(reason=INTERPOLATION_KNOWN[name], strict=False))
     ra = renders.get("gradient", a, gradient_scene, samples=16, outputs=("rgb", "albedo"))
     rb = renders.get("gradient", b, gradient_scene, samples=16, outputs=("rgb", "albedo"))
     pa, pb = ra.albedo[2, :, 0], rb.albedo[2, :, 0]
     print(f"{a}: {np.round(pa, 3).tolist()}\n{b}: {np.round(pb, 3).tolist()}")
     assert np.allclose(pa, pb, atol=0.01), f"{a} vs {b}: texture interpolation profiles differ"
+    mid = pa[8]  # image column 8 of 16: a quarter of the way from the white texel's centre to the black one's
+    assert abs(mid - 0.2765) < 0.01, f"{a}: {mid} (sRGB-space interpolation gives 0.2765, linear 0.5625)"
