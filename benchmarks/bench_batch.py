@@ -79,36 +79,58 @@ def choose_backend(requested: str | None) -> str:
     raise SystemExit("no backend available")
 
 
-def run_throughput(backend: str, frames: int, samples: int, workers_list: list[int]) -> dict[str, Any]:
+def _loop(paths: list[Path], out: Path, backend: str, samples: int) -> tuple[int, list[float]]:
+    """The reference: bf.render in a plain loop in this process (no pool, no manifest)."""
+    times = []
+    for i, p in enumerate(paths):
+        t = time.perf_counter()
+        bf.render(bf.Scene.load(p), backend=backend, samples=samples).save(out / f"f{i}.png")
+        times.append(time.perf_counter() - t)
+    return len(paths), times
+
+
+def run_throughput(backend: str, frames: int, samples: int, configs: list[tuple[str, int]]) -> dict[str, Any]:
     scenes_dir = Path(tempfile.mkdtemp(prefix="bench-batch-scenes-"))
     paths = []
     for i in range(frames):
         p = scenes_dir / f"s{i}.npz"
         bench_scene(i).save(p)
         paths.append(p)
+    cores = _machine()["cores"]
     runs = []
-    for workers in workers_list:
+    for executor, workers in configs:
         out = Path(tempfile.mkdtemp(prefix="bench-batch-out-"))
         jobs = [bf.RenderJob(p, out / f"f{i}.png", backend=backend, samples=samples) for i, p in enumerate(paths)]
+        if executor == "ray":
+            os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
+            import ray
+
+            if not ray.is_initialized():  # started outside the timing, as on a real cluster
+                ray.init(num_cpus=cores, include_dashboard=False, log_to_driver=False)
         load_before = _load()
         t0 = time.perf_counter()
-        report = bf.render_many(jobs, workers=workers, progress=False)
+        if executor == "loop":
+            done, per_job = _loop(paths, out, backend, samples)
+            failed, first_failure = 0, None
+        else:
+            report = bf.render_many(jobs, executor=executor, workers=workers, progress=False)
+            done, failed = report.counts["done"], report.counts["failed"]
+            per_job = [j.seconds for j in report if j.seconds is not None]
+            first_failure = report.failed[0].reason if report.failed else None
         wall = time.perf_counter() - t0
-        load_after = _load()
-        done = report.counts["done"]
-        per_job = [j.seconds for j in report if j.seconds is not None]
         row = {
+            "executor": executor,
             "workers": workers,
-            "threads_per_job": max(1, _machine()["cores"] // workers),
+            "threads_per_job": max(1, cores // workers),
             "frames": frames,
             "done": done,
-            "failed": report.counts["failed"],
+            "failed": failed,
             "wall_s": wall,
             "frames_per_min": 60.0 * done / wall,
             "median_job_s": float(np.median(per_job)) if per_job else None,
             "load_before": load_before,
-            "load_after": load_after,
-            "first_failure": report.failed[0].reason if report.failed else None,
+            "load_after": _load(),
+            "first_failure": first_failure,
         }
         print(json.dumps(row))
         runs.append(row)
@@ -172,20 +194,26 @@ def write_throughput(data: dict[str, Any]) -> None:
         f"{m['cores']} cores, {m['platform']}, Python {m['python']}. Each frame is the primitives scene plus a "
         "random convex mesh unique to the frame. Wall time includes starting the workers and the engine.",
         "",
-        "| workers | threads/job | done | failed | wall (s) | frames/min | median job (s) | load avg before -> after |",
-        "|---:|---:|---:|---:|---:|---:|---:|---|",
+        "| executor | workers | threads/job | done | failed | wall (s) | frames/min | median job (s) | "
+        "load avg before -> after |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for r in data["runs"]:
         lines.append(
-            f"| {r['workers']} | {r['threads_per_job']} | {r['done']} | {r['failed']} | {r['wall_s']:.1f} | "
+            f"| {r.get('executor', 'local')} | {r['workers']} | {r['threads_per_job']} | {r['done']} | "
+            f"{r['failed']} | {r['wall_s']:.1f} | "
             f"**{r['frames_per_min']:.1f}** | {r['median_job_s']:.3f} | {r['load_before']} -> {r['load_after']} |"
         )
-    if len(data["runs"]) >= 2:
-        a, b = data["runs"][0], data["runs"][1]
-        lines += [
-            "",
-            f"Speed-up {b['workers']} vs {a['workers']} worker(s): {b['frames_per_min'] / a['frames_per_min']:.2f}x.",
-        ]
+    local = {r["workers"]: r for r in data["runs"] if r.get("executor", "local") == "local"}
+    if 1 in local and 2 in local:
+        speedup = local[2]["frames_per_min"] / local[1]["frames_per_min"]
+        lines += ["", f"Local pool, 2 vs 1 worker: {speedup:.2f}x."]
+    lines += [
+        "",
+        "`loop` is the reference: `bf.render` + `result.save` in a plain loop in one process (engine threads = "
+        "default). For `ray`, Ray was started before the timing (as on a running cluster); `median job` is "
+        "the worker-side time of one job (scene load, render, PNG write).",
+    ]
     lines += [
         "",
         "The load average is the machine's (1, 5, 15 min); other work was running on this shared machine, "
@@ -202,8 +230,8 @@ def write_throughput(data: dict[str, Any]) -> None:
         print("matplotlib is missing: no plot written")
         return
     fig, ax = plt.subplots(figsize=(4.5, 3.2))
-    ax.bar([str(r["workers"]) for r in data["runs"]], [r["frames_per_min"] for r in data["runs"]], color="#4477aa")
-    ax.set_xlabel("workers")
+    labels = [f"{r.get('executor', 'local')}\n{r['workers']} worker(s)" for r in data["runs"]]
+    ax.bar(labels, [r["frames_per_min"] for r in data["runs"]], color="#4477aa")
     ax.set_ylabel("frames per minute")
     ax.set_title(f"render_many throughput ({data['backend']})")
     fig.tight_layout()
@@ -267,7 +295,9 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=100)
     parser.add_argument("--jobs", type=int, default=500)
     parser.add_argument("--samples", type=int, default=16)
-    parser.add_argument("--workers", default="1,2")
+    parser.add_argument(
+        "--configs", default="loop:1,local:1,local:2,ray:2", help="executor:workers list (loop = plain bf.render loop)"
+    )
     parser.add_argument("--recycle", type=int, default=100, help="recycle_after of the recycling run")
     parser.add_argument("--rewrite", action="store_true", help="rewrite the table and plot from the saved JSON")
     args = parser.parse_args()
@@ -278,7 +308,8 @@ def main() -> None:
         (write_throughput if args.kind == "throughput" else write_memory)(data)
         return
     if args.kind == "throughput":
-        data = run_throughput(backend, args.frames, args.samples, [int(w) for w in args.workers.split(",")])
+        configs = [(c.split(":")[0], int(c.split(":")[1])) for c in args.configs.split(",")]
+        data = run_throughput(backend, args.frames, args.samples, configs)
         write_throughput(data)
     else:
         data = run_memory(backend, args.jobs, args.samples, [None, args.recycle])
