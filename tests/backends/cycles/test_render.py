@@ -274,3 +274,11 @@ def test_two_sided_shading(cycles):
     scene.set_orthographic_camera((16, 16), ortho_scale=2.0, translation=(0, 0, 5.0))
     r = bf.render(scene, backend=cycles, samples=4, max_bounces=0, outputs=("rgb", "normal"))
     np.testing.assert_allclose(r.rgba[8, 8, 0], 0.5 / np.pi * 3.0, rtol=1e-3)
+
+
+def test_denoised_preview_render(cycles):
+    scene = testing.bunny_scene((32, 32))
+    r = bf.render(scene, backend=cycles, quality="preview", outputs=("rgb", "albedo", "normal"))
+    es = r.meta["engine_settings"]
+    assert es["denoise"] and es["samples"] == 8 and es["max_bounces"] == 4
+    assert np.isfinite(r.rgba).all() and r.rgba[..., 3].max() == pytest.approx(1.0, abs=1e-3)
