@@ -661,13 +661,15 @@ def apply_engine_settings(
     cy.blur_glossy = 0.0
     cy.use_light_tree = True
     mb = int(settings.max_bounces)
-    eff = analyse_effects(scene) if settings.effects else None
+    # attached .blend content is not in the IR: the effect analysis cannot see it (volumes, hair, ...)
+    attached = bool(getattr(scene, "attached_blends", None))
+    eff = analyse_effects(scene) if settings.effects and not attached else None
     bounces = {
         "max_bounces": mb,
         "diffuse_bounces": mb,
         "glossy_bounces": mb,
         "transmission_bounces": mb,
-        "volume_bounces": 0,
+        "volume_bounces": mb if attached else 0,
         "transparent_max_bounces": max(mb, 8),
         "caustics_reflective": True,
         "caustics_refractive": True,
