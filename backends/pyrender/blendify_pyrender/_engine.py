@@ -442,14 +442,20 @@ class Engine:
             self.renderer.shadow_key = key
         lum_w = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
         inst = gbuf.instance
-        mask = np.isin(inst, [i for i, _ in catchers])
-        with_occ = rgba[..., :3] @ lum_w
-        without = alone[..., :3] @ lum_w
+        catcher_ids = [i for i, _ in catchers]
+        in_front = (inst >= 0) & ~np.isin(inst, catcher_ids)  # another object is the first hit
+        region = (alone[..., 3] > 0) & ~in_front  # catcher pixels, including its anti-aliased edges
+
+        def luminance(img: np.ndarray) -> np.ndarray:
+            straight = np.divide(img[..., :3], img[..., 3:4], out=np.zeros_like(img[..., :3]), where=img[..., 3:4] > 0)
+            return straight @ lum_w
+
+        with_occ, without = luminance(rgba), luminance(alone)
         ratio = np.divide(with_occ, without, out=np.ones_like(with_occ), where=without > 1e-6)
-        shadow_alpha = np.clip(1.0 - ratio, 0.0, 1.0)
+        shadow_alpha = np.clip(1.0 - ratio, 0.0, 1.0) * alone[..., 3]
         out = rgba.copy()
-        out[mask, :3] = 0.0
-        out[mask, 3] = shadow_alpha[mask]
+        out[region, :3] = 0.0
+        out[region, 3] = shadow_alpha[region]
         return out
 
     def close(self) -> None:
