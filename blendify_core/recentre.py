@@ -92,7 +92,9 @@ def _shift_object(obj: Any, origin: np.ndarray, key: Any) -> Any:
             c = _snap((v.max(axis=0) + v.min(axis=0)) / 2, max(s, 1e-12))
             shifted = np.asarray(v, dtype=np.float64) - c
             shifted.flags.writeable = False
-            setattr(view, attr, shifted)
+            # straight into the view's __dict__: `keypoints` is a validated parameter whose setter would
+            # bump the revision counters the view shares with the original object
+            view.__dict__["_keypoints" if attr == "keypoints" else attr] = shifted
             translation = translation + rot @ c
             geometry_key = ("shift", tuple(c.tolist()))
     view._translation = translation

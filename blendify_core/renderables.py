@@ -118,11 +118,21 @@ class Renderable(Positionable):
 
     @property
     def material(self) -> Material | list[Material]:
+        """The material (a list with per-face materials); assigning calls :meth:`update_material`."""
         return self.materials[0] if len(self.materials) == 1 else list(self.materials)
+
+    @material.setter
+    def material(self, value: Material | Sequence[Material]) -> None:
+        self.update_material(value)
 
     @property
     def colors(self) -> Colors | list[Colors]:
+        """The colour source (a list with per-face materials); assigning calls :meth:`update_colors`."""
         return self.colors_list[0] if len(self.colors_list) == 1 else list(self.colors_list)
+
+    @colors.setter
+    def colors(self, value: Colors | Sequence[Colors]) -> None:
+        self.update_colors(value)
 
     def update_material(self, material: Material | Sequence[Material]) -> None:
         """Replace the material(s); a list must have as many entries as the current one."""
@@ -309,8 +319,12 @@ class Mesh(Renderable):
     # -- data --------------------------------------------------------------------------------------
     @property
     def vertices(self) -> np.ndarray:
-        """(N, 3) float64 object-space positions (read-only)."""
+        """(N, 3) float64 object-space positions (a read-only array; assigning calls update_vertices)."""
         return self._vertices
+
+    @vertices.setter
+    def vertices(self, value: Any) -> None:
+        self.update_vertices(value)
 
     @property
     def faces(self) -> np.ndarray:
@@ -355,7 +369,12 @@ class Mesh(Renderable):
 
     @property
     def smooth(self) -> bool:
+        """Smooth shading (assigning calls :meth:`set_smooth`)."""
         return self._smooth
+
+    @smooth.setter
+    def smooth(self, value: bool) -> None:
+        self.set_smooth(value)
 
     def set_smooth(self, smooth: bool = True) -> None:
         """Smooth (interpolated vertex normals) or flat shading (the default, as in blendify)."""
@@ -459,7 +478,12 @@ class PointCloud(Renderable):
 
     @property
     def vertices(self) -> np.ndarray:
+        """(N, 3) float64 point positions (a read-only array; assigning calls update_vertices)."""
         return self._vertices
+
+    @vertices.setter
+    def vertices(self, value: Any) -> None:
+        self.update_vertices(value)
 
     @property
     def num_vertices(self) -> int:
@@ -594,7 +618,12 @@ class MeshPrimitive(Renderable):
 
     @property
     def smooth(self) -> bool:
+        """Smooth shading (assigning calls :meth:`set_smooth`)."""
         return self._smooth
+
+    @smooth.setter
+    def smooth(self, value: bool) -> None:
+        self.set_smooth(value)
 
     def set_smooth(self, smooth: bool = True) -> None:
         """Smooth shading with sharp edges kept (the primitives' vertices are split at hard edges)."""
@@ -828,7 +857,14 @@ class PlaneMesh(MeshPrimitive):
 class ParametricPrimitive(Renderable):
     """Sphere, ellipsoid and curve tube: one material and one UniformColors; always smooth."""
 
-    smooth = True
+    @property
+    def smooth(self) -> bool:
+        """Always True: parametric primitives are smooth-shaded."""
+        return True
+
+    @smooth.setter
+    def smooth(self, value: bool) -> None:
+        self.set_smooth(value)
 
     def set_smooth(self, smooth: bool = True) -> None:
         if not as_bool("smooth", smooth):
