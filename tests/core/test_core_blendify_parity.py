@@ -701,3 +701,46 @@ def test_colour_sources_cannot_change_in_place():
         with pytest.raises(bf.InvalidSceneError, match="update_colors"):
             setattr(obj, name, value)
     assert np.array_equal(uniform.color, [0.5, 0.5, 0.5]) and uniform.color_space == "srgb"
+
+
+def test_assigning_properties_goes_through_the_update_methods():
+    s = bf.Scene()
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
+    mesh = s.renderables.add_mesh(v, [[0, 1, 2]], bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1)))
+    rev = mesh.revision("geometry")
+    mesh.vertices = v * 2
+    mesh.smooth = True
+    assert np.array_equal(mesh.vertices, v * 2) and mesh.smooth and mesh.revision("geometry") == rev + 2
+    metal = bf.MetalMaterial()
+    mesh.material = metal
+    mesh.colors = bf.VertexColors(np.full((3, 3), 0.2))
+    assert mesh.material is metal and isinstance(mesh.colors, bf.VertexColors)
+    with pytest.raises(bf.InvalidSceneError, match="vertices"):
+        mesh.vertices = v[:2]
+    pc = s.renderables.add_pointcloud(v, bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1)))
+    pc.vertices = v + 1
+    assert np.array_equal(pc.vertices, v + 1)
+    sphere = s.renderables.add_sphere_nurbs(1.0, bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1)))
+    sphere.smooth = True
+    with pytest.raises(bf.InvalidSceneError, match="smooth"):
+        sphere.smooth = False
+    assert sphere.smooth is True
+    cube = s.renderables.add_cube_mesh(1.0, bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1)))
+    cube.smooth = True
+    assert cube.smooth and cube.to_mesh().normals is not None
+
+
+def test_recentring_does_not_touch_the_users_objects():
+    from blendify_core.recentre import recentred_view
+
+    s = bf.Scene()
+    curve = s.renderables.add_curve_nurbs(
+        np.array([[0, 0, 0], [1, 0, 0]]) + 1e6, 0.1, bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1))
+    )
+    s.set_perspective_camera(
+        (8, 8), fov_x=1.0, translation=(1e6, 1e6 - 5, 1e6), rotation_mode="look_at", rotation=(1e6, 1e6, 1e6)
+    )
+    rev, keys = curve.revision("geometry"), curve.keypoints.copy()
+    view, _ = recentred_view(s)
+    assert curve.revision("geometry") == rev and np.array_equal(curve.keypoints, keys)
+    assert np.abs(view.renderables[curve.tag].keypoints).max() < 10
