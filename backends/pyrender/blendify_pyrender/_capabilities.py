@@ -19,8 +19,9 @@ CAPABILITIES: dict[str, Capability] = {
     "mesh.smooth": Capability(_E, "interpolated vertex normals"),
     "pointcloud": Capability(
         _A,
-        "spheres tessellated as merged icospheres (subdivision 1, the shared tessellation); clouds over 20k "
-        "points use coarser spheres (level of detail, listed in result.meta['approximations'])",
+        "spheres tessellated as merged icospheres (subdivision 1, the shared tessellation); larger clouds use "
+        "a level of detail: icosphere-0 up to 50k points, octahedra up to 100k, GL points (screen-space "
+        "squares of the projected diameter) beyond; listed in result.meta['approximations']",
     ),
     "pointcloud.vertex_colors": Capability(_A, "per-point colours multiply the shaded colour (COLOR_0)"),
     "pointcloud.emission": Capability(_A, "emission added to the shaded colour, clipped at 1; lights nothing else"),
