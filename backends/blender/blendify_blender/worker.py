@@ -141,7 +141,13 @@ class WorkerClient:
                 if os.path.exists(p):
                     os.remove(p)
             scene.save(scene_path, relative_paths=False)
-            request = {"cmd": "render", "scene": scene_path, "settings": _jsonable(settings.to_dict()), "out": out_path}
+            request = {
+                "cmd": "render",
+                "scene": scene_path,
+                "settings": _jsonable(settings.to_dict()),
+                "out": out_path,
+                "attached_blends": list(getattr(scene, "attached_blends", [])),  # not in scene files
+            }
             proc = self._proc
             assert proc.stdin is not None and proc.stdout is not None
             try:
@@ -210,6 +216,7 @@ def main(argv: list[str] | None = None) -> int:
         reply: dict[str, Any]
         try:
             scene = Scene.load(req["scene"], allow_outside=True)
+            scene.attached_blends = list(req.get("attached_blends", []))
             result = backend.render_scene(scene, _settings_from_dict(req["settings"]))
             _save_result(result, req["out"])
             reply = {"ok": True}

@@ -54,3 +54,22 @@ def test_unparsed_objects_render_from_the_attached_file(cycles, bpy, tmp_path):
     assert names.count("hair") == 1 and not any(n == "ground" for n in names)  # ground comes from the IR
     cycles.clear()
     assert not any(o.name == "hair" for o in bpy.data.objects)
+
+
+def test_attached_content_renders_in_the_isolated_worker(cycles, bpy, tmp_path):
+    from blendify_blender import CyclesBackend
+
+    path = tmp_path / "hair.blend"
+    _hair_blend(bpy, path)
+    scene = bf.Scene()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene.attach_blend(path)
+    scene.set_orthographic_camera(
+        (32, 32), ortho_scale=2.4, translation=(0, -3, 0.6), rotation_mode="look_at", rotation=(0, 0, 0.6)
+    )
+    scene.lights.set_background_light(1.0)
+    local = bf.render(scene, backend=cycles, samples=2)
+    with CyclesBackend(isolate=True) as b:
+        isolated = bf.render(scene, backend=b, samples=2)
+    assert np.array_equal(local.rgba, isolated.rgba)
