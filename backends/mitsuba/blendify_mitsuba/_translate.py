@@ -189,20 +189,21 @@ def light_dicts(scene: Any) -> dict[str, dict[str, Any]]:
     bg = scene.lights.background
     env = scene.lights.environment
     if env is not None and env.strength > 0:
-        out["environment"] = environment_dict(env)
-        if bg is not None and bg.strength > 0:
-            raise UnsupportedFeatureError(
-                "lights: a background light and an environment map at the same time (Blender's world has one "
-                "of them); remove one",
-                feature="light.background",
-                backend="mitsuba",
-            )
+        # Mitsuba takes one environment emitter: a background light is added to the map (as Cycles adds
+        # the two Background shaders)
+        out["environment"] = environment_dict(env, scene_background(scene))
     elif bg is not None and bg.strength > 0:
         out["background"] = {"type": "constant", "radiance": _rgb(bg.radiance)}
     return out
 
 
-def environment_dict(env: Any) -> dict[str, Any]:
+def scene_background(scene: Any) -> np.ndarray | None:
+    """The background light's radiance (3,), or None."""
+    bg = scene.lights.background
+    return None if bg is None or bg.strength <= 0 else np.asarray(bg.radiance, dtype=np.float64)
+
+
+def environment_dict(env: Any, add: np.ndarray | None = None) -> dict[str, Any]:
     """An ``envmap`` reproducing :func:`blendify_core.lights.equirect_uv`.
 
     Mitsuba's envmap looks up the local direction d at u = atan2(d_x, -d_z) / (2 pi) (mod 1),
@@ -211,6 +212,8 @@ def environment_dict(env: Any) -> dict[str, Any]:
     (atan2(w_y, -w_x) = pi - atan2(w_y, w_x)): to_world maps local x -> world y, y -> z, z -> x (a
     proper rotation), composed with the map's own rotation."""
     img = env.linear_rgb_image().astype(np.float32) * np.float32(env.strength)
+    if add is not None:
+        img = img + np.asarray(add, dtype=np.float32)[None, None, :3]
     local_to_world = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     m = np.eye(4)
     m[:3, :3] = env.rotation_matrix @ local_to_world
@@ -594,7 +597,8 @@ def translate_scene(
             **{k: v for k, v in d.items() if k.startswith("r")},
         }
         sky_dict = {
-            k: (environment_dict(scene.lights.environment) if k == "environment" else v) for k, v in sky.items()
+            k: (environment_dict(scene.lights.environment, scene_background(scene)) if k == "environment" else v)
+            for k, v in sky.items()
         }
         background_dict = {"type": "scene", "integrator": one, "sensor": camera_dict(cam, film, sampler), **sky_dict}
     catcher_dict = None
@@ -603,7 +607,7 @@ def translate_scene(
         own = tuple(f"r{ri:05d}_" for ri in catchers)
         catcher_dict = {k: v for k, v in d.items() if not k.startswith("r") or k.startswith(own)}
         if "environment" in catcher_dict:
-            catcher_dict["environment"] = environment_dict(scene.lights.environment)
+            catcher_dict["environment"] = environment_dict(scene.lights.environment, scene_background(scene))
         catcher_dict["sensor"] = camera_dict(cam, film, sampler)
     return Translation(
         d,

@@ -181,6 +181,15 @@ def test_background_light_units(scalar_backend):
     assert np.all(r.rgba[..., 3] == 1.0)  # the plane covers the image
 
 
+def test_background_and_environment_add_up(scalar_backend):
+    scene = testing.plane_scene("background", resolution=(16, 16))  # background radiance 1
+    scene.lights.set_environment_map(np.full((8, 16, 3), 0.5, np.float32), strength=1.0)
+    r = _render(scalar_backend, scene, samples=64)
+    ratio = float(r.rgba[..., 0].mean()) / (0.5 * 1.5)
+    print(f"background + environment: Mitsuba / analytic = {ratio:.4f}")
+    assert abs(ratio - 1) < 0.01
+
+
 @pytest.mark.parametrize("faces_uv", [False, True])
 def test_texture_orientation(scalar_backend, faces_uv):
     r = _render(scalar_backend, testing.textured_quad_scene(faces_uv=faces_uv), samples=4, outputs=("rgb", "albedo"))
