@@ -80,6 +80,7 @@ __all__ = [
     "Scene",
     "render",
     "render_many",
+    "render_frames",
     "RenderJob",
     "BatchReport",
     "compare",
