@@ -35,7 +35,9 @@ the pixel (Cycles' normal/albedo passes, anti-aliased colour) comparable with on
 centre (Mitsuba's AOVs, pyrender). Metrics over interior pixels are NaN when there are none (e.g. 1-2 px
 points); tiers then skip them with a note.
 
-scikit-image, flip-evaluator and Pillow are imported inside the functions that need them.
+scikit-image, flip-evaluator and Pillow are imported inside the functions that need them; without the
+``metrics`` extra (scikit-image, flip-evaluator) ``ssim`` and ``flip`` are NaN and the report says how to
+install them (a tier that thresholds them then fails with that hint).
 """
 
 from __future__ import annotations
@@ -320,8 +322,16 @@ def _srgb_over_black(rgb: np.ndarray) -> np.ndarray:
     return linear_to_srgb(np.clip(rgb, 0.0, 1.0).astype(np.float32)).astype(np.float32)
 
 
+_MISSING_METRICS: set[str] = set()  # optional metric packages found missing (ssim: scikit-image, flip)
+_INSTALL_HINT = "install the optional metrics: pip install 'blendify-core[metrics]' (scikit-image, flip-evaluator)"
+
+
 def _ssim(a: np.ndarray, b: np.ndarray) -> float:
-    from skimage.metrics import structural_similarity
+    try:
+        from skimage.metrics import structural_similarity
+    except ImportError:
+        _MISSING_METRICS.add("ssim")
+        return math.nan
 
     h, w = a.shape[:2]
     win = min(7, h, w)
@@ -333,7 +343,11 @@ def _ssim(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _flip(test: np.ndarray, reference: np.ndarray) -> tuple[float, np.ndarray]:
-    import flip_evaluator
+    try:
+        import flip_evaluator
+    except ImportError:
+        _MISSING_METRICS.add("flip")
+        return math.nan, np.zeros(test.shape[:2], dtype=np.float32)
 
     err_map, mean, _ = flip_evaluator.evaluate(
         np.ascontiguousarray(reference, dtype=np.float32),
@@ -763,6 +777,7 @@ def compare(
     if both is None:
         both = np.ones(a.resolution[::-1], dtype=bool)  # type: ignore[index]
     interior = interior_mask(a, b)
+    _MISSING_METRICS.clear()
     metrics: dict[str, dict[str, float]] = {}
     diffs: dict[str, np.ndarray] = {}
     legends: dict[str, str] = {}
@@ -812,7 +827,14 @@ def compare(
             checks.append((out, metric, value, op, limit, bool(ok)))
             applied.setdefault(out, {})[metric] = limit
             if not ok:
-                failures.append(f"{out}.{metric} = {_fmt(value)}, expected {op} {_fmt(limit)} (tier {tier_name!r})")
+                hint = f"; {_INSTALL_HINT}" if out == "rgb" and metric in _MISSING_METRICS else ""
+                failures.append(
+                    f"{out}.{metric} = {_fmt(value)}, expected {op} {_fmt(limit)} (tier {tier_name!r}){hint}"
+                )
+    if "rgb" in metrics:
+        missing = sorted(m for m in ("ssim", "flip") if m in _MISSING_METRICS and math.isnan(metrics["rgb"][m]))
+        if missing:
+            notes.append(f"rgb: {', '.join(missing)} not computed: {_INSTALL_HINT}")
     la = names[0] if names else (_backend_of(a) or "a")
     lb = names[1] if names else (_backend_of(b) or "b")
     if la == lb and names is None:

@@ -228,6 +228,17 @@ def test_empty_results_agree():
     assert not bf.compare(make_result(), bf.RenderResult(depth=empty.depth), tier="geometry").passed
 
 
+def test_missing_metric_packages_give_a_hint(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "flip_evaluator", None)  # import fails
+    monkeypatch.setitem(sys.modules, "skimage.metrics", None)
+    rep = bf.compare(make_result(backend="pyrender"), make_result(backend="cycles"))  # raster tier: flip
+    assert np.isnan(rep.metrics["rgb"]["flip"]) and np.isnan(rep.metrics["rgb"]["ssim"])
+    assert any("blendify-core[metrics]" in n for n in rep.notes)
+    assert not rep.passed and "blendify-core[metrics]" in " ".join(rep.failures)
+
+
 def test_heat_map_range():
     img = heat_map(np.array([[0.0, 0.5, 1.0, np.nan]]), valid=np.array([[True, True, True, False]]))
     assert img.dtype == np.uint8 and img.shape == (1, 4, 3)
