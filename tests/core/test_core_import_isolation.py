@@ -1,5 +1,5 @@
 """`import blendify_core` (and every public core submodule) loads numpy/scipy only: no engine, no GUI
-library, no optional heavy dependency. Checked in a fresh child interpreter."""
+library, no optional heavy dependency. Checked in a fresh child interpreter, stage by stage."""
 
 from __future__ import annotations
 
@@ -7,6 +7,8 @@ import json
 import pkgutil
 import subprocess
 import sys
+
+import pytest
 
 import blendify_core
 
@@ -21,54 +23,52 @@ def _submodules() -> list[str]:
     return sorted(names)
 
 
-def _loaded_modules(code: str) -> set[str]:
-    out = subprocess.run(
-        [sys.executable, "-c", code + "\nimport sys, json\nprint(json.dumps(sorted(sys.modules)))"],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert out.returncode == 0, f"child failed:\n{out.stderr}"
-    return set(json.loads(out.stdout.strip().splitlines()[-1]))
-
-
-def _offenders(modules: set[str]) -> list[str]:
-    return sorted(m for m in modules if m.split(".")[0] in FORBIDDEN)
-
-
-def test_import_blendify_core_loads_no_engine():
-    loaded = _loaded_modules("import blendify_core")
-    assert "blendify_core" in loaded and "numpy" in loaded
-    assert _offenders(loaded) == [], f"import blendify_core loaded {_offenders(loaded)}"
-
-
-def test_import_every_public_submodule_loads_no_engine():
-    subs = _submodules()
-    code = "\n".join(f"import blendify_core.{name}" for name in subs)
-    loaded = _loaded_modules(code)
-    for name in subs:
-        assert f"blendify_core.{name}" in loaded
-    assert _offenders(loaded) == [], f"importing {subs} loaded {_offenders(loaded)}"
-
-
-def test_registry_queries_load_no_engine():
-    """Listing backends reads entry points only; it must not import any backend's engine."""
-    loaded = _loaded_modules("import blendify_core as bf\nbf.backend_names()")
-    engines = [m for m in _offenders(loaded) if m.split(".")[0] in ("bpy", "mitsuba", "drjit", "pyrender", "OpenGL")]
-    assert engines == []
-
-
-def test_building_a_scene_loads_no_engine():
-    """Building, fingerprinting and analysing a scene stays numpy-only (the testing builders too,
-    except the bunny which reads a PLY through trimesh)."""
-    code = (
+STAGES = {
+    "import blendify_core": "import blendify_core",
+    "import every public submodule": "\n".join(f"import blendify_core.{n}" for n in _submodules()),
+    "list backends": "import blendify_core as bf\nbf.backend_names()",
+    "build, fingerprint and analyse a scene": (
         "import blendify_core as bf\n"
         "from blendify_core.testing import every_feature_scene\n"
+        "from blendify_core.features import scene_features\n"
         "s = every_feature_scene()\n"
         "s.fingerprint()\n"
         "bf.analyse_effects(s)\n"
-        "from blendify_core.features import scene_features\n"
         "scene_features(s, ('rgb', 'depth'))\n"
-    )
-    loaded = _loaded_modules(code)
-    assert _offenders(loaded) == []
+    ),
+}
+
+
+@pytest.fixture(scope="module")
+def loaded_per_stage() -> dict[str, list[str]]:
+    """Run every stage in ONE fresh interpreter, recording sys.modules after each (stages only add)."""
+    lines = ["import sys, json", "out = {}"]
+    for i, (stage, code) in enumerate(STAGES.items()):
+        lines.append(code)
+        lines.append(f"out[{stage!r}] = sorted(sys.modules)")
+    lines.append("print(json.dumps(out))")
+    res = subprocess.run([sys.executable, "-c", "\n".join(lines)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, f"child failed:\n{res.stderr}"
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def _offenders(modules: list[str]) -> list[str]:
+    return sorted(m for m in modules if m.split(".")[0] in FORBIDDEN)
+
+
+@pytest.mark.parametrize("stage", list(STAGES))
+def test_stage_loads_no_engine(loaded_per_stage, stage):
+    loaded = loaded_per_stage[stage]
+    assert "blendify_core" in loaded and "numpy" in loaded
+    assert _offenders(loaded) == [], f"{stage!r} loaded {_offenders(loaded)}"
+
+
+def test_every_public_submodule_was_imported(loaded_per_stage):
+    loaded = set(loaded_per_stage["import every public submodule"])
+    missing = [n for n in _submodules() if f"blendify_core.{n}" not in loaded]
+    assert missing == []
+
+
+def test_the_check_would_notice_an_engine(loaded_per_stage):
+    """Guard against a vacuous test: the detector flags a forbidden module."""
+    assert _offenders(["numpy", "PIL.Image", "OpenGL.GL", "bpy"]) == ["OpenGL.GL", "PIL.Image", "bpy"]
