@@ -43,7 +43,7 @@ STAGES = {
 def loaded_per_stage() -> dict[str, list[str]]:
     """Run every stage in ONE fresh interpreter, recording sys.modules after each (stages only add)."""
     lines = ["import sys, json", "out = {}"]
-    for i, (stage, code) in enumerate(STAGES.items()):
+    for stage, code in STAGES.items():
         lines.append(code)
         lines.append(f"out[{stage!r}] = sorted(sys.modules)")
     lines.append("print(json.dumps(out))")
