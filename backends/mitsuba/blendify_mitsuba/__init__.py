@@ -155,7 +155,6 @@ class MitsubaNative:
     catcher_scene: Any = None  # shadow catchers alone (unshadowed radiance)
     catchers: list[int] = field(default_factory=list)  # renderable indices of the shadow catchers
     integrator: dict[str, Any] = field(default_factory=dict)
-    notes: list[str] = field(default_factory=list)
     effects: Any = None
     n_analytic_spheres: int = 0
 
@@ -179,7 +178,9 @@ class MitsubaBackend(Backend):
         from ._variant import KNOWN_VARIANTS
 
         if variant is not None and (not isinstance(variant, str) or variant not in KNOWN_VARIANTS):
-            raise InvalidSceneError(f"variant: expected None or one of {list(KNOWN_VARIANTS)}, got {variant!r}")
+            raise InvalidSceneError(
+                f"variant: expected None or one of {list(KNOWN_VARIANTS)} (RGB variants), got {variant!r}"
+            )
         if max_analytic_spheres is not None and (
             isinstance(max_analytic_spheres, bool)
             or not isinstance(max_analytic_spheres, (int, np.integer))

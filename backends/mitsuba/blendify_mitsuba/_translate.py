@@ -59,7 +59,6 @@ class Translation:
     #: shadow catchers: the scene with the catcher planes as the only renderables, and their indices
     catcher_dict: dict[str, Any] | None = None
     catchers: list[int] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
 
 
 def _mat(m: np.ndarray) -> Any:

@@ -26,15 +26,9 @@ log = logging.getLogger("blendify_mitsuba")
 __all__ = ["VariantChoice", "choose_variant", "probe_variant", "libllvm_candidates", "KNOWN_VARIANTS"]
 
 SCALAR = "scalar_rgb"
-KNOWN_VARIANTS = (
-    "scalar_rgb",
-    "scalar_spectral",
-    "llvm_ad_rgb",
-    "llvm_rgb",
-    "llvm_ad_spectral",
-    "cuda_ad_rgb",
-    "cuda_rgb",
-)
+#: the variants the translator supports (RGB: colours, textures and lights are given as linear RGB;
+#: spectral variants refuse raw RGB bitmaps)
+KNOWN_VARIANTS = ("scalar_rgb", "llvm_ad_rgb", "llvm_rgb", "cuda_ad_rgb", "cuda_rgb")
 #: seconds a probe subprocess may take (first JIT compilation included)
 PROBE_TIMEOUT = 120.0
 

@@ -280,6 +280,8 @@ def test_settings_drive_integrator(scalar_backend):
 def test_bad_options_and_inputs():
     with pytest.raises(bf.InvalidSceneError, match="variant"):
         MitsubaBackend(variant="opengl")
+    with pytest.raises(bf.InvalidSceneError, match="RGB variants"):
+        MitsubaBackend(variant="scalar_spectral")
     with pytest.raises(bf.InvalidSceneError, match="max_analytic_spheres"):
         MitsubaBackend(max_analytic_spheres=-1)
     with pytest.raises(bf.InvalidSceneError, match="unknown option"):

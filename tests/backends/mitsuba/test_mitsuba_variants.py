@@ -105,7 +105,7 @@ def test_llvm_variant_matches_scalar_geometry():
 def test_the_users_variant_is_restored(scalar_backend):
     import mitsuba as mi
 
-    mi.set_variant("scalar_spectral")
+    mi.set_variant("scalar_spectral")  # the user's own variant (not one the backend renders with)
     try:
         r = bf.render(testing.plane_scene("sun", resolution=(8, 8)), backend=scalar_backend, samples=1)
         assert r.meta["variant"] == "scalar_rgb"
