@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core.colors import FileTextureColors, TextureColors, VertexColors
+from blendify_core.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
 from blendify_core.effects import analyse_effects
 from blendify_core.errors import InvalidSceneError
 from blendify_core.lights import AreaLight, PointLight, SpotLight, SunLight
@@ -110,6 +110,8 @@ class BuiltScene:
     #: primitive meshes shared by every primitive of the same shape (materials linked per object)
     shared: _Entry = field(default_factory=_Entry)
     shared_meshes: dict[tuple[Any, ...], tuple[Any, np.ndarray | None]] = field(default_factory=dict)
+    #: materials with a uniform colour, shared by every object using the same (material, colour)
+    shared_materials: dict[tuple[Any, ...], tuple[Any, Any]] = field(default_factory=dict)
     generation: int = -1
     engine_settings: dict[str, Any] = field(default_factory=dict)
     instance_tags: list[str] = field(default_factory=list)
@@ -135,6 +137,7 @@ class BuiltScene:
             e.remove()
         self.entries.clear()
         self.shared_meshes.clear()
+        self.shared_materials.clear()
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -294,11 +297,11 @@ def _build_renderable(r: Any, index: int, sc: Any, mb: MaterialBuilder, built: B
     if isinstance(r, PointCloud):
         obj = _build_pointcloud(r, name, entry, mb)
     elif isinstance(r, CurveBezier):
-        obj = _build_curve(r, name, entry, mb)
+        obj = _build_curve(r, name, entry, mb, built)
     elif built is not None and isinstance(r, (MeshPrimitive, SphereNURBS, EllipsoidNURBS)):
         obj = _build_shared_primitive(r, name, entry, mb, built)
     else:
-        obj = _build_mesh_like(r, name, entry, mb)
+        obj = _build_mesh_like(r, name, entry, mb, built=built)
     entry.objects.append(obj)
     sc.collection.objects.link(obj)
     _set_matrix(obj, _object_matrix(r, entry))
@@ -309,14 +312,37 @@ def _build_renderable(r: Any, index: int, sc: Any, mb: MaterialBuilder, built: B
     return entry
 
 
-def _materials_for(r: Any, name: str, entry: _Entry, mb: MaterialBuilder, **kw: Any) -> list[Any]:
+def _material_value_key(m: Any) -> tuple[Any, ...]:
+    """A hashable key of a material's class and values (texture maps by identity)."""
+    items = []
+    for k, v in sorted(m.parameters().items()):
+        if v is not None and not isinstance(v, (int, float, str, tuple)):
+            v = ("texture", id(v))
+        items.append((k, v))
+    return (type(m).__name__, m.color_space, tuple(items))
+
+
+def _materials_for(r: Any, name: str, entry: _Entry, mb: MaterialBuilder, built: BuiltScene | None = None) -> list[Any]:
+    """The bpy materials of ``r``'s slots. (material, uniform colour) pairs are built once per scene and
+    shared (owned by ``built.shared``); other colour sources get a material of their own."""
     out = []
     for i, (m, c) in enumerate(zip(r.materials, r.colors_list)):
-        out.append(mb.build(f"{name}_m{i}", m, c, slot=i, entry=entry, **kw))
+        if built is not None and isinstance(c, UniformColors):
+            key = (_material_value_key(m), tuple(float(x) for x in c.linear_rgba))
+            hit = built.shared_materials.get(key)
+            if hit is None:
+                mat = mb.build(f"bf_mat_{len(built.shared_materials)}", m, c, slot=i, entry=built.shared)
+                # the IR material is kept alive with the cache: the ids of its texture maps stay unique
+                built.shared_materials[key] = hit = (m, mat)
+            out.append(hit[1])
+        else:
+            out.append(mb.build(f"{name}_m{i}", m, c, slot=i, entry=entry))
     return out
 
 
-def _build_mesh_like(r: Any, name: str, entry: _Entry, mb: MaterialBuilder, materials: bool = True) -> Any:
+def _build_mesh_like(
+    r: Any, name: str, entry: _Entry, mb: MaterialBuilder, materials: bool = True, built: BuiltScene | None = None
+) -> Any:
     bpy = _runtime.bpy_module()
     if isinstance(r, Mesh):
         verts, faces = r.vertices, r.faces
@@ -351,7 +377,7 @@ def _build_mesh_like(r: Any, name: str, entry: _Entry, mb: MaterialBuilder, mate
             ca.data.foreach_set("color", np.ascontiguousarray(c.linear_rgba, dtype=np.float32).ravel())
     t2 = time.perf_counter()
     if materials:
-        for mat in _materials_for(r, name, entry, mb):
+        for mat in _materials_for(r, name, entry, mb, built):
             me.materials.append(mat)
     t3 = time.perf_counter()
     entry.timings.update(geometry=t1 - t0, vertex_colors=t2 - t1, materials=t3 - t2)
@@ -385,7 +411,7 @@ def _build_shared_primitive(r: Any, name: str, entry: _Entry, mb: MaterialBuilde
         entry.timings.update(tmp.timings)
     me, entry.offset = cached
     obj = bpy.data.objects.new(name, me)
-    for i, mat in enumerate(_materials_for(r, name, entry, mb)):
+    for i, mat in enumerate(_materials_for(r, name, entry, mb, built)):
         slot = obj.material_slots[i]
         slot.link = "OBJECT"
         slot.material = mat
@@ -440,7 +466,7 @@ def _build_pointcloud(r: PointCloud, name: str, entry: _Entry, mb: MaterialBuild
     return obj
 
 
-def _build_curve(r: CurveBezier, name: str, entry: _Entry, mb: MaterialBuilder) -> Any:
+def _build_curve(r: CurveBezier, name: str, entry: _Entry, mb: MaterialBuilder, built: BuiltScene | None = None) -> Any:
     """A tube through the keypoints: a POLY spline bevelled to ``radius`` with filled caps."""
     bpy = _runtime.bpy_module()
     k32 = _recentre(r.keypoints, entry)
@@ -457,7 +483,7 @@ def _build_curve(r: CurveBezier, name: str, entry: _Entry, mb: MaterialBuilder) 
     co[:, :3] = k32
     sp.points.foreach_set("co", co.ravel())
     sp.use_smooth = True
-    for mat in _materials_for(r, name, entry, mb):
+    for mat in _materials_for(r, name, entry, mb, built):
         cu.materials.append(mat)
     return bpy.data.objects.new(name, cu)
 

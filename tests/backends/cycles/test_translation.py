@@ -358,3 +358,30 @@ def test_unreadable_texture_file_is_a_clear_error(cycles, tmp_path):
     scene.renderables.add_mesh(v, [[0, 1, 2, 3]], bf.DiffuseMaterial(), tex, tag="broken")
     with pytest.raises(InvalidSceneError, match="broken.png"):
         cycles.translate(scene, resolve_settings())
+
+
+def test_equal_materials_with_uniform_colours_are_shared(cycles, bpy):
+    scene = bf.Scene()
+    for i in range(3):
+        scene.renderables.add_cube_mesh(
+            0.5, bf.DiffuseMaterial(), bf.UniformColors((0.2, 0.3, 0.4)), tag=f"a{i}", translation=(i, 0, 0)
+        )
+    scene.renderables.add_cube_mesh(0.5, bf.DiffuseMaterial(), bf.UniformColors((0.9, 0.3, 0.4)), tag="b")
+    scene.renderables.add_cube_mesh(0.5, bf.PlasticMaterial(), bf.UniformColors((0.2, 0.3, 0.4)), tag="c")
+    scene.set_perspective_camera(
+        (16, 16), fov_x=0.8, translation=(0, -5, 0), rotation_mode="look_at", rotation=(0, 0, 0)
+    )
+    cycles.translate(scene, resolve_settings())
+    mats = {t: _obj(bpy, t).material_slots[0].material.as_pointer() for t in ("a0", "a1", "a2", "b", "c")}
+    assert mats["a0"] == mats["a1"] == mats["a2"]
+    assert len({mats["a0"], mats["b"], mats["c"]}) == 3
+    scene.renderables["a1"].update_material(bf.DiffuseMaterial(roughness=0.5))  # its own material now
+    cycles.translate(scene, resolve_settings())
+    assert (
+        _obj(bpy, "a1").material_slots[0].material.as_pointer()
+        != _obj(bpy, "a0").material_slots[0].material.as_pointer()
+    )
+    assert (
+        _obj(bpy, "a0").material_slots[0].material.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value
+        == 1.0
+    )
