@@ -8,7 +8,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from xb_util import BACKENDS, PAIRS, PATH_TRACERS, require  # noqa: E402
+from xb_util import BACKENDS, PAIRS, PATH_TRACERS, require
 
 import blendify_core as bf
 
