@@ -71,6 +71,8 @@ __all__ = [
     "choose_tier",
     "is_path_tracer",
     "alpha_centroids",
+    "hit_mask",
+    "interior_mask",
     "heat_map",
 ]
 
