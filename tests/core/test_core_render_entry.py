@@ -481,3 +481,24 @@ def test_distortion_with_resolution_percentage(fake_backend):
     vv, uu = np.mgrid[0:30, 0:40]
     err = np.hypot(small.fx * xd + small.cx - uu, small.fy * yd + small.cy - vv)
     assert err.max() < 0.05
+
+
+def test_distortion_remap_keeps_output_conventions(fake_backend):
+    s = _distorted_scene(DISTORTIONS["barrel"])
+    s.renderables["ball"].update_colors(bf.UniformColors((0.5, 0.25, 1.0)))
+    outputs = ("rgb", "depth", "normal", "albedo", "instance")
+    r = bf.render(s, backend="fake", outputs=outputs)
+    n = np.linalg.norm(r.normal, axis=-1)
+    hit = r.instance >= 0
+    assert hit.any() and (~hit).any()
+    assert np.allclose(n[hit], 1.0, atol=1e-5)  # renormalised after interpolation (edges excepted below)
+    assert np.all(np.isinf(r.depth[~hit])) and np.all(np.isfinite(r.depth[hit]))
+    assert set(np.unique(r.instance)) <= {-1, 0}
+    interior = hit.copy()
+    for _ in range(2):  # away from the silhouette, where bilinear (albedo) and nearest (instance) differ
+        interior &= (
+            np.roll(interior, 1, 0) & np.roll(interior, -1, 0) & np.roll(interior, 1, 1) & np.roll(interior, -1, 1)
+        )
+    assert interior.sum() > 20
+    assert np.allclose(r.albedo[interior], bf.UniformColors((0.5, 0.25, 1.0)).linear_rgba[:3], atol=1e-6)
+    assert r.rgba.dtype == np.float32 and r.depth.dtype == np.float32 and r.instance.dtype == np.int32
