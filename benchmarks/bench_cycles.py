@@ -685,7 +685,8 @@ def report(data: dict[str, Any]) -> str:
         lines += [
             f"## 3. 300 primitives (100 spheres, 100 cubes, 100 curves), created in batches of {BATCH}",
             "",
-            "| objects | kind | hand-written data API (s/batch) | blendify-core: add to the IR + incremental translate (s/batch) |",
+            "| objects | kind | hand-written data API (s/batch) "
+            "| blendify-core: add to the IR + incremental translate (s/batch) |",
             "|---|---|---|---|",
         ]
         for i, (x, y) in enumerate(zip(h, b)):
