@@ -151,6 +151,20 @@ def main(argv: list[str] | None = None) -> int:
     from .errors import BlendifyError
 
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "crosscheck":  # its own parser: options may come before the scene path
+        try:
+            from .compare import crosscheck_main
+        except ImportError:
+            print("blendify crosscheck: not available in this version", file=sys.stderr)
+            return 1
+        from .errors import BlendifyError
+
+        try:
+            return int(crosscheck_main(argv[1:]) or 0)
+        except BlendifyError as exc:
+            print(f"blendify crosscheck: error: {exc}", file=sys.stderr)
+            return 1
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
     if not getattr(args, "command", None):
