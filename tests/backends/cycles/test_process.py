@@ -70,16 +70,20 @@ def test_two_threads_are_serialised(cycles):
         assert np.array_equal(out[i], serial[i])
 
 
-def test_ctrl_c_leaves_the_backend_usable(cycles, private_tmp):
-    scene = testing.pointcloud_scene(n=2000, resolution=(96, 96))
+def test_ctrl_c_leaves_the_backend_usable(cycles, bpy, private_tmp):
+    scene = testing.pointcloud_scene(n=2000, resolution=(32, 32))
     before = _leftovers()
-    timer = threading.Timer(0.3, os.kill, args=(os.getpid(), signal.SIGINT))
-    timer.start()
+
+    @bpy.app.handlers.persistent  # survives the factory reset of a new scene
+    def ctrl_c(*_args):  # Ctrl-C while Cycles renders
+        os.kill(os.getpid(), signal.SIGINT)
+
+    bpy.app.handlers.render_pre.append(ctrl_c)
     try:
         with pytest.raises(KeyboardInterrupt):
-            bf.render(scene, backend=cycles, samples=256)
+            bf.render(scene, backend=cycles, samples=16)
     finally:
-        timer.cancel()
+        bpy.app.handlers.render_pre.remove(ctrl_c)
     assert _leftovers() == before == set()
     r = bf.render(scene, backend=cycles, samples=1, outputs=("rgb", "depth"))
     assert r.rgba[..., 3].max() > 0.5 and np.isfinite(r.depth).any()
