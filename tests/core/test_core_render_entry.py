@@ -31,13 +31,20 @@ def _fake_named(name: str, available: bool = True) -> type[FakeBackend]:
 def engines(fake_backend):
     """Fakes registered under the real backend names (run-time registrations shadow entry points)."""
     classes = {n: _fake_named(n) for n in ("cycles", "mitsuba", "pyrender")}
+    # real backends' warm shared instances (from earlier test files) would shadow the fakes: set aside
+    with backend_mod._lock:
+        stashed = {k: backend_mod._shared.pop(k) for k in list(backend_mod._shared) if k[0] in classes}
     for n, cls in classes.items():
         register_backend(n, cls)
     fake_backend.available = False  # keep the generic fake out of the automatic choice
-    yield classes
-    close_fake_instances()
-    for n in classes:
-        unregister_backend(n)
+    try:
+        yield classes
+    finally:
+        close_fake_instances()
+        for n in classes:
+            unregister_backend(n)
+        with backend_mod._lock:
+            backend_mod._shared.update(stashed)
 
 
 @pytest.mark.parametrize(("quality", "expected"), [("preview", "pyrender"), ("draft", "cycles"), ("final", "cycles")])
