@@ -108,7 +108,8 @@ class RenderResult:
 
     def to_srgb8(self) -> np.ndarray:
         """(H, W, 4) uint8: sRGB-encoded ("Standard" view transform) colour with straight alpha."""
-        s = self.straight_rgba()
+        # a NaN/inf pixel (an engine's firefly) must not turn into an undefined byte or a cast warning
+        s = np.nan_to_num(self.straight_rgba(), nan=0.0, posinf=1.0, neginf=0.0)
         out = np.empty(s.shape, dtype=np.uint8)
         out[..., :3] = np.round(linear_to_srgb(s[..., :3]) * 255.0)
         out[..., 3] = np.round(np.clip(s[..., 3], 0, 1) * 255.0)
