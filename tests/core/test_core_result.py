@@ -185,3 +185,11 @@ def test_mask_and_resolution(rng):
     assert np.array_equal(only_rgb.mask, r.rgba[..., 3] > 0)
     assert RenderResult().resolution is None and RenderResult().mask is None
     assert "fake" in repr(r)
+
+
+def test_to_srgb8_survives_non_finite_pixels():
+    rgba = np.array([[[np.nan, np.inf, -np.inf, 1.0], [0.5, 0.5, 0.5, np.nan]]], dtype=np.float32)
+    with np.errstate(all="raise"):
+        out = RenderResult(rgba=rgba).to_srgb8()
+    assert out[0, 0].tolist() == [0, 255, 0, 255]
+    assert out[0, 1, 3] == 0
