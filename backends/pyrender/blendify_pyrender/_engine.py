@@ -26,6 +26,9 @@ from ._platform import GLContext
 __all__ = ["Engine", "Frame", "AntiAliasing", "linearise_rgba8", "apply_coverage", "box_downsample"]
 
 _GAMMA = 2.2
+#: dense GL-point clouds are thinned to this many points per covered pixel (never below POINTS_MIN_DRAWN)
+POINTS_PER_PIXEL = 8
+POINTS_MIN_DRAWN = 100_000
 #: the coverage pass of the "coverage" anti-aliasing is rendered at 3x the resolution (9 samples/pixel)
 COVERAGE_SUPERSAMPLE = 3
 _LIN8 = ((np.arange(256, dtype=np.float64) / 255.0) ** _GAMMA).astype(np.float32)
@@ -177,6 +180,7 @@ class Engine:
         self._lights_key: Any = None
         self._light_nodes: list[tuple[Any, Any, bool]] = []  # (node, IR light, casts)
         self._camera_node: Any = None
+        self._point_notes: list[str] = []
         self.msaa_supported = self.renderer.max_samples >= 2
         ref = weakref.ref(self)
 
@@ -301,9 +305,12 @@ class Engine:
 
     def _point_pixels(self, frame: Frame) -> float:
         """Pixel size (at the camera resolution) of clouds drawn as GL points: the projected diameter at the
-        cloud centre's planar depth (the largest over such clouds; 1 if there are none)."""
+        cloud centre's planar depth (the largest over such clouds; 1 if there are none). Also chooses how
+        many points of each such cloud are drawn: at most ``POINTS_PER_PIXEL`` points per covered pixel
+        (a prefix of the randomly ordered points), all of them when the cloud is not that dense."""
         cam = frame.scene.camera
         best = 1.0
+        self._point_notes = []
         for node in frame.nodes:
             if node is None:
                 continue
@@ -313,11 +320,22 @@ class Engine:
                     continue
                 centre = self.pscene.get_pose(node)[:3, 3]
                 if isinstance(cam, OrthographicCamera):
-                    px = d / cam.pixel_size
+                    px, extent_px = d / cam.pixel_size, prim.point_extent / cam.pixel_size
                 else:
-                    z = float(np.dot(centre - cam.translation, cam.viewdir))
-                    px = d * cam.fx / max(z, cam.near)
+                    z = max(float(np.dot(centre - cam.translation, cam.viewdir)), cam.near)
+                    px, extent_px = d * cam.fx / z, prim.point_extent * cam.fx / z
                 best = max(best, px)
+                n = len(prim.point_all_indices)
+                area = min(np.pi * extent_px**2, float(cam.width * cam.height))
+                m = int(min(n, max(POINTS_MIN_DRAWN, np.ceil(POINTS_PER_PIXEL * area / max(px, 1.0) ** 2))))
+                if not prim._in_context():
+                    m = n  # the element buffer is uploaded from the current indices: upload all of them
+                prim._indices = prim.point_all_indices[:m]  # the element buffer holds all; draw a prefix
+                if m < n:
+                    self._point_notes.append(
+                        f"pointcloud LOD: {m} of {n} points drawn (a random subset: about {POINTS_PER_PIXEL} "
+                        "points per covered pixel at this view)"
+                    )
         return best
 
     def _color(self, frame: Frame, w: int, h: int, aa: AntiAliasing, flags: int) -> np.ndarray:
@@ -353,7 +371,16 @@ class Engine:
             self.entries[r.uid].node for r in frame.scene.renderables if not self.entries[r.uid].casts_shadow
         }
         renderer.no_shadow_lights = {node for node, _, casts in self._light_nodes if not casts}
-        renderer.shadow_key = (frame.shadow_key, "all")
+        point_px = self._point_pixels(frame)
+        counts = tuple(
+            len(p.indices)
+            for n in frame.nodes
+            if n is not None
+            for p in n.mesh.primitives
+            if hasattr(p, "point_diameter")
+        )
+        approximations += self._point_notes
+        renderer.shadow_key = (frame.shadow_key, "all", counts, round(point_px, 3))
         catchers = [
             (i, node)
             for i, (r, node) in enumerate(zip(frame.scene.renderables, frame.nodes))
@@ -433,7 +460,7 @@ class Engine:
         for n in hidden:
             n.mesh.is_visible = False
         key = self.renderer.shadow_key
-        self.renderer.shadow_key = (frame.shadow_key, "catchers")
+        self.renderer.shadow_key = (key, "catchers")
         try:
             alone = self._color(frame, w, h, aa, flags)
         finally:

@@ -309,17 +309,23 @@ def _pointcloud(pc: PointCloud, mat: Material, notes: list[str]) -> tuple[Any, n
     radii = pc.radii().astype(np.float32)
     surf = surface_of(pc.colors_list[0])
     if lod.subdivisions == -2:
+        # GL points, in a fixed random order so that any prefix is a uniform subset (drawn per frame when the
+        # cloud is so dense on screen that most points would be overdrawn)
+        perm = np.random.default_rng(0).permutation(n)
         pm, albedo = pbr_material(mat, surf, False, notes)
         if pc.particle_emission_strength > 0:
             pm.emissiveFactor = np.sqrt(surf.rgba[:3] * pc.particle_emission_strength)
         prim = pyrender.Primitive(
-            positions=local,
-            color_0=None if surf.vertex_rgba is None else surf.vertex_rgba.astype(np.float32),
+            positions=local[perm],
+            color_0=None if surf.vertex_rgba is None else surf.vertex_rgba[perm].astype(np.float32),
+            indices=np.arange(n, dtype=np.uint32),
             material=pm,
             mode=pyrender.constants.GLTF.POINTS,
         )
         prim.albedo_factor = albedo
         prim.point_diameter = float(np.mean(radii) * 2.0)  # world units; pixels are set per frame
+        prim.point_all_indices = prim.indices
+        prim.point_extent = float(np.max(np.linalg.norm(local, axis=1)) if n else 0.0) + float(radii.max(initial=0))
         return pyrender.Mesh(primitives=[prim]), centre
     unit, tris = _unit_sphere(lod)
     nv = len(unit)

@@ -282,6 +282,22 @@ def test_large_point_cloud_uses_gl_points(pyr, monkeypatch):
     assert res.rgba[..., 3][hit].mean() > 0.5
 
 
+def test_dense_gl_point_clouds_are_thinned(pyr, monkeypatch):
+    from blendify_pyrender import _engine
+    from blendify_pyrender import _translate as tr
+
+    monkeypatch.setattr(tr, "point_lod", lambda n: tr._LOD_LARGE)
+    monkeypatch.setattr(_engine, "POINTS_MIN_DRAWN", 100)
+    scene = testing.pointcloud_scene(n=20000, resolution=(64, 64), point_size=0.05)
+    first = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))  # uploads every point
+    again = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))
+    notes = [a for a in again.meta["approximations"] if "points drawn" in a]
+    assert notes and "of 20000 points drawn" in notes[0]
+    # the thinned cloud still covers (nearly) the same pixels
+    a, b = first.instance == 0, again.instance == 0
+    assert (a & b).sum() > 0.9 * a.sum()
+
+
 def test_strict_refuses_approximations(pyr):
     scene = testing.every_feature_scene()
     with pytest.raises(UnsupportedFeatureError) as info:
