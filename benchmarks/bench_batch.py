@@ -158,6 +158,7 @@ def run_memory(backend: str, jobs_n: int, samples: int, recycle_list: list[int |
             "wall_s": wall,
             "frames_per_min": 60.0 * report.counts["done"] / wall,
             "rss_mb": rss,
+            "seconds": [j.seconds for j in report],
             "worker": workers,
             "load_before": load_before,
             "load_after": _load(),
@@ -166,7 +167,7 @@ def run_memory(backend: str, jobs_n: int, samples: int, recycle_list: list[int |
         valid = [r for r in rss if r is not None]
         print(
             json.dumps(
-                {k: v for k, v in row.items() if k not in ("rss_mb", "worker")}
+                {k: v for k, v in row.items() if k not in ("rss_mb", "worker", "seconds")}
                 | {"rss_first": valid[:1], "rss_last": valid[-1:], "rss_max": max(valid) if valid else None}
             )
         )
@@ -250,8 +251,9 @@ def write_memory(data: dict[str, Any]) -> None:
         f"read from /proc after each job. {m['cores']} cores, {m['platform']}.",
         "",
         "| recycle_after | done | failed | wall (s) | frames/min | RSS after job 1 (MiB) | RSS max (MiB) | "
-        "RSS last (MiB) | growth (MiB/job, after job 20, one process) | workers used | load avg before -> after |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+        "RSS last (MiB) | growth (MiB/job, after job 20, one process) | workers used | median job s, jobs 2-100 | "
+        "median job s, jobs 401-500 | first job of a fresh worker (s, mean) | load avg before -> after |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for r in data["runs"]:
         rss = r["rss_mb"]
@@ -259,10 +261,19 @@ def write_memory(data: dict[str, Any]) -> None:
         first_worker = next((w for w, x in zip(r["worker"], rss) if x is not None), None)
         own = [x for x, w in zip(rss, r["worker"]) if w == first_worker]
         slope = _slope(own, 20)
+        secs = r.get("seconds") or [None] * len(rss)
+        early = [x for x in secs[1:100] if x is not None]
+        late = [x for x in secs[400:500] if x is not None]
+        firsts = [x for k, x in enumerate(secs) if x is not None and (k == 0 or r["worker"][k] != r["worker"][k - 1])]
+
+        def med(v: list[float]) -> str:
+            return f"{np.median(v):.3f}" if v else "n/a"
+
+        timing = f"{med(early)} | {med(late)} | {f'{np.mean(firsts):.2f}' if firsts else 'n/a'}"
         lines.append(
             f"| {r['recycle_after'] or 'never'} | {r['done']} | {r['failed']} | {r['wall_s']:.1f} | "
             f"{r['frames_per_min']:.1f} | {valid[0]:.0f} | {max(valid):.0f} | {valid[-1]:.0f} | "
-            f"{'n/a' if slope is None else f'{slope:.3f}'} | {len(set(r['worker']) - {None})} | "
+            f"{'n/a' if slope is None else f'{slope:.3f}'} | {len(set(r['worker']) - {None})} | {timing} | "
             f"{r['load_before']} -> {r['load_after']} |"
         )
     lines.append("")
@@ -275,10 +286,19 @@ def write_memory(data: dict[str, Any]) -> None:
     except ImportError:
         print("matplotlib is missing: no plot written")
         return
-    fig, ax = plt.subplots(figsize=(6.5, 3.6))
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 3.6))
     for r in data["runs"]:
         label = f"recycle_after={r['recycle_after']}" if r["recycle_after"] else "no recycling"
         ax.plot(np.arange(1, len(r["rss_mb"]) + 1), [np.nan if x is None else x for x in r["rss_mb"]], label=label)
+        if r.get("seconds"):
+            t = np.array([np.nan if x is None else x for x in r["seconds"]], dtype=float)
+            k = 25
+            smooth = [np.nanmedian(t[max(0, i - k) : i + 1]) for i in range(len(t))]
+            ax2.plot(np.arange(1, len(t) + 1), smooth, label=label)
+    ax2.set_xlabel("job")
+    ax2.set_ylabel("job time (s, running median of 25)")
+    ax2.set_title("worker-side job time")
+    ax2.legend()
     ax.set_xlabel("job")
     ax.set_ylabel("worker RSS after the job (MiB)")
     ax.set_title(f"pool worker memory ({data['backend']})")

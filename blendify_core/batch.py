@@ -602,6 +602,7 @@ class _PoolWorker:
         self.retired_at = 0.0
         self.count = 0
         self.ready = False
+        self.rss_mb: float | None = None
 
     def kill(self) -> None:
         if self.proc.is_alive():
@@ -628,7 +629,14 @@ class _PoolWorker:
         return True
 
 
-def _run_local(run: _Run, pending: list[int], workers: int, recycle_after: int | None, threads: int) -> None:
+def _run_local(
+    run: _Run,
+    pending: list[int],
+    workers: int,
+    recycle_after: int | None,
+    threads: int,
+    recycle_above_mb: float | None = None,
+) -> None:
     import multiprocessing
     from multiprocessing.connection import wait
 
@@ -714,13 +722,15 @@ def _run_local(run: _Run, pending: list[int], workers: int, recycle_after: int |
                                 run.finish(w.job, msg[2])
                                 w.job, w.started_at = None, None
                                 w.count += 1
+                                w.rss_mb = msg[2].get("rss_mb")
                     except (EOFError, OSError):
                         pass  # the sentinel tells what happened
                 if not w.proc.is_alive() or w.proc.sentinel in ready:
                     w.proc.join(timeout=5)
                     fail_and_replace(w, f"worker crashed: {_signal_name(w.proc.exitcode)}")
                     continue
-                if recycle_after and w.job is None and w.count >= recycle_after:
+                over_memory = recycle_above_mb is not None and w.rss_mb is not None and w.rss_mb > recycle_above_mb
+                if w.job is None and ((recycle_after and w.count >= recycle_after) or over_memory):
                     w.retire()  # exits in the background while its replacement starts
                     retiring.append(w)
                     pool.remove(w)
@@ -890,6 +900,7 @@ def render_many(
     timeout: float | None = None,
     progress: bool = True,
     manifest: str | os.PathLike[str] | bool | None = None,
+    recycle_above_mb: float | None = None,
 ) -> BatchReport:
     """Render many jobs and return a :class:`BatchReport` with one status per job, in job order.
 
@@ -906,7 +917,8 @@ def render_many(
 
     - None or ``"local"``: a pool of ``workers`` (default: one per core) spawned processes, each keeping
       ``bf.render``'s backend instance warm and replaced by a fresh process after ``recycle_after`` jobs
-      (engines leak; None = never). Jobs without ``threads`` get ``cores // workers`` engine threads.
+      (engines leak; None = never) or as soon as its resident memory exceeds ``recycle_above_mb`` MiB
+      after a job (None = no limit). Jobs without ``threads`` get ``cores // workers`` engine threads.
       A crash (segfault, ``os.abort``, being killed) fails only the job it was running; the pool starts
       a new worker and the run goes on. ``timeout`` (seconds of rendering, from when the worker starts
       the render) kills the worker and fails the job. Scripts that call this must guard their entry
@@ -966,6 +978,10 @@ def render_many(
         isinstance(recycle_after, bool) or not isinstance(recycle_after, int) or recycle_after < 1
     ):
         raise InvalidSceneError(f"recycle_after: expected a positive integer or None, got {recycle_after!r}")
+    if recycle_above_mb is not None and (
+        isinstance(recycle_above_mb, bool) or not isinstance(recycle_above_mb, (int, float)) or recycle_above_mb <= 0
+    ):
+        raise InvalidSceneError(f"recycle_above_mb: expected a positive number (MiB) or None, not {recycle_above_mb!r}")
     if timeout is not None:
         if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0:
             raise InvalidSceneError(f"timeout: expected a positive number of seconds or None, got {timeout!r}")
@@ -1011,7 +1027,7 @@ def render_many(
             if kind == "local":
                 used_workers = workers or min(_cpu_count(), len(pending))
                 threads = max(1, _cpu_count() // used_workers)
-                _run_local(run, pending, used_workers, recycle_after, threads)
+                _run_local(run, pending, used_workers, recycle_after, threads, recycle_above_mb)
             elif kind == "ray":
                 used_workers, _ = _run_ray(run, pending, address, workers, recycle_after, None)
             else:

@@ -258,6 +258,14 @@ def test_workers_are_recycled_after_n_jobs_which_bounds_a_leak(tmp_path):
     assert len({j.worker for j in report}) <= 2
     assert max(j.rss_mb for j in report) > base + 1.8 * leak  # without recycling the leak accumulates
 
+    # a memory limit instead of a job count: a worker is replaced after the job that crossed it
+    jobs = [job(tmp_path, f"q{i}", leak_mb=leak) for i in range(6)]
+    report = bf.render_many(
+        jobs, workers=1, recycle_after=None, recycle_above_mb=base + 0.5 * leak, progress=False, manifest=False
+    )
+    assert report.ok and len({j.worker for j in report}) == 3
+    assert max(j.rss_mb for j in report) < base + 1.5 * leak
+
 
 def test_engine_threads_do_not_oversubscribe(tmp_path):
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
@@ -377,6 +385,8 @@ def test_bad_input_is_rejected_with_the_argument_name(tmp_path):
         bf.render_many(jobs[:1], workers=0, progress=False)
     with pytest.raises(InvalidSceneError, match="timeout"):
         bf.render_many(jobs[:1], timeout=-1, progress=False)
+    with pytest.raises(InvalidSceneError, match="recycle_above_mb"):
+        bf.render_many(jobs[:1], recycle_above_mb=0, progress=False)
     with pytest.raises(InvalidSceneError, match="recycle_after"):
         bf.render_many(jobs[:1], recycle_after=0, progress=False)
     with pytest.raises(InvalidSceneError, match="executor"):
