@@ -424,6 +424,7 @@ class _Run:
         self.bar = bar
         self.timeout = timeout
         self.statuses: dict[int, JobStatus] = {}
+        self.counts = dict.fromkeys(_STATUSES, 0)
         self.tmpdir: str | None = None
         self.registrations = _registrations()
 
@@ -529,13 +530,10 @@ class _Run:
         self.tick("skipped")
 
     def tick(self, status: str) -> None:
-        if self.bar is None:
-            return
-        self.bar.update(1)
-        counts = dict.fromkeys(_STATUSES, 0)
-        for s in self.statuses.values():
-            counts[s.status] += 1
-        self.bar.set_postfix(counts, refresh=False)
+        self.counts[status] += 1
+        if self.bar is not None:
+            self.bar.update(1)
+            self.bar.set_postfix(self.counts, refresh=False)
 
     def cleanup(self) -> None:
         if self.tmpdir is not None:
