@@ -38,6 +38,8 @@ def _scene_dict(scene: Any, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
         "lights": [light.to_dict() for light in scene.lights],
         "background": None if scene.lights.background is None else scene.lights.background.to_dict(),
         "environment": None if scene.lights.environment is None else scene.lights.environment.to_dict(arrays),
+        # .blend files attached for the Cycles backend: part of the picture, so of the file and the fingerprint
+        "attached_blends": [{"path": str(p)} for p in getattr(scene, "attached_blends", [])],
     }
 
 
@@ -218,6 +220,7 @@ def _build(h: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
         scene.lights._add(light, d["tag"])
     if h["background"] is not None:
         scene.lights.set_background_light(**h["background"])
+    scene.attached_blends = [str(d["path"]) for d in h.get("attached_blends", [])]  # optional: older files
     env = h["environment"]
     if env is not None:
         src = arrays[env["image"]] if env.get("image") else env["path"]
