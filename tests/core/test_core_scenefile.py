@@ -789,3 +789,27 @@ def test_has_alpha_is_exact_for_small_rgba_files_and_conservative_for_huge_ones(
     monkeypatch.setattr(bf.FileTextureColors, "EXACT_ALPHA_LIMIT", 8)  # pretend 4x4 is huge
     big = bf.FileTextureColors(opaque, uv)
     assert big.has_alpha is True and big._cache is None
+
+
+def test_attached_blend_files_are_saved_and_fingerprinted(tmp_path):
+    """scene.attached_blends (filled by attach_blend for Cycles) travels with the scene file, under the
+    same path rules as textures, and its content is part of the fingerprint."""
+    blend = tmp_path / "room.blend"
+    blend.write_bytes(b"BLENDER-v500 fake content")
+    s = every_feature_scene()
+    before = s.fingerprint()
+    s.attached_blends.append(str(blend.resolve()))
+    with_blend = s.fingerprint()
+    assert with_blend != before
+    s.save(tmp_path / "s.npz")
+    assert list(_all_paths(_header(tmp_path / "s.npz")))[-1] == "room.blend"  # relative to the scene file
+    loaded = bf.Scene.load(tmp_path / "s.npz")
+    assert loaded.attached_blends == [str(blend.resolve())]
+    assert loaded.fingerprint() == with_blend
+    blend.write_bytes(b"BLENDER-v500 other content!")
+    assert s.fingerprint() != with_blend  # the .blend's content counts
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    s.save(sub / "s.npz")
+    with pytest.raises(InvalidSceneError, match="allow_outside"):
+        bf.Scene.load(sub / "s.npz")
