@@ -70,7 +70,9 @@ CAPABILITIES: dict[str, Capability] = {
     "light.point.soft": Capability(_A, "radius ignored: hard light (spot shadows stay hard)"),
     "light.sun": Capability(_E, "irradiance exact; shadows shadow-mapped (2048^2 over the scene bounds, PCF)"),
     "light.sun.soft": Capability(_A, "angular diameter ignored: hard shadows"),
-    "light.spot": Capability(_E, "intensity P/(4 pi) W/sr, cone half-angle exact; shadow-mapped shadows"),
+    "light.spot": Capability(
+        _E, "intensity P/(4 pi) W/sr, cone half-angle exact; shadow-mapped shadows (none for cones over 160 deg)"
+    ),
     "light.spot.blend": Capability(
         _A, "pyrender's quadratic edge clamp((cos t - cos o)/(cos i - cos o))^2 instead of Cycles' smoothstep"
     ),

@@ -481,7 +481,10 @@ def build_lights(lights: Any) -> list[tuple[Any, Any, np.ndarray, bool]]:
             pl = pyrender.PointLight(color=color, intensity=float(light.strength) / (4.0 * np.pi))
         else:  # pragma: no cover - the IR has no other light types
             continue
-        out.append((light, pl, pose, bool(light.use_shadow) and not isinstance(light, PointLight)))
+        casts = bool(light.use_shadow) and not isinstance(light, PointLight)
+        if isinstance(pl, pyrender.SpotLight) and pl.outerConeAngle > AREA_OUTER_CONE + 1e-9:
+            casts = False  # pyrender's spot shadow camera has a field of view of 2 x cone + 11.25 deg (< 180)
+        out.append((light, pl, pose, casts))
     return out
 
 
