@@ -223,7 +223,8 @@ def child_warm(argv: list[str]) -> None:
     BACKEND_TIMES.clear()
     for i in range(N_WARM):
         orbit(scene, i)
-        for (impl, mode), frame in frames.items():
+        order = list(frames.items())
+        for (impl, mode), frame in order if i % 2 == 0 else order[::-1]:  # alternate to cancel order effects
             t = time.perf_counter()
             frame()
             times[f"{impl}/{mode}"].append(time.perf_counter() - t)
@@ -272,7 +273,8 @@ def write_report(rows: list) -> None:
         "process, so these are shader-cached first frames: a cold cache adds ~1-5 s of shader compilation). "
         "Warm = median of 20 frames with the camera orbiting "
         "(the scene is not rebuilt); all configurations of a scene run in ONE process, round robin per camera "
-        "pose, so they see the same machine load (the machine is shared with other jobs: absolute numbers "
+        "pose (order reversed every other pose), so they see the same machine load (the machine is shared "
+        "with other jobs: absolute numbers "
         "vary by +-30%, ratios much less).",
         "",
         "| scene | configuration | first frame (s) | warm frame (ms) | of which backend (ms) |",
