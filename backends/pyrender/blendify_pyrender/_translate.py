@@ -238,6 +238,8 @@ def _primitive(
         material=material,
         mode=pyrender.constants.GLTF.TRIANGLES,
     )
+    # pyrender's ``indices`` setter stores float32, exact only below 2^24 vertices: keep the uint32 indices
+    prim._indices = np.ascontiguousarray(indices, dtype=np.uint32)
     prim.albedo_factor = albedo  # read by the G-buffer pass
     return prim
 
@@ -322,9 +324,10 @@ def _pointcloud(pc: PointCloud, mat: Material, notes: list[str]) -> tuple[Any, n
             material=pm,
             mode=pyrender.constants.GLTF.POINTS,
         )
+        prim._indices = np.arange(n, dtype=np.uint32)  # not pyrender's float32 copy (inexact above 2^24)
         prim.albedo_factor = albedo
         prim.point_diameter = float(np.mean(radii) * 2.0)  # world units; pixels are set per frame
-        prim.point_all_indices = prim.indices
+        prim.point_all_indices = prim._indices
         prim.point_extent = float(np.max(np.linalg.norm(local, axis=1)) if n else 0.0) + float(radii.max(initial=0))
         return pyrender.Mesh(primitives=[prim]), centre
     unit, tris = _unit_sphere(lod)

@@ -193,6 +193,18 @@ def test_cache_updates_only_what_changed(pyr):
     assert node not in pyr.engine_instance.pscene.mesh_nodes and len(gone.nodes) == len(scene.renderables)
 
 
+def test_indices_stay_exact_uint32():
+    """pyrender's ``indices`` setter converts to float32 (inexact from 2^24 vertices): we keep uint32."""
+    from blendify_pyrender import _translate as tr
+
+    built = tr.build_renderable(testing.primitives_scene().renderables["sphere"])
+    for prim in built.mesh.primitives:
+        assert prim.indices.dtype == np.uint32
+    big = np.array([[2**24 + 1, 2**24 + 2, 2**24 + 3]])
+    prim = tr._primitive(np.zeros((3, 3)), np.zeros((3, 3)), big, None, np.ones(4))
+    assert int(prim.indices[0, 0]) == 2**24 + 1
+
+
 def test_point_cloud_lod_choice():
     from blendify_pyrender import _translate as tr
 
