@@ -28,9 +28,12 @@ from .settings import RenderSettings, resolve_settings
 
 __all__ = ["RenderJob", "JobStatus", "BatchReport", "render_many", "DEFAULT_RECYCLE_AFTER", "MANIFEST_NAME"]
 
-#: jobs a local pool worker renders before it is replaced by a fresh process (engines leak memory);
-#: chosen from benchmarks/results/batch_memory.md
-DEFAULT_RECYCLE_AFTER = 200
+#: jobs a local pool worker renders before it is replaced by a fresh process (engines leak memory).
+#: Measured (benchmarks/results/batch.md): Mitsuba 3.9 grows ~0.37 MiB per small job, Cycles ~0.01;
+#: a restart costs ~1.5-3 s (process + engine start). 250 bounds the Mitsuba growth to ~100 MiB with a
+#: restart overhead under ~8% for 0.1 s frames and under 1% for 1 s frames; use ``recycle_above_mb``
+#: as the safety net for scenes that leak more.
+DEFAULT_RECYCLE_AFTER = 250
 #: default manifest file name, written in the common folder of the outputs
 MANIFEST_NAME = "blendify_manifest.jsonl"
 #: a pool worker that received a job but did not start rendering within this many seconds is killed
