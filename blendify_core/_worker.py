@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import socket
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -89,6 +90,22 @@ def _register(registrations: dict[str, str] | None) -> None:
             backend_mod.register_backend(name, target)
 
 
+def _drop_blender_script_paths() -> None:
+    """A parent process that imported ``bpy`` hands Blender's script folders on ``sys.path`` to the
+    children it spawns; there the pure-Python ``bpy`` package in ``bpy/<version>/scripts/modules``
+    shadows the ``bpy`` extension module ("No module named '_bpy'"). Drop them before ``bpy`` is
+    imported here (importing it adds them back in the right order)."""
+    if "bpy" in sys.modules:
+        return
+    keep = []
+    for entry in sys.path:
+        norm = entry.replace("\\", "/") + "/"
+        if "/scripts/" in norm and ("/bpy/" in norm or "/blender/" in norm.lower()):
+            continue
+        keep.append(entry)
+    sys.path[:] = keep
+
+
 def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None) -> dict[str, Any]:
     """Render one job described by ``payload`` (built by ``blendify_core.batch``) and write its outputs.
 
@@ -99,6 +116,7 @@ def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None)
     t0 = time.perf_counter()
     info: dict[str, Any] = {"index": payload.get("index"), "pid": os.getpid(), "host": socket.gethostname()}
     try:
+        _drop_blender_script_paths()
         _register(payload.get("registrations"))
         from .backend import shared_backend
         from .render import choose_backend, render

@@ -1,7 +1,7 @@
 """A fake backend for the batch tests, importable by spawned workers as ``batch_fake_backend:FakeBackend``.
 
 Each instance is told what to do through backend options (so one batch mixes behaviours per job):
-``action`` = "ok" | "sleep" | "raise" | "abort" | "kill" | "segfault" | "raise_if_exists",
+``action`` = "ok" | "sleep" | "raise" | "abort" | "kill" | "segfault" | "raise_if_exists" | "check_sys_path",
 ``seconds`` (sleep), ``path`` (raise_if_exists), ``log`` (append "<pid> <scene tag>" per render, so
 tests can count how often each job was rendered), ``leak_mb`` (keep that much memory per render).
 """
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import time
 from typing import Any
 
@@ -59,6 +60,10 @@ class FakeBackend(Backend):
             raise RenderError("fake engine failure: out of fake memory")
         elif self.action == "raise_if_exists" and self.path and os.path.exists(self.path):
             raise RenderError(f"fake engine failure: {self.path} exists")
+        elif self.action == "check_sys_path":
+            shadows = [p for p in sys.path if "/scripts/" in p.replace("\\", "/") + "/" and "/bpy/" in p]
+            if shadows:
+                raise RenderError(f"Blender script folders on sys.path: {shadows}")
         elif self.action == "abort":
             os.abort()
         elif self.action == "kill":

@@ -414,3 +414,17 @@ def test_workers_that_cannot_start_fail_the_jobs_without_hanging(tmp_path):
     assert len(reasons) == 2
     for r in reasons:
         assert r is not None and "worker failed to start" in r and "exited with code 3" in r
+
+
+def test_blender_script_folders_of_the_parent_do_not_shadow_bpy_in_workers(tmp_path):
+    """After ``import bpy`` the parent's sys.path starts with bpy/<version>/scripts/modules, which holds a
+    pure-Python ``bpy`` package; spawned workers inherit it and must drop it (else "No module named _bpy")."""
+    shadow = tmp_path / "site" / "bpy" / "5.0" / "scripts" / "modules"
+    (shadow / "bpy").mkdir(parents=True)
+    (shadow / "bpy" / "__init__.py").write_text("from _bpy import types\n")
+    sys.path.insert(0, str(shadow))
+    try:
+        report = bf.render_many([job(tmp_path, "b0", "check_sys_path")], workers=1, progress=False)
+    finally:
+        sys.path.remove(str(shadow))
+    assert report.statuses == ["done"], report.summary()
