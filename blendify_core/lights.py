@@ -40,6 +40,12 @@ __all__ = [
 ]
 
 
+def _quaternion(name: str, value: Any) -> np.ndarray:
+    from .transforms import quaternion_from_rotation
+
+    return quaternion_from_rotation("quaternionWXYZ", value, name=name)
+
+
 def _rgb(name: str, value: Any) -> tuple[float, float, float]:
     arr = as_array(name, value, ndim=1, min_value=0.0, max_value=1.0)
     if arr.shape[0] not in (3, 4):
@@ -281,6 +287,9 @@ class BackgroundLight:
     """Uniform light from the whole sky: radiance = colour x strength (Blender's world Background)."""
 
     kind = "background"
+    strength = ValidatedParam(_non_negative, doc="Strength (multiplies the colour).")
+    color = ValidatedParam(lambda obj, name, v: _rgb(name, v), doc="RGB colour.")
+    color_space = ValidatedParam(lambda obj, name, v: as_choice(name, v, COLOR_SPACES), doc="'srgb' or 'linear'.")
 
     def __init__(self, strength: float = 1.0, color: Any = (1.0, 1.0, 1.0), color_space: str = "srgb"):
         self.strength = as_float("strength", strength, min_value=0.0)
@@ -310,6 +319,10 @@ class EnvironmentMap:
     """
 
     kind = "environment"
+    strength = ValidatedParam(_non_negative, doc="Strength (multiplies the image).")
+    quaternion = ValidatedParam(
+        lambda obj, name, v: frozen(_quaternion(name, v)), doc="Rotation of the map (unit WXYZ quaternion)."
+    )
 
     def __init__(
         self,
