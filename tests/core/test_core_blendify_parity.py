@@ -744,3 +744,22 @@ def test_recentring_does_not_touch_the_users_objects():
     view, _ = recentred_view(s)
     assert curve.revision("geometry") == rev and np.array_equal(curve.keypoints, keys)
     assert np.abs(view.renderables[curve.tag].keypoints).max() < 10
+
+
+def test_background_and_environment_attributes_are_validated():
+    lights = bf.Scene().lights
+    bg = lights.set_background_light(0.5, (1.0, 0.0, 0.0))
+    bg.strength = 2.0
+    assert np.allclose(bg.radiance, [2.0, 0.0, 0.0])
+    env = lights.set_environment_map(np.ones((2, 4, 3), np.float32))
+    env.quaternion = (2.0, 0.0, 0.0, 0.0)
+    assert np.array_equal(env.quaternion, [1.0, 0.0, 0.0, 0.0])
+    for obj, name, value in (
+        (bg, "strength", -1.0),
+        (bg, "color", (2.0, 0.0, 0.0)),
+        (bg, "color_space", "aces"),
+        (env, "strength", np.nan),
+        (env, "quaternion", (0, 0, 0, 0)),
+    ):
+        with pytest.raises(bf.InvalidSceneError, match=name):
+            setattr(obj, name, value)
