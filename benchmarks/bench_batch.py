@@ -89,7 +89,9 @@ def _loop(paths: list[Path], out: Path, backend: str, samples: int) -> tuple[int
     return len(paths), times
 
 
-def run_throughput(backend: str, frames: int, samples: int, configs: list[tuple[str, int]]) -> dict[str, Any]:
+def run_throughput(
+    backend: str, frames: int, samples: int, configs: list[tuple[str, int]], repeat: int = 1
+) -> dict[str, Any]:
     scenes_dir = Path(tempfile.mkdtemp(prefix="bench-batch-scenes-"))
     paths = []
     for i in range(frames):
@@ -98,42 +100,44 @@ def run_throughput(backend: str, frames: int, samples: int, configs: list[tuple[
         paths.append(p)
     cores = _machine()["cores"]
     runs = []
-    for executor, workers in configs:
-        out = Path(tempfile.mkdtemp(prefix="bench-batch-out-"))
-        jobs = [bf.RenderJob(p, out / f"f{i}.png", backend=backend, samples=samples) for i, p in enumerate(paths)]
-        if executor == "ray":
-            os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
-            import ray
+    for round_ in range(repeat):  # rounds interleave the configurations, so load changes hit them all
+        for executor, workers in configs:
+            out = Path(tempfile.mkdtemp(prefix="bench-batch-out-"))
+            jobs = [bf.RenderJob(p, out / f"f{i}.png", backend=backend, samples=samples) for i, p in enumerate(paths)]
+            if executor == "ray":
+                os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
+                import ray
 
-            if not ray.is_initialized():  # started outside the timing, as on a real cluster
-                ray.init(num_cpus=cores, include_dashboard=False, log_to_driver=False)
-        load_before = _load()
-        t0 = time.perf_counter()
-        if executor == "loop":
-            done, per_job = _loop(paths, out, backend, samples)
-            failed, first_failure = 0, None
-        else:
-            report = bf.render_many(jobs, executor=executor, workers=workers, progress=False)
-            done, failed = report.counts["done"], report.counts["failed"]
-            per_job = [j.seconds for j in report if j.seconds is not None]
-            first_failure = report.failed[0].reason if report.failed else None
-        wall = time.perf_counter() - t0
-        row = {
-            "executor": executor,
-            "workers": workers,
-            "threads_per_job": max(1, cores // workers),
-            "frames": frames,
-            "done": done,
-            "failed": failed,
-            "wall_s": wall,
-            "frames_per_min": 60.0 * done / wall,
-            "median_job_s": float(np.median(per_job)) if per_job else None,
-            "load_before": load_before,
-            "load_after": _load(),
-            "first_failure": first_failure,
-        }
-        print(json.dumps(row))
-        runs.append(row)
+                if not ray.is_initialized():  # started outside the timing, as on a real cluster
+                    ray.init(num_cpus=cores, include_dashboard=False, log_to_driver=False)
+            load_before = _load()
+            t0 = time.perf_counter()
+            if executor == "loop":
+                done, per_job = _loop(paths, out, backend, samples)
+                failed, first_failure = 0, None
+            else:
+                report = bf.render_many(jobs, executor=executor, workers=workers, progress=False)
+                done, failed = report.counts["done"], report.counts["failed"]
+                per_job = [j.seconds for j in report if j.seconds is not None]
+                first_failure = report.failed[0].reason if report.failed else None
+            wall = time.perf_counter() - t0
+            row = {
+                "executor": executor,
+                "workers": workers,
+                "threads_per_job": max(1, cores // workers),
+                "frames": frames,
+                "done": done,
+                "failed": failed,
+                "wall_s": wall,
+                "frames_per_min": 60.0 * done / wall,
+                "median_job_s": float(np.median(per_job)) if per_job else None,
+                "load_before": load_before,
+                "load_after": _load(),
+                "first_failure": first_failure,
+                "round": round_,
+            }
+            print(json.dumps(row))
+            runs.append(row)
     return {"kind": "throughput", "backend": backend, "samples": samples, "machine": _machine(), "runs": runs}
 
 
@@ -183,6 +187,22 @@ def _slope(rss: list[float | None], start: int) -> float | None:
     return float(np.polyfit(x, y, 1)[0])
 
 
+def _aggregate(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per (executor, workers): the median run by frames/min, with the range over the rounds."""
+    groups: dict[tuple[str, int], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r.get("executor", "local"), r["workers"]), []).append(r)
+    out = []
+    for group in groups.values():
+        ordered = sorted(group, key=lambda r: r["frames_per_min"])
+        med = dict(ordered[len(ordered) // 2])
+        fpm = [r["frames_per_min"] for r in group]
+        med["all_fpm"] = fpm
+        med["fpm_range"] = f"{min(fpm):.0f}-{max(fpm):.0f}, n={len(fpm)}"
+        out.append(med)
+    return out
+
+
 def write_throughput(data: dict[str, Any]) -> None:
     name = f"batch_throughput_{data['backend']}"
     (RESULTS / f"{name}.json").write_text(json.dumps(data, indent=1))
@@ -195,18 +215,20 @@ def write_throughput(data: dict[str, Any]) -> None:
         f"{m['cores']} cores, {m['platform']}, Python {m['python']}. Each frame is the primitives scene plus a "
         "random convex mesh unique to the frame. Wall time includes starting the workers and the engine.",
         "",
-        "| executor | workers | threads/job | done | failed | wall (s) | frames/min | median job (s) | "
+        "| executor | workers | threads/job | done | failed | wall (s) | frames/min (range) | median job (s) | "
         "load avg before -> after |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
-    for r in data["runs"]:
+    runs = _aggregate(data["runs"])
+    for r in runs:
         lines.append(
             f"| {r.get('executor', 'local')} | {r['workers']} | {r['threads_per_job']} | {r['done']} | "
             f"{r['failed']} | {r['wall_s']:.1f} | "
-            f"**{r['frames_per_min']:.1f}** | {r['median_job_s']:.3f} | {r['load_before']} -> {r['load_after']} |"
+            f"**{r['frames_per_min']:.1f}** ({r['fpm_range']}) | {r['median_job_s']:.3f} | "
+            f"{r['load_before']} -> {r['load_after']} |"
         )
-    local = {r["workers"]: r for r in data["runs"] if r.get("executor", "local") == "local"}
-    if 1 in local and 2 in local:
+    local = {r["workers"]: r for r in runs if r.get("executor", "local") == "local"}
+    if 1 in local and 2 in local and local[1]["frames_per_min"] > 0:
         speedup = local[2]["frames_per_min"] / local[1]["frames_per_min"]
         lines += ["", f"Local pool, 2 vs 1 worker: {speedup:.2f}x."]
     lines += [
@@ -231,8 +253,11 @@ def write_throughput(data: dict[str, Any]) -> None:
         print("matplotlib is missing: no plot written")
         return
     fig, ax = plt.subplots(figsize=(4.5, 3.2))
-    labels = [f"{r.get('executor', 'local')}\n{r['workers']} worker(s)" for r in data["runs"]]
-    ax.bar(labels, [r["frames_per_min"] for r in data["runs"]], color="#4477aa")
+    labels = [f"{r.get('executor', 'local')}\n{r['workers']} worker(s)" for r in runs]
+    heights = [r["frames_per_min"] for r in runs]
+    ax.bar(labels, heights, color="#4477aa")
+    for k, r in enumerate(runs):
+        ax.plot([k] * len(r["all_fpm"]), r["all_fpm"], "k.", ms=4)
     ax.set_ylabel("frames per minute")
     ax.set_title(f"render_many throughput ({data['backend']})")
     fig.tight_layout()
@@ -315,6 +340,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=100)
     parser.add_argument("--jobs", type=int, default=500)
     parser.add_argument("--samples", type=int, default=16)
+    parser.add_argument("--repeat", type=int, default=3, help="rounds of the throughput configurations")
     parser.add_argument(
         "--configs", default="loop:1,local:1,local:2,ray:2", help="executor:workers list (loop = plain bf.render loop)"
     )
@@ -329,7 +355,7 @@ def main() -> None:
         return
     if args.kind == "throughput":
         configs = [(c.split(":")[0], int(c.split(":")[1])) for c in args.configs.split(",")]
-        data = run_throughput(backend, args.frames, args.samples, configs)
+        data = run_throughput(backend, args.frames, args.samples, configs, args.repeat)
         write_throughput(data)
     else:
         data = run_memory(backend, args.jobs, args.samples, [None, args.recycle])
