@@ -18,7 +18,7 @@ import numpy as np
 
 from ._validate import _describe, as_array, as_float, as_int, raw_array
 from .errors import InvalidSceneError
-from .transforms import Positionable, matrix_to_quaternion
+from .transforms import Positionable, ValidatedParam, matrix_to_quaternion
 
 __all__ = ["Camera", "PerspectiveCamera", "OrthographicCamera", "CV_FROM_BLENDER"]
 
@@ -41,6 +41,8 @@ class Camera(Positionable):
     """Base of cameras: resolution, principal point, clipping, distortion and the pose."""
 
     kind = "camera"
+    cx = ValidatedParam(lambda obj, name, v: as_float(name, v), doc="Principal point x (OpenCV pixels).")
+    cy = ValidatedParam(lambda obj, name, v: as_float(name, v), doc="Principal point y (OpenCV pixels).")
 
     def __init__(
         self,
@@ -196,6 +198,12 @@ class PerspectiveCamera(Camera):
     is given)."""
 
     kind = "perspective"
+    fx = ValidatedParam(
+        lambda obj, name, v: as_float(name, v, min_value=0.0, exclusive_min=True), doc="Focal length x (pixels)."
+    )
+    fy = ValidatedParam(
+        lambda obj, name, v: as_float(name, v, min_value=0.0, exclusive_min=True), doc="Focal length y (pixels)."
+    )
 
     def __init__(
         self,
