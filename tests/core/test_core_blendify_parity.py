@@ -586,6 +586,11 @@ def test_camera_properties_are_settable_and_validated():
             setattr(cam, name, value)
     with pytest.raises(bf.InvalidSceneError, match="resolution_percentage"):
         cam.resolution_percentage = 0
+    for name, value in (("fx", -1.0), ("fy", np.inf), ("cx", np.nan), ("cy", "middle")):
+        with pytest.raises(bf.InvalidSceneError, match=name):
+            setattr(cam, name, value)
+    cam.fx = 123.0
+    assert cam.K[0, 0] == 123.0 and cam.K[1, 1] == 150.0  # non-square pixels by hand
     ortho = s.set_orthographic_camera((64, 64), ortho_scale=2.0)
     ortho.ortho_scale = 4.0
     assert ortho.pixel_size == 4.0 / 64
