@@ -186,6 +186,7 @@ def render(
     if needs_recentring(view):
         view, origin = recentred_view(view)
 
+    t_call = time.perf_counter()
     if settings.target_error is not None and getattr(inst, "path_tracer", False):
         result = render_to_target(inst, view, settings)
     else:
@@ -208,6 +209,7 @@ def render(
     meta.setdefault("engine_version", inst.engine_version())
     meta["settings"] = settings.to_dict()
     meta.setdefault("effects", effects.to_dict())
+    meta["simulated"] = _simulated(settings, effects)
     meta["approximations"] = sorted(set(approximations) | set(meta.get("approximations", [])))
     if fallback_notes:
         meta["backend_fallback"] = fallback_notes
@@ -219,8 +221,55 @@ def render(
     meta["scene_fingerprint"] = scene.fingerprint()
     if not result.instance_tags:
         result.instance_tags = [r.tag for r in scene.renderables]
-    meta.setdefault("timings", {})["total"] = time.perf_counter() - t_start
+    _error_meta(meta, settings, bool(getattr(inst, "path_tracer", False)))
+    _normalise_timings(meta.setdefault("timings", {}), time.perf_counter() - t_call)
+    meta["timings"]["total"] = time.perf_counter() - t_start
     return result
+
+
+def _simulated(settings: RenderSettings, effects: Any) -> dict[str, Any]:
+    """What light transport was simulated and why (``meta["simulated"]``)."""
+    if "rgb" not in settings.outputs:
+        return {"lighting": False, "why": "only geometric outputs requested: no lighting needed"}
+    if not settings.effects:
+        return {"lighting": True, "effects": "full", "why": "effects=False: full settings requested"}
+    on = [f for f, v in effects.to_dict().items() if f != "reasons" and v]
+    return {"lighting": True, "effects": on, "why": "effects=True: only what analyse_effects found is simulated"}
+
+
+def _error_meta(meta: dict[str, Any], settings: RenderSettings, path_tracer: bool) -> None:
+    """Every result says whether its error was estimated (``estimated_error`` is None when not)."""
+    if meta.get("estimated_error") is not None:
+        return
+    meta["estimated_error"] = None
+    if "rgb" not in settings.outputs:
+        why = "not estimated: no colour output"
+    elif path_tracer:
+        why = "not estimated: single pass (pass target_error= for an estimate from independent passes)"
+    else:
+        why = "not estimated: raster backend (deterministic: its error is bias, not noise)"
+    meta["estimated_error_kind"] = why
+
+
+# backend-specific phase names folded into the common keys translate / render / read_back
+_TRANSLATE_KEYS = ("translate", "sync")
+_RENDER_KEYS = ("gbuffer", "color", "shadow_catcher", "render_rgb", "ray_cast", "cycles", "passes_setup")
+_READ_BACK_KEYS = ("read_back", "read_outputs")
+
+
+def _normalise_timings(t: dict[str, Any], call: float) -> None:
+    """Make ``meta["timings"]`` always carry ``translate`` and ``render`` (seconds; ``total`` is added by
+    the caller), plus ``read_back`` when the backend measures it separately (Cycles' EXR read; the others
+    read back inside their render phase). The backend's own finer keys are kept."""
+    if "translate" not in t:
+        t["translate"] = next((float(t[k]) for k in _TRANSLATE_KEYS if k in t), 0.0)
+    if "render" not in t:
+        parts = [float(t[k]) for k in _RENDER_KEYS if k in t]
+        t["render"] = sum(parts) if parts else max(0.0, call - float(t["translate"]))
+    if "read_back" not in t:
+        read_back = next((float(t[k]) for k in _READ_BACK_KEYS if k in t), None)
+        if read_back is not None:
+            t["read_back"] = read_back
 
 
 def _clip_check(scene: Any) -> str | None:
