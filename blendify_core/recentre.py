@@ -38,11 +38,20 @@ def _scene_scale(scene: Any) -> tuple[float, float]:
     return magnitude, size
 
 
+def _magnitude_and_size(v: np.ndarray) -> tuple[float, float]:
+    from .renderables import _column_bounds
+
+    lo, hi = _column_bounds(v)
+    return float(max(np.abs(lo).max(), np.abs(hi).max())), float(np.linalg.norm(hi - lo))
+
+
 def _vertex_magnitude(r: Any) -> tuple[float, float]:
+    from ._memo import magnitude_memo
+
     for attr in ("_vertices", "keypoints"):
         v = getattr(r, attr, None)
         if v is not None and len(v):
-            return float(np.abs(v).max()), float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+            return magnitude_memo(v, _magnitude_and_size)
     return 0.0, 1.0
 
 

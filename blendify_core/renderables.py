@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from ._memo import bounds_memo
 from ._validate import (
     _describe,
     as_array,
@@ -393,7 +394,7 @@ class Mesh(Renderable):
     def world_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         if len(self._vertices) == 0:
             return self.translation.copy(), self.translation.copy()
-        lo, hi = _column_bounds(self._vertices)
+        lo, hi = bounds_memo(self._vertices, _column_bounds)
         corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
         v = corners @ self.rotation_matrix.T + self.translation
         return v.min(axis=0), v.max(axis=0)
@@ -536,7 +537,7 @@ class PointCloud(Renderable):
         # cheap on millions of points: the object-space box grown by the largest radius, then its corners
         # transformed (as Mesh.world_bounds; exact for unrotated clouds, conservative otherwise)
         r = float(self._point_size) / 2.0 if np.ndim(self._point_size) == 0 else float(np.max(self._point_size)) / 2.0
-        lo, hi = _column_bounds(self._vertices)
+        lo, hi = bounds_memo(self._vertices, _column_bounds)
         lo, hi = lo - r, hi + r
         corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
         v = corners @ self.rotation_matrix.T + self.translation

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ._memo import digest_memo
 from ._validate import as_path
 from .errors import InvalidSceneError
 
@@ -254,7 +255,11 @@ def fingerprint(scene: Any) -> str:
     h = hashlib.sha256()
     h.update(json.dumps(header, sort_keys=True).encode("utf-8"))
     for key in sorted(arrays):
-        a = np.ascontiguousarray(arrays[key])
-        h.update(f"{key}|{a.dtype.str}|{a.shape}".encode())
-        h.update(a.tobytes())
+        a = arrays[key]
+        h.update(f"{key}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(digest_memo(a, _array_digest).encode())
     return h.hexdigest()
+
+
+def _array_digest(a: np.ndarray) -> str:
+    return hashlib.sha256(np.ascontiguousarray(a).tobytes()).hexdigest()
