@@ -90,13 +90,18 @@ def _loop(paths: list[Path], out: Path, backend: str, samples: int) -> tuple[int
 
 
 def run_throughput(
-    backend: str, frames: int, samples: int, configs: list[tuple[str, int]], repeat: int = 1
+    backend: str,
+    frames: int,
+    samples: int,
+    configs: list[tuple[str, int]],
+    repeat: int = 1,
+    resolution: tuple[int, int] = (64, 48),
 ) -> dict[str, Any]:
     scenes_dir = Path(tempfile.mkdtemp(prefix="bench-batch-scenes-"))
     paths = []
     for i in range(frames):
         p = scenes_dir / f"s{i}.npz"
-        bench_scene(i).save(p)
+        bench_scene(i, resolution).save(p)
         paths.append(p)
     cores = _machine()["cores"]
     runs = []
@@ -138,7 +143,14 @@ def run_throughput(
             }
             print(json.dumps(row))
             runs.append(row)
-    return {"kind": "throughput", "backend": backend, "samples": samples, "machine": _machine(), "runs": runs}
+    return {
+        "kind": "throughput",
+        "backend": backend,
+        "samples": samples,
+        "resolution": list(resolution),
+        "machine": _machine(),
+        "runs": runs,
+    }
 
 
 def run_memory(backend: str, jobs_n: int, samples: int, recycle_list: list[int | None]) -> dict[str, Any]:
@@ -204,11 +216,13 @@ def _aggregate(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def write_throughput(data: dict[str, Any]) -> None:
-    name = f"batch_throughput_{data['backend']}"
+    res = tuple(data.get("resolution", (64, 48)))
+    size = f"{res[0]}x{res[1]}"
+    name = f"batch_throughput_{data['backend']}" + ("" if res == (64, 48) else f"_{size}")
     (RESULTS / f"{name}.json").write_text(json.dumps(data, indent=1))
     m = data["machine"]
     lines = [
-        f"# Batch throughput: {data['backend']}, {data['runs'][0]['frames']} frames of 64x48, "
+        f"# Batch throughput: {data['backend']}, {data['runs'][0]['frames']} frames of {size}, "
         f"{data['samples']} samples",
         "",
         f"`bf.render_many` with the local process pool (scene files on disk, PNG outputs, JSON-lines manifest), "
@@ -341,6 +355,7 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=500)
     parser.add_argument("--samples", type=int, default=16)
     parser.add_argument("--repeat", type=int, default=3, help="rounds of the throughput configurations")
+    parser.add_argument("--resolution", default="64x48", help="frame size of the throughput runs, WxH")
     parser.add_argument(
         "--configs", default="loop:1,local:1,local:2,ray:2", help="executor:workers list (loop = plain bf.render loop)"
     )
@@ -350,12 +365,14 @@ def main() -> None:
     RESULTS.mkdir(parents=True, exist_ok=True)
     backend = choose_backend(args.backend)
     if args.rewrite:
-        data = json.loads((RESULTS / f"batch_{args.kind}_{backend}.json").read_text())
+        suffix = "" if args.kind == "memory" or args.resolution == "64x48" else f"_{args.resolution}"
+        data = json.loads((RESULTS / f"batch_{args.kind}_{backend}{suffix}.json").read_text())
         (write_throughput if args.kind == "throughput" else write_memory)(data)
         return
     if args.kind == "throughput":
         configs = [(c.split(":")[0], int(c.split(":")[1])) for c in args.configs.split(",")]
-        data = run_throughput(backend, args.frames, args.samples, configs, args.repeat)
+        res = tuple(int(v) for v in args.resolution.lower().split("x"))
+        data = run_throughput(backend, args.frames, args.samples, configs, args.repeat, res)  # type: ignore[arg-type]
         write_throughput(data)
     else:
         data = run_memory(backend, args.jobs, args.samples, [None, args.recycle])
