@@ -464,6 +464,42 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "light_inside_object": lambda: _hc_light(100.0, inside=True),
         "no_lights": lambda: _hc_base(lights=False),
         "empty_scene": lambda: _hc_empty(),
+        # -- added by the robustness suite: more awkward inputs, several with a known answer -----------
+        "smooth_zero_area_faces": lambda: _hc_mesh(
+            [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [1, 1, 0], [0.5, 0.5, 0], [2, 0, 0]],
+            [[0, 1, 2], [1, 3, 2], [3, 4, 4], [0, 5, 3], [1, 6, 6], [4, 4, 4]],
+            smooth=True,
+        ),
+        "long_thin_triangles": lambda: _hc_mesh(
+            [
+                [-5e3, -0.2, 0],
+                [5e3, -0.2, 0],
+                [5e3, 0.2, 0],
+                [-5e3, 0.2, 0],
+                [0, 0, -1e3],
+                [0, 1e-3, 1e3],
+                [1e-3, 0, 1e3],
+            ],
+            [[0, 1, 2], [0, 2, 3], [4, 5, 6]],
+            smooth=True,
+        ),
+        "huge_point_size": lambda: _hc_points(rng().normal(size=(5, 3)) * 0.3, size=3.0),
+        "tiny_point_size": lambda: _hc_points(rng().normal(size=(200, 3)) * 0.5, size=1e-7),
+        "near_far_sliver": lambda: _hc_camera(_hc_base(), near=3.5, far=3.7, translation=(0, -3.0, 2.0)),
+        "objects_behind_camera": lambda: _hc_camera(
+            _hc_base(), translation=(0, -3.0, 2.0), rotation=np.array([0.0, -10.0, 6.0])
+        ),
+        "camera_inside_object": lambda: _hc_inside_sphere(),
+        "light_at_camera": lambda: _hc_light_at_camera(),
+        "texture_1x1_faces_uv": lambda: _hc_textures(faces_uv=True),
+        "vertex_colors_0_and_1": lambda: _hc_vertex_colors(),
+        "resolution_1x1": lambda: _hc_camera(_hc_base(), resolution=(1, 1), fov_x=np.deg2rad(30)),
+        "plane_depth_fx_fy_ratio_100": lambda: _hc_plane(K=[[2.0, 0, 15.5], [0, 200.0, 11.5], [0, 0, 1]]),
+        "plane_depth_principal_point_outside": lambda: _hc_plane(K=[[30.0, 0, -20.0], [0, 30.0, 60.0], [0, 0, 1]]),
+        "plane_depth_far_1e6": lambda: _hc_plane(offset=(1e6, 1e6, -1e6)),
+        "markers_origin": lambda: _hc_markers((0.0, 0.0, 0.0)),
+        "markers_far_1e6": lambda: _hc_markers((2e6, -1e6, 5e5)),
+        "ortho_markers_far_1e5": lambda: _hc_markers((1e5, 1e5, 1e5), orthographic=True),
     }
     if include_heavy:
         cases["mesh_2M_triangles"] = lambda: _hc_big_mesh()
@@ -477,6 +513,7 @@ HARD_CASE_REFERENCE = {
     "tiny_scale_1e-4": "origin",
     "huge_scale_1e4": "origin",
     "world_vertices_far_1e6": "world_vertices_origin",
+    "markers_far_1e6": "markers_origin",
 }
 
 
@@ -502,10 +539,11 @@ def _hc_colors() -> Scene:
     return scene
 
 
-def _hc_textures() -> Scene:
+def _hc_textures(faces_uv: bool = False) -> Scene:
     scene = _hc_base()
     quad = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], float)
-    uv = VertexUV([[0, 0], [1, 0], [1, 1], [0, 1]])
+    uv_v = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    uv: Any = FacesUV(uv_v[[[0, 1, 2, 3]]]) if faces_uv else VertexUV(uv_v)
     scene.renderables.add_mesh(
         quad * 0.5 + [0, -0.6, 0],
         [[0, 1, 2, 3]],
@@ -538,3 +576,119 @@ def _hc_big_mesh() -> Scene:
 
     m = uv_sphere(1.0, 1000, 1000)
     return _hc_mesh(m.vertices, m.faces)
+
+
+#: what each hard case exercises (for docs/robustness.md)
+HARD_CASE_DESCRIPTIONS = {
+    "origin": "reference: a cube and a sphere at the origin",
+    "far_from_origin_1e6": "the reference scene 1e6 m from the origin (core re-centring)",
+    "tiny_scale_1e-4": "the reference scene scaled by 1e-4 (near/far scaled too)",
+    "world_vertices_origin": "a torus given in world-coordinate vertices at the origin",
+    "world_vertices_far_1e6": "the torus with vertices ~3e6 m from the origin (vertex re-centring)",
+    "huge_scale_1e4": "the reference scene scaled by 1e4",
+    "look_straight_down": "look_at with the view direction parallel to the up axis (down)",
+    "look_straight_up": "look_at with the view direction parallel to the up axis (up)",
+    "camera_at_target": "look_at with the camera at its target",
+    "roll_180": "look_at with a 180 degree roll",
+    "unnormalised_quaternion": "camera rotation from a quaternion of norm 7",
+    "near_singular_rotmat": "camera rotation matrix with 1e-4 noise (re-orthonormalised)",
+    "euler_gimbal_lock": "Euler XYZ (90, 90, 0): gimbal lock",
+    "fov_near_0": "fov 1e-3 rad from 4 km away",
+    "fov_near_180": "fov 179 degrees",
+    "aspect_4096x16": "4096x16 image",
+    "principal_point_outside": "principal point outside the image",
+    "ortho_tiny": "orthographic scale 1e-3",
+    "ortho_huge": "orthographic scale 1e4",
+    "degenerate_triangles": "zero-area and repeated-vertex triangles",
+    "non_manifold_inconsistent": "non-manifold edges, inconsistent winding",
+    "unreferenced_vertices": "one triangle and 50 unreferenced far vertices",
+    "single_triangle": "a mesh of one triangle",
+    "coincident_points": "100 coincident points",
+    "single_point": "a point cloud of one point",
+    "colinear_points": "50 colinear points",
+    "colors_0_and_1": "uniform colours exactly 0 and exactly 1",
+    "texture_1x1_and_odd": "1x1 and 5x17 textures (VertexUV)",
+    "very_bright_light": "a 1e6 W point light",
+    "very_dim_light": "a 1e-6 W point light",
+    "light_inside_object": "a point light inside the sphere",
+    "no_lights": "no lights: warning and a black image",
+    "empty_scene": "no renderables: empty depth/instance, zero alpha",
+    "smooth_zero_area_faces": "smooth shading with zero-area faces (normals must not be NaN)",
+    "long_thin_triangles": "a 0.4 m strip of two 1e4 m long slivers (aspect 2.5e4), a 1e-3 m wide needle",
+    "huge_point_size": "points 3 m in diameter (larger than the scene)",
+    "tiny_point_size": "points 1e-7 m in diameter",
+    "near_far_sliver": "near 3.5, far 3.7: only a thin depth slab is visible",
+    "objects_behind_camera": "every object behind the camera: empty image",
+    "camera_inside_object": "camera inside a closed sphere: every pixel hits it",
+    "light_at_camera": "a point light at the camera position",
+    "texture_1x1_faces_uv": "1x1 and odd textures with FacesUV",
+    "vertex_colors_0_and_1": "vertex colours exactly 0 and exactly 1",
+    "resolution_1x1": "a 1x1 image",
+    "plane_depth_fx_fy_ratio_100": "fx/fy = 1/100 (non-square pixels): plane depth known",
+    "plane_depth_principal_point_outside": "principal point outside the image: plane depth known",
+    "plane_depth_far_1e6": "a tilted plane 1e6 m from the origin: plane depth known",
+    "markers_origin": "camera self-test: marker sphere centroids at their projected pixels",
+    "markers_far_1e6": "the marker scene 2e6 m from the origin: markers at their projected pixels",
+    "ortho_markers_far_1e5": "orthographic marker scene 1e5 m from the origin",
+    "mesh_2M_triangles": "a 2M-triangle sphere (slow)",
+    "pointcloud_1M": "a 1M-point cloud (slow)",
+}
+
+
+def _hc_inside_sphere() -> Scene:
+    scene = _hc_base()
+    scene.renderables.add_sphere_nurbs(
+        10.0, DiffuseMaterial(), UniformColors((0.5, 0.5, 0.5)), translation=(0, 0, 0), tag="enclosure"
+    )
+    scene.lights.add_point(100.0, shadow_soft_size=0.0, translation=(0, 0, 5.0))
+    return scene
+
+
+def _hc_light_at_camera() -> Scene:
+    scene = _hc_base(lights=False)
+    scene.lights.add_point(30.0, shadow_soft_size=0.0, translation=scene.camera.translation)  # type: ignore[union-attr]
+    return scene
+
+
+def _hc_vertex_colors() -> Scene:
+    from .geometry import uv_sphere
+
+    scene = _hc_base()
+    scene.renderables.clear()
+    m = uv_sphere(0.8, 16, 8)
+    c = (m.vertices[:, 2:3] > 0).astype(float) * np.ones((1, 3))
+    scene.renderables.add_mesh(m.vertices, m.faces, DiffuseMaterial(), VertexColors(c), smooth=True, tag="mesh")
+    return scene
+
+
+def _hc_plane(offset: Any = (0.0, 0.0, 0.0), K: Any = None) -> Scene:
+    """depth_plane_scene (32x24, camera 3 m from a 30-degree plane) moved by ``offset``, optionally with
+    intrinsics ``K``; :func:`expected_plane_depth` gives the answer."""
+    off = np.asarray(offset, dtype=np.float64)
+    scene = Scene()
+    cam = dict(translation=off + [0, 0, 3.0], near=0.05, far=100)
+    if K is None:
+        scene.set_perspective_camera((32, 24), fov_x=np.deg2rad(50), **cam)  # type: ignore[arg-type]
+    else:
+        scene.set_perspective_camera((32, 24), K=np.asarray(K, float), **cam)  # type: ignore[arg-type]
+    scene.renderables.add_plane_mesh(
+        200.0,
+        DiffuseMaterial(),
+        UniformColors((0.5, 0.5, 0.5)),
+        rotation_mode="eulerXYZ",
+        rotation=(30.0, 0, 0),
+        translation=off,
+        tag="plane",
+    )
+    scene.lights.set_background_light(1.0)
+    return scene
+
+
+def _hc_markers(offset: Any, orthographic: bool = False) -> Scene:
+    """marker_scene (80x60) moved by ``offset``; the markers ("marker_i") project to known pixels."""
+    off = np.asarray(offset, dtype=np.float64)
+    scene, _ = marker_scene((80, 60), fx=75.0, center=(41.3, 28.6), radius=0.2, orthographic=orthographic)
+    for r in scene.renderables:
+        r.translation = r.translation + off
+    scene.camera.translation = scene.camera.translation + off  # type: ignore[union-attr]
+    return scene

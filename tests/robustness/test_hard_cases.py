@@ -9,12 +9,20 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.testing import HARD_CASE_REFERENCE, hard_cases
+from blendify_core.testing import HARD_CASE_REFERENCE, expected_plane_depth, hard_cases
 
 BACKENDS = ("pyrender", "mitsuba", "cycles")
 OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
 CASES = hard_cases()
-DETERMINISM = ("origin", "far_from_origin_1e6", "degenerate_triangles", "coincident_points", "light_inside_object")
+DETERMINISM = (
+    "origin",
+    "far_from_origin_1e6",
+    "degenerate_triangles",
+    "coincident_points",
+    "light_inside_object",
+    "smooth_zero_area_faces",
+    "markers_far_1e6",
+)
 
 
 def _available(name: str) -> str | None:
@@ -33,6 +41,24 @@ def backend(request):
     return request.param
 
 
+#: backend bugs found by this suite (backends are not edited here): (backend, case) -> reason
+KNOWN_BACKEND_BUGS = {
+    ("cycles", "resolution_1x1"): (
+        "cycles returns a 4x4 image for a 1x1 camera (Blender clamps the render resolution to >= 4 px): "
+        "bf.render raises RenderError 'returned the rgb output with shape (4, 4, 4), expected (1, 1, 4)'"
+    ),
+}
+#: backends whose normal/albedo passes are not 0 on pixels whose centre ray hits nothing (depth +inf,
+#: instance -1): they come from the anti-aliased samples, so silhouette pixels get a unit normal
+BACKGROUND_PASS_BUG = {
+    "cycles": (
+        "cycles: normal output is a unit vector (not 0) on silhouette pixels whose centre ray misses "
+        "(depth +inf, instance -1); the contract says 0 where nothing was hit (16 such pixels in 'origin' at "
+        "32x32 and 4 spp, 40 at 64 spp, none at 1 spp)"
+    ),
+}
+
+
 def _render(scene, backend, seed=0):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -40,7 +66,7 @@ def _render(scene, backend, seed=0):
     return result, [str(w.message) for w in caught]
 
 
-def _check_finite(result, n_renderables):
+def _check_finite(result, n_renderables, backend=None):
     assert np.all(np.isfinite(result.rgba)), "rgba has NaN/Inf"
     assert result.rgba.dtype == np.float32 and result.rgba.shape[2] == 4
     assert np.all(result.rgba[..., 3] >= 0) and np.all(result.rgba[..., 3] <= 1 + 1e-5)
@@ -48,20 +74,27 @@ def _check_finite(result, n_renderables):
     assert not np.any(np.isnan(d)) and not np.any(d == -np.inf), "depth has NaN or -inf"
     assert np.all(d[np.isfinite(d)] > 0)
     assert np.all(np.isfinite(result.normal)) and np.all(np.isfinite(result.albedo))
+    assert result.albedo.min() >= 0 and result.albedo.max() <= 1 + 1e-4, "albedo outside [0, 1]"
+    n = np.linalg.norm(result.normal, axis=-1)
+    assert np.all(np.abs(n[hit := np.isfinite(d)] - 1) < 1e-2), "normals of hit pixels must be unit vectors"
+    if backend not in BACKGROUND_PASS_BUG:  # checked on its own in test_background_passes_are_zero
+        assert np.all(n[~hit] == 0), "normals must be 0 on the background"
+        assert np.all(result.albedo[~hit] == 0), "albedo must be 0 on the background"
     assert result.instance.min() >= -1 and result.instance.max() < n_renderables
-    hit = np.isfinite(d)
     assert np.all(result.instance[~hit] == -1)
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_hard_case_renders_finite(backend, case):
+def test_hard_case_renders_finite(backend, case, request):
+    if (backend, case) in KNOWN_BACKEND_BUGS:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=KNOWN_BACKEND_BUGS[backend, case]))
     scene = CASES[case]()
     try:
         result, messages = _render(scene, backend)
     except bf.UnsupportedFeatureError as exc:  # a declared limitation is an answer, not a crash
         pytest.skip(f"{backend} declares {exc.feature} unsupported")
     n = len(scene.renderables)
-    _check_finite(result, n)
+    _check_finite(result, n, backend)
     if case == "no_lights":
         assert any("no lights" in m for m in messages)
         assert np.allclose(result.rgba[..., :3], 0, atol=1e-6), "no light must give a black image"
@@ -70,6 +103,49 @@ def test_hard_case_renders_finite(backend, case):
         assert np.allclose(result.rgba[..., 3], 0)
     if case in ("origin", "far_from_origin_1e6", "tiny_scale_1e-4", "huge_scale_1e4", "single_point"):
         assert np.isfinite(result.depth).sum() > 20, "the object must be visible"
+    _check_known_answer(case, scene, result)
+
+
+def _check_known_answer(case, scene, result):
+    """Checks where geometry makes the answer known."""
+    depth, cam = result.depth, scene.camera
+    hit = np.isfinite(depth)
+    assert result.rgba.shape[:2] == (cam.height, cam.width)
+    if case == "objects_behind_camera":
+        assert not hit.any() and np.allclose(result.rgba[..., 3], 0), "nothing is in front of the camera"
+    if case == "camera_inside_object":
+        assert hit.all(), "the camera is inside a closed sphere: every pixel must hit it"
+        assert depth.max() <= 10.0 + np.linalg.norm(cam.translation) + 1e-3 and (result.instance >= 0).all()
+    if case == "near_far_sliver":
+        assert hit.any(), "the slab between near and far crosses the objects"
+        # engines clip by planar depth or by ray length: a hit lies within [near cos(corner), far]
+        assert depth[hit].min() >= cam.near * 0.8 and depth[hit].max() <= cam.far * (1 + 1e-4)
+    if case in ("huge_point_size", "smooth_zero_area_faces", "long_thin_triangles", "camera_inside_object"):
+        assert hit.sum() > 10, "the geometry must be visible"
+    if case == "light_at_camera":
+        assert result.rgba[..., :3][hit].max() > 0.01, "a light at the camera lights what it sees"
+    if case.startswith("plane_depth"):
+        expected = expected_plane_depth(scene)
+        both = hit & np.isfinite(expected)
+        assert both.sum() >= 0.9 * np.isfinite(expected).sum(), "plane silhouette: pixels missing"
+        assert (hit & ~np.isfinite(expected)).sum() <= 0.02 * hit.size, "plane silhouette: extra pixels"
+        rel = np.abs(depth[both] - expected[both]) / expected[both]
+        assert np.quantile(rel, 0.99) < 1e-3, f"plane depth q99 relative error {np.quantile(rel, 0.99):.2e}"
+    if "markers" in case:
+        _check_markers(scene, result)
+
+
+def _check_markers(scene, result, tol_px=0.5):
+    """Each marker's silhouette centroid (from the instance output) sits at its projected centre."""
+    tags = list(result.instance_tags)
+    v, u = np.indices(result.instance.shape)
+    for r in scene.renderables:
+        expected, z = scene.camera.project(r.translation[None])
+        mask = result.instance == tags.index(r.tag)
+        assert mask.sum() >= 4, f"{r.tag}: not visible"
+        got = np.array([u[mask].mean(), v[mask].mean()])
+        err = np.linalg.norm(got - expected[0])
+        assert err < tol_px, f"{r.tag}: centroid {got} vs projected {expected[0]} ({err:.2f} px)"
 
 
 @pytest.mark.parametrize("case", sorted(HARD_CASE_REFERENCE))
@@ -88,6 +164,18 @@ def test_far_or_scaled_scene_renders_like_the_origin(backend, case):
     assert diff.mean() < 0.02, f"colour differs: mean abs {diff.mean():.4f}"
 
 
+@pytest.mark.parametrize("case", ["origin", "markers_origin"])
+def test_background_passes_are_zero(backend, case, request):
+    """normal and albedo are 0 wherever depth is +inf (the RenderResult contract), silhouettes included."""
+    if backend in BACKGROUND_PASS_BUG:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=BACKGROUND_PASS_BUG[backend]))
+    result, _ = _render(CASES[case](), backend)
+    miss = ~np.isfinite(result.depth)
+    assert miss.any() and (result.instance[miss] == -1).all()
+    assert np.all(result.normal[miss] == 0), f"{int((result.normal[miss] != 0).any(-1).sum())} background normals"
+    assert np.all(result.albedo[miss] == 0), f"{int((result.albedo[miss] != 0).any(-1).sum())} background albedos"
+
+
 @pytest.mark.parametrize("case", DETERMINISM)
 def test_same_seed_same_result(backend, case):
     a, _ = _render(CASES[case](), backend, seed=3)
@@ -102,5 +190,5 @@ def test_same_seed_same_result(backend, case):
 def test_heavy_cases(backend, case):
     scene = hard_cases(include_heavy=True)[case]()
     result, _ = _render(scene, backend)
-    _check_finite(result, len(scene.renderables))
+    _check_finite(result, len(scene.renderables), backend)
     assert np.isfinite(result.depth).sum() > 50
