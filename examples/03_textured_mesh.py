@@ -12,12 +12,9 @@ def main() -> None:
     args = parser(__doc__).parse_args()
     out = out_dir(args)
     scene = bf.Scene()
+    # fuze.obj is already +Z up (0.22 m tall)
     bottle = scene.renderables.add_trimesh(
-        data_file("fuze.obj"),
-        material=bf.PrincipledBSDFMaterial(roughness=0.5),
-        smooth=True,
-        rotation_mode="eulerXYZ",
-        rotation=(90, 0, 0),
+        data_file("fuze.obj"), material=bf.PrincipledBSDFMaterial(roughness=0.5), smooth=True
     )
     lo, hi = scene.bounds()
     centre = (lo + hi) / 2
@@ -26,7 +23,7 @@ def main() -> None:
         fov_x=np.deg2rad(35),
         rotation_mode="look_at",
         rotation=centre,
-        translation=centre + np.array([0.0, -0.35, 0.12]),
+        translation=centre + np.array([0.25, -0.45, 0.15]),
     )
     scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(40, 30, 0))
     scene.lights.set_background_light(0.5)
