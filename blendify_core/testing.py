@@ -500,6 +500,10 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "markers_origin": lambda: _hc_markers((0.0, 0.0, 0.0)),
         "markers_far_1e6": lambda: _hc_markers((2e6, -1e6, 5e5)),
         "ortho_markers_far_1e5": lambda: _hc_markers((1e5, 1e5, 1e5), orthographic=True),
+        "distant_point_light_hard_1e4": lambda: _hc_distant_light(1e4, 0.0),
+        "distant_point_light_soft_1e3": lambda: _hc_distant_light(1e3, 0.25),
+        "distant_point_light_soft_1e4": lambda: _hc_distant_light(1e4, 0.25),
+        "resolution_percentage_2": lambda: _hc_percentage(2),
     }
     if include_heavy:
         cases["mesh_2M_triangles"] = lambda: _hc_big_mesh()
@@ -514,6 +518,8 @@ HARD_CASE_REFERENCE = {
     "huge_scale_1e4": "origin",
     "world_vertices_far_1e6": "world_vertices_origin",
     "markers_far_1e6": "markers_origin",
+    "distant_point_light_soft_1e3": "distant_point_light_hard_1e4",
+    "distant_point_light_soft_1e4": "distant_point_light_hard_1e4",
 }
 
 
@@ -630,6 +636,10 @@ HARD_CASE_DESCRIPTIONS = {
     "markers_origin": "camera self-test: marker sphere centroids at their projected pixels",
     "markers_far_1e6": "the marker scene 2e6 m from the origin: markers at their projected pixels",
     "ortho_markers_far_1e5": "orthographic marker scene 1e5 m from the origin",
+    "distant_point_light_hard_1e4": "a point light (radius 0) 1e4 m away, power x d^2: reference irradiance",
+    "distant_point_light_soft_1e3": "the default 0.25 m point light 1e3 m away: must light like the hard one",
+    "distant_point_light_soft_1e4": "the default 0.25 m point light 1e4 m away: must light like the hard one",
+    "resolution_percentage_2": "32x32 at resolution_percentage 2: a 1x1 image",
     "mesh_2M_triangles": "a 2M-triangle sphere (slow)",
     "pointcloud_1M": "a 1M-point cloud (slow)",
 }
@@ -691,4 +701,21 @@ def _hc_markers(offset: Any, orthographic: bool = False) -> Scene:
     for r in scene.renderables:
         r.translation = r.translation + off
     scene.camera.translation = scene.camera.translation + off  # type: ignore[union-attr]
+    return scene
+
+
+def _hc_distant_light(distance: float, radius: float) -> Scene:
+    """The reference scene lit only by a point light ``distance`` metres away (power scaled by distance^2,
+    so the irradiance at the objects is the same for every distance: ~8 W/m^2)."""
+    scene = _hc_base(lights=False)
+    direction = np.array([0.3, -1.0, 1.0]) / np.linalg.norm([0.3, -1.0, 1.0])
+    scene.lights.add_point(
+        100.0 * distance**2, shadow_soft_size=radius, translation=direction * distance, tag="distant"
+    )
+    return scene
+
+
+def _hc_percentage(percentage: int) -> Scene:
+    scene = _hc_base()
+    scene.camera.resolution_percentage = percentage  # type: ignore[union-attr]
     return scene

@@ -41,12 +41,29 @@ def backend(request):
     return request.param
 
 
+MITSUBA_FAR_SOFT_LIGHT = (
+    "mitsuba: a point light with a radius (shadow_soft_size 0.25, the default) >= 3 km away gives a BLACK "
+    "image (cycles/pyrender light it like the hard light): the sphere emitter's solid angle underflows in float32"
+)
 #: backend bugs found by this suite (backends are not edited here): (backend, case) -> reason
 KNOWN_BACKEND_BUGS = {
     ("cycles", "resolution_1x1"): (
         "cycles returns a 4x4 image for a 1x1 camera (Blender clamps the render resolution to >= 4 px): "
         "bf.render raises RenderError 'returned the rgb output with shape (4, 4, 4), expected (1, 1, 4)'"
     ),
+    ("cycles", "resolution_percentage_2"): (
+        "cycles returns a 4x4 image for a 32x32 camera at resolution_percentage 2 (1x1 expected): RenderError"
+    ),
+    ("mitsuba", "distant_point_light_soft_1e4"): MITSUBA_FAR_SOFT_LIGHT,
+}
+#: pairs that must render alike, but do not in a backend
+REFERENCE_BUGS = {
+    ("mitsuba", "distant_point_light_soft_1e3"): (
+        "mitsuba: a point light with a radius (shadow_soft_size 0.25, the default) 1 km away lights the scene "
+        "~1.9x too brightly (mean 0.142 vs 0.075 for the hard light; cycles 0.075, pyrender 0.071): float32 "
+        "precision of the sphere-emitter cone sampling when radius/distance ~ 2.5e-4"
+    ),
+    ("mitsuba", "distant_point_light_soft_1e4"): MITSUBA_FAR_SOFT_LIGHT,
 }
 #: backends whose normal/albedo passes are not 0 on pixels whose centre ray hits nothing (depth +inf,
 #: instance -1): they come from the anti-aliased samples, so silhouette pixels get a unit normal
@@ -110,7 +127,8 @@ def _check_known_answer(case, scene, result):
     """Checks where geometry makes the answer known."""
     depth, cam = result.depth, scene.camera
     hit = np.isfinite(depth)
-    assert result.rgba.shape[:2] == (cam.height, cam.width)
+    out_cam = cam._scaled(cam.resolution_percentage / 100.0) if cam.resolution_percentage != 100 else cam
+    assert result.rgba.shape[:2] == (out_cam.height, out_cam.width)
     if case == "objects_behind_camera":
         assert not hit.any() and np.allclose(result.rgba[..., 3], 0), "nothing is in front of the camera"
     if case == "camera_inside_object":
@@ -122,6 +140,8 @@ def _check_known_answer(case, scene, result):
         assert depth[hit].min() >= cam.near * 0.8 and depth[hit].max() <= cam.far * (1 + 1e-4)
     if case in ("huge_point_size", "smooth_zero_area_faces", "long_thin_triangles", "camera_inside_object"):
         assert hit.sum() > 10, "the geometry must be visible"
+    if case.startswith("distant_point_light"):
+        assert result.rgba[..., :3][hit].mean() > 0.05, "a distant light of ~8 W/m^2 irradiance must light the scene"
     if case == "light_at_camera":
         assert result.rgba[..., :3][hit].max() > 0.01, "a light at the camera lights what it sees"
     if case.startswith("plane_depth"):
@@ -149,7 +169,9 @@ def _check_markers(scene, result, tol_px=0.5):
 
 
 @pytest.mark.parametrize("case", sorted(HARD_CASE_REFERENCE))
-def test_far_or_scaled_scene_renders_like_the_origin(backend, case):
+def test_far_or_scaled_scene_renders_like_the_origin(backend, case, request):
+    if (backend, case) in REFERENCE_BUGS:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=REFERENCE_BUGS[backend, case]))
     ref, _ = _render(CASES[HARD_CASE_REFERENCE[case]](), backend)
     got, _ = _render(CASES[case](), backend)
     ref_mask, got_mask = np.isfinite(ref.depth), np.isfinite(got.depth)
