@@ -93,44 +93,57 @@ def analyse_effects(scene: Any) -> Effects:
     else:
         shadows, r["shadows"] = False, "no light casts shadows"
 
+    # per object: which lobes its materials have
+    glossy_objs, transmissive, transparent, diffuse_objs = [], [], [], []
+    for o in renderables:
+        for m in o.materials:
+            v = m.parameters()
+            if _is_specular(m)[0]:
+                glossy_objs.append(o.tag)
+            if v.get("transmission_weight", 0) > 0:
+                transmissive.append(o.tag)
+            if v.get("alpha", 1.0) < 1.0:
+                transparent.append(o.tag)
+            if m.kind != "glossy" and v.get("metallic", 0) < 1.0 and v.get("transmission_weight", 0) < 1.0:
+                diffuse_objs.append(o.tag)
+        for c in o.colors_list:
+            if getattr(c, "has_alpha", False):
+                transparent.append(o.tag)
+
     several = len(renderables) > 1
     concave = [o for o in renderables if not isinstance(o, _CONVEX)]
+    # light passing through a transparent or refractive convex object reaches its own inside
+    see_through = [o for o in renderables if o.tag in transparent or o.tag in transmissive]
     if several:
         indirect, r["indirect_diffuse"] = True, f"{len(renderables)} objects can light each other"
     elif concave:
         indirect, r["indirect_diffuse"] = True, f"{concave[0].tag!r} may see itself (not convex)"
+    elif see_through:
+        indirect, r["indirect_diffuse"] = True, f"{see_through[0].tag!r} is see-through: its inside sees itself"
     else:
-        indirect, r["indirect_diffuse"] = False, "a single convex object (or none) cannot light itself"
+        indirect, r["indirect_diffuse"] = False, "a single convex object (or none), opaque, cannot light itself"
 
-    glossy_objs, sharp, transmissive, transparent = [], [], [], []
-    for o in renderables:
-        for m in o.materials:
-            spec, rough = _is_specular(m)
-            if spec:
-                glossy_objs.append(o.tag)
-                if rough < 0.25:
-                    sharp.append(o.tag)
-            if m.parameters().get("transmission_weight", 0) > 0:
-                transmissive.append(o.tag)
-            if m.parameters().get("alpha", 1.0) < 1.0:
-                transparent.append(o.tag)
-        for c in o.colors_list:
-            if getattr(c, "has_alpha", False):
-                transparent.append(o.tag)
     glossy = bool(glossy_objs)
     r["glossy"] = f"specular material on {glossy_objs[0]!r}" if glossy else "all materials are diffuse"
     transmission = bool(transmissive)
     r["transmission"] = f"transmissive material on {transmissive[0]!r}" if transmission else "no transmissive material"
     transparency = bool(transparent)
     r["transparency"] = f"alpha < 1 on {transparent[0]!r}" if transparency else "everything is opaque"
-    specular_paths = sorted(set(sharp) | set(transmissive))
-    diffuse_receivers = [o.tag for o in renderables if o.tag not in specular_paths]
+    # caustics = light -> glossy/refractive surface -> diffuse surface. Any roughness counts: Cycles' caustics
+    # switches drop every glossy bounce after a diffuse one, and a rough reflector still lights the floor
+    # (measured: a roughness-0.5 metal ball on a floor loses visible light without them)
+    specular_paths = sorted(set(glossy_objs) | set(transmissive))
+    concave_tags = {o.tag for o in concave} | {o.tag for o in see_through}
+    pair = next(
+        ((sp, rc) for sp in specular_paths for rc in dict.fromkeys(diffuse_objs) if rc != sp or sp in concave_tags),
+        None,
+    )
     has_light = bool(lights) or background or emission
-    caustics = bool(specular_paths) and bool(diffuse_receivers) and has_light
+    caustics = pair is not None and has_light
     r["caustics"] = (
-        f"specular {specular_paths[0]!r} can focus light onto {diffuse_receivers[0]!r}"
+        f"specular {pair[0]!r} can focus light onto {pair[1]!r}"  # type: ignore[index]
         if caustics
-        else "no sharp specular or refractive surface between a light and a diffuse one"
+        else "no glossy or refractive surface between a light and a diffuse one (no sharp specular either)"
     )
     if not has_light and not catchers:  # a shadow catcher keeps its reason (and its compositing path)
         r["shadows"] = "no light at all"
