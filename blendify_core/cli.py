@@ -45,8 +45,15 @@ def _outputs(text: str) -> tuple[str, ...]:
 
 def _render(args: argparse.Namespace) -> int:
     from . import render
+    from .errors import InvalidSceneError
     from .scene import Scene
 
+    # check where the image goes before rendering, not after a long render
+    target = Path(args.output)
+    if target.suffix.lower() not in (".png", ".exr", ".npz"):
+        raise InvalidSceneError(f"--output: expected a .png, .exr or .npz file name, got {args.output!r}")
+    if not target.absolute().parent.is_dir():
+        raise InvalidSceneError(f"--output: the folder {str(target.absolute().parent)!r} does not exist")
     scene = Scene.load(args.scene, allow_outside=args.allow_outside)
     result = render(
         scene,
