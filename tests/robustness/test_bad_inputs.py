@@ -749,14 +749,20 @@ CLI: list[BadCli] = [
         "cli-output-missing-folder",
         "render -o into a missing folder",
         lambda c: ["render", str(c.scene_file()), "-b", "pyrender", "-o", str(c.out / "no" / "r.png")],
-        ("path", "does not exist"),
+        ("--output", "does not exist"),
         "pyrender",
+    ),
+    BadCli(
+        "cli-output-checked-before-render",
+        "render -b povray -o into a missing folder: the output is checked before any rendering",
+        lambda c: ["render", str(c.scene_file()), "-b", "povray", "-o", str(c.out / "no" / "r.png")],
+        ("--output", "does not exist"),
     ),
     BadCli(
         "cli-output-jpg",
         "render -o r.jpg",
         lambda c: ["render", str(c.scene_file()), "-b", "pyrender", "-o", str(c.out / "r.jpg")],
-        (".jpg",),
+        ("--output", ".jpg"),
         "pyrender",
     ),
     BadCli(
