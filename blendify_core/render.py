@@ -221,7 +221,9 @@ def render(
     meta["scene_fingerprint"] = scene.fingerprint()
     if not result.instance_tags:
         result.instance_tags = [r.tag for r in scene.renderables]
-    _error_meta(meta, settings, bool(getattr(inst, "path_tracer", False)))
+    from .compare import PATH_TRACERS
+
+    _error_meta(meta, settings, bool(getattr(inst, "path_tracer", False)) or inst.name in PATH_TRACERS)
     _normalise_timings(meta.setdefault("timings", {}), time.perf_counter() - t_call)
     meta["timings"]["total"] = time.perf_counter() - t_start
     return result
