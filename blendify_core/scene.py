@@ -125,6 +125,10 @@ class Scene:
     # -- views used by the renderer ----------------------------------------------------------------
     def with_camera(self, camera: Camera) -> Scene:
         """A shallow view of this scene (same renderables and lights) with another camera."""
+        if not isinstance(camera, Camera):
+            raise InvalidSceneError(
+                f"camera: expected a PerspectiveCamera or OrthographicCamera, got {type(camera).__name__}"
+            )
         view = copy.copy(self)
         view._camera = camera
         return view
