@@ -1078,6 +1078,9 @@ def crosscheck(
         raise InvalidSceneError(
             f"crosscheck: {sorted(forbidden)} are fixed by crosscheck (box filter, no denoiser/clamping/adaptive)"
         )
+    from .settings import _outputs
+
+    outputs = _outputs(outputs if isinstance(outputs, str) else tuple(outputs))  # bad names: error up front
     backend_options = dict(backend_options or {})
     status = available_backends()
     results: dict[str, RenderResult] = {}
