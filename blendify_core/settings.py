@@ -15,6 +15,10 @@ QUALITIES = ("preview", "draft", "final")
 OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
 
 # Presets are backend-independent. A path tracer asked for a preview renders few samples, denoised.
+# "final" = unbiased path tracing (no denoiser, no clamp, no adaptive stop) at a fixed 256 samples per pixel:
+# its accuracy is stated by measurement (benchmarks/results/accuracy_vs_time.md: relative MSE against a
+# converged reference), not estimated per render; pass ``target_error=`` for a per-render estimate and a
+# guaranteed bound (independent passes until the estimated relative RMS error is below it).
 _PRESETS: dict[str, dict[str, Any]] = {
     "preview": {"samples": 8, "denoise": True, "max_bounces": 4},
     "draft": {"samples": 32, "denoise": True, "max_bounces": 8},
