@@ -34,6 +34,12 @@ def _jsonable(value: Any) -> Any:
     return repr(value)
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write(path: str | os.PathLike[str], writer: Any, suffix: str | None = None) -> Path:
     """Call ``writer(tmp_path)`` on a temporary file in the destination folder, then rename it into place.
 
@@ -46,6 +52,7 @@ def atomic_write(path: str | os.PathLike[str], writer: Any, suffix: str | None =
     os.close(fd)
     try:
         writer(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the user's usual mode
         os.replace(tmp, p)
     except BaseException:
         if os.path.exists(tmp):
