@@ -504,6 +504,7 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "distant_point_light_soft_1e3": lambda: _hc_distant_light(1e3, 0.25),
         "distant_point_light_soft_1e4": lambda: _hc_distant_light(1e4, 0.25),
         "resolution_percentage_2": lambda: _hc_percentage(2),
+        "plane_depth_extreme_clip_range": lambda: _hc_plane(near=1e-6, far=1e9),
     }
     if include_heavy:
         cases["mesh_2M_triangles"] = lambda: _hc_big_mesh()
@@ -640,6 +641,7 @@ HARD_CASE_DESCRIPTIONS = {
     "distant_point_light_soft_1e3": "the default 0.25 m point light 1e3 m away: must light like the hard one",
     "distant_point_light_soft_1e4": "the default 0.25 m point light 1e4 m away: must light like the hard one",
     "resolution_percentage_2": "32x32 at resolution_percentage 2: a 1x1 image",
+    "plane_depth_extreme_clip_range": "near 1e-6, far 1e9 (depth-buffer precision): plane depth known",
     "mesh_2M_triangles": "a 2M-triangle sphere (slow)",
     "pointcloud_1M": "a 1M-point cloud (slow)",
 }
@@ -671,12 +673,12 @@ def _hc_vertex_colors() -> Scene:
     return scene
 
 
-def _hc_plane(offset: Any = (0.0, 0.0, 0.0), K: Any = None) -> Scene:
+def _hc_plane(offset: Any = (0.0, 0.0, 0.0), K: Any = None, near: float = 0.05, far: float = 100.0) -> Scene:
     """depth_plane_scene (32x24, camera 3 m from a 30-degree plane) moved by ``offset``, optionally with
     intrinsics ``K``; :func:`expected_plane_depth` gives the answer."""
     off = np.asarray(offset, dtype=np.float64)
     scene = Scene()
-    cam = dict(translation=off + [0, 0, 3.0], near=0.05, far=100)
+    cam = dict(translation=off + [0, 0, 3.0], near=near, far=far)
     if K is None:
         scene.set_perspective_camera((32, 24), fov_x=np.deg2rad(50), **cam)  # type: ignore[arg-type]
     else:

@@ -266,6 +266,57 @@ API: list[Bad] = [
         ("strict", "approximates"),
         "pyrender",
     ),
+    Bad(
+        "render-seed-too-large",
+        "seed=2**31 (engines take 32-bit signed seeds)",
+        lambda c: render(seed=2**31),
+        bf.InvalidSceneError,
+        ("seed", "2147483647"),
+    ),
+    Bad(
+        "render-samples-huge",
+        "samples=10**12",
+        lambda c: render(samples=10**12),
+        bf.InvalidSceneError,
+        ("samples",),
+    ),
+    Bad(
+        "render-outputs-comma-string",
+        "outputs='rgb,nope' (one string, not a tuple)",
+        lambda c: render(outputs="rgb,nope"),
+        bf.InvalidSceneError,
+        ("outputs", "rgb,nope"),
+    ),
+    Bad(
+        "render-distortion-folds-over",
+        "a distortion that cannot be inverted over the image (k1=-0.6, k2=0.4 at 90 degrees fov)",
+        lambda c: render(scene=_distorted()),
+        bf.InvalidSceneError,
+        ("distortion", "inverted"),
+        "pyrender",
+    ),
+    Bad(
+        "scene-with-camera-not-a-camera",
+        "Scene.with_camera('cam')",
+        lambda c: small_scene().with_camera("cam"),
+        bf.InvalidSceneError,
+        ("camera", "str"),
+    ),
+    Bad(
+        "get-backend-unknown",
+        "get_backend('povray')",
+        lambda c: bf.get_backend("povray"),
+        bf.InvalidSceneError,
+        ("backend", "povray"),
+    ),
+    Bad(
+        "pyrender-platform-int",
+        "get_backend('pyrender', platform=3)",
+        lambda c: bf.get_backend("pyrender", platform=3),
+        bf.InvalidSceneError,
+        ("platform",),
+        "pyrender",
+    ),
     # -- textures from files ------------------------------------------------------------------------
     Bad(
         "texture-file-missing",
@@ -469,6 +520,20 @@ API: list[Bad] = [
     ),
     # -- compare / crosscheck -----------------------------------------------------------------------
     Bad(
+        "crosscheck-outputs-unknown",
+        "crosscheck outputs=('nope',)",
+        lambda c: bf.crosscheck(small_scene(), backends=("pyrender",), outputs=("nope",), samples=1),
+        bf.InvalidSceneError,
+        ("outputs", "nope"),
+    ),
+    Bad(
+        "compare-tier-metric-unknown",
+        "compare() tier dict with an unknown metric",
+        lambda c: bf.compare(result(), result(), tier={"rgb": {"nope": 1.0}}),
+        bf.InvalidSceneError,
+        ("tier", "nope"),
+    ),
+    Bad(
         "compare-resolution-mismatch",
         "compare() of 16x12 and 32x24 results",
         lambda c: bf.compare(result(), result((32, 24))),
@@ -511,6 +576,35 @@ API: list[Bad] = [
         ("pixel_filter",),
     ),
     # -- utilities ----------------------------------------------------------------------------------
+    Bad(
+        "texture-deleted-before-render",
+        "a FileTextureColors whose file is deleted before rendering",
+        lambda c: _deleted_texture_render(c),
+        bf.InvalidSceneError,
+        ("texture_path", "gone.png"),
+        "pyrender",
+    ),
+    Bad(
+        "trajectory-sample-decreasing",
+        "Trajectory.sample at decreasing times",
+        lambda c: traj(((0, 0, 0),), ((1, 0, 0),)).sample([1.0, 0.0]),
+        bf.InvalidSceneError,
+        ("times",),
+    ),
+    Bad(
+        "trajectory-interpolation-unknown",
+        "Trajectory.sample interpolation='quintic'",
+        lambda c: traj(((0, 0, 0),), ((1, 0, 0),)).sample([0.5], interpolation="quintic"),
+        bf.InvalidSceneError,
+        ("interpolation", "quintic"),
+    ),
+    Bad(
+        "contact-sheet-seven-channels",
+        "contact_sheet of a 7-channel image",
+        lambda c: __import__("blendify_core.utils", fromlist=["contact_sheet"]).contact_sheet([np.zeros((4, 4, 7))]),
+        bf.InvalidSceneError,
+        ("images[0]",),
+    ),
     Bad(
         "trajectory-position-2d",
         "Trajectory keypoint position of 2 values",
@@ -592,6 +686,21 @@ API: list[Bad] = [
         ("viewpoint",),
     ),
 ]
+
+
+def _distorted() -> bf.Scene:
+    scene = small_scene()
+    scene.set_perspective_camera(
+        (16, 12), fov_x=np.deg2rad(90), translation=(0, 0, 4), distortion=(-0.6, 0.4, 0.0, 0.0)
+    )
+    return scene
+
+
+def _deleted_texture_render(ctx: Ctx) -> Any:
+    tex = ctx.file("gone.png", PNG_1X1)
+    scene = uv_quad_scene(bf.FileTextureColors(tex, UV))
+    tex.unlink()
+    return render(scene=scene)
 
 
 def _missing_texture(ctx: Ctx) -> Any:
