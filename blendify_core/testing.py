@@ -505,6 +505,10 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "distant_point_light_soft_1e4": lambda: _hc_distant_light(1e4, 0.25),
         "resolution_percentage_2": lambda: _hc_percentage(2),
         "plane_depth_extreme_clip_range": lambda: _hc_plane(near=1e-6, far=1e9),
+        "points_world_origin": lambda: _hc_world_points((0.0, 0.0, 0.0)),
+        "points_world_far_1e6": lambda: _hc_world_points((1e6, 2e6, -1e6)),
+        "curve_world_origin": lambda: _hc_world_curve((0.0, 0.0, 0.0)),
+        "curve_world_far_1e6": lambda: _hc_world_curve((-1e6, 1e6, 1e6)),
     }
     if include_heavy:
         cases["mesh_2M_triangles"] = lambda: _hc_big_mesh()
@@ -520,6 +524,8 @@ HARD_CASE_REFERENCE = {
     "world_vertices_far_1e6": "world_vertices_origin",
     "markers_far_1e6": "markers_origin",
     "distant_point_light_soft_1e3": "distant_point_light_hard_1e4",
+    "points_world_far_1e6": "points_world_origin",
+    "curve_world_far_1e6": "curve_world_origin",
     "distant_point_light_soft_1e4": "distant_point_light_hard_1e4",
 }
 
@@ -641,6 +647,10 @@ HARD_CASE_DESCRIPTIONS = {
     "distant_point_light_soft_1e3": "the default 0.25 m point light 1e3 m away: must light like the hard one",
     "distant_point_light_soft_1e4": "the default 0.25 m point light 1e4 m away: must light like the hard one",
     "resolution_percentage_2": "32x32 at resolution_percentage 2: a 1x1 image",
+    "points_world_origin": "a 300-point cloud in world coordinates at the origin",
+    "points_world_far_1e6": "the point cloud in world coordinates ~2e6 m from the origin (vertex re-centring)",
+    "curve_world_origin": "a curve with world-coordinate keypoints at the origin",
+    "curve_world_far_1e6": "the curve with keypoints ~1e6 m from the origin (keypoint re-centring)",
     "plane_depth_extreme_clip_range": "near 1e-6, far 1e9 (depth-buffer precision): plane depth known",
     "mesh_2M_triangles": "a 2M-triangle sphere (slow)",
     "pointcloud_1M": "a 1M-point cloud (slow)",
@@ -720,4 +730,25 @@ def _hc_distant_light(distance: float, radius: float) -> Scene:
 def _hc_percentage(percentage: int) -> Scene:
     scene = _hc_base()
     scene.camera.resolution_percentage = percentage  # type: ignore[union-attr]
+    return scene
+
+
+def _hc_world_points(offset: Any) -> Scene:
+    off = np.asarray(offset, dtype=np.float64)
+    pts = np.random.default_rng(11).normal(size=(300, 3)) * 0.5
+    scene = _hc_base(offset=off)
+    scene.renderables.clear()
+    scene.renderables.add_pointcloud(
+        pts + off, DiffuseMaterial(), VertexColors(np.clip(pts * 0.5 + 0.5, 0, 1)), point_size=0.08, tag="points"
+    )
+    return scene
+
+
+def _hc_world_curve(offset: Any) -> Scene:
+    off = np.asarray(offset, dtype=np.float64)
+    t = np.linspace(0.0, 1.0, 12)
+    keys = np.stack([2.0 * t - 1.0, 0.3 * np.cos(5 * t), 0.5 * np.sin(6 * t)], axis=1)
+    scene = _hc_base(offset=off)
+    scene.renderables.clear()
+    scene.renderables.add_curve_nurbs(keys + off, 0.08, DiffuseMaterial(), UniformColors((0.3, 0.7, 0.4)), tag="curve")
     return scene
