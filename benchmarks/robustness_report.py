@@ -200,6 +200,26 @@ def build(results: dict[tuple[str, str], tuple[str, str]], elapsed: float, slow:
         )
         lines.append(f"| {i} | `{c.id}` | CLI: {c.what} | {expected} | {c.backend or 'any'} | {cell} |")
 
+    other = sorted(
+        (func, param, st)
+        for (func, param), st in results.items()
+        if func not in HARD_TESTS and func not in ("test_bad_api_input", "test_bad_cli_input")
+    )
+    if other:
+        docs = {}
+        for module in (hard, bad, _load("test_recentre_properties")):
+            for name in dir(module):
+                obj = getattr(module, name)
+                if name.startswith("test_") and callable(obj):
+                    docs[name] = ((obj.__doc__ or "").strip().splitlines() or [""])[0]
+        lines += ["", "## Other checks (property tests, error types)", "", "| test | what | status |", "|---|---|---|"]
+        for func, param, (status, reason) in other:
+            label = f"`{func}[{param}]`" if param else f"`{func}`"
+            cell = (
+                status if status == "pass" else f"{status} [{notes.setdefault(f'{status}: {reason}', len(notes) + 1)}]"
+            )
+            lines.append(f"| {label} | {docs.get(func, '')} | {cell} |")
+
     if notes:
         lines += ["", "## Notes", ""]
         for text, n in sorted(notes.items(), key=lambda kv: kv[1]):

@@ -739,6 +739,7 @@ def test_bad_api_input(case: Bad, tmp_path: Path, monkeypatch: pytest.MonkeyPatc
 
 
 def test_error_types_are_the_documented_builtins() -> None:
+    """InvalidSceneError is a ValueError, BackendUnavailableError an ImportError, RenderError a RuntimeError."""
     assert issubclass(bf.InvalidSceneError, ValueError)
     assert issubclass(bf.BackendUnavailableError, ImportError)
     assert issubclass(bf.RenderError, RuntimeError)
@@ -746,6 +747,7 @@ def test_error_types_are_the_documented_builtins() -> None:
 
 
 def test_api_table_is_large_and_distinct() -> None:
+    """At least 50 distinct bad inputs (API + CLI), no duplicate ids."""
     ids = [c.id for c in API] + [c.id for c in CLI]
     assert len(ids) == len(set(ids))
     assert len(ids) >= 50

@@ -103,6 +103,7 @@ def _check_finite(result, n_renderables, backend=None):
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_hard_case_renders_finite(backend, case, request):
+    """Finite, valid outputs and the case's known answer."""
     if (backend, case) in KNOWN_BACKEND_BUGS:
         request.applymarker(pytest.mark.xfail(strict=True, reason=KNOWN_BACKEND_BUGS[backend, case]))
     scene = CASES[case]()
@@ -200,6 +201,7 @@ def test_background_passes_are_zero(backend, case, request):
 
 @pytest.mark.parametrize("case", DETERMINISM)
 def test_same_seed_same_result(backend, case):
+    """Two renders with the same seed are bit-identical."""
     a, _ = _render(CASES[case](), backend, seed=3)
     b, _ = _render(CASES[case](), backend, seed=3)
     for name in OUTPUTS:
@@ -210,6 +212,7 @@ def test_same_seed_same_result(backend, case):
 @pytest.mark.slow
 @pytest.mark.parametrize("case", ["mesh_2M_triangles", "pointcloud_1M"])
 def test_heavy_cases(backend, case):
+    """2M triangles / 1M points render finitely (slow)."""
     scene = hard_cases(include_heavy=True)[case]()
     result, _ = _render(scene, backend)
     _check_finite(result, len(scene.renderables), backend)

@@ -56,6 +56,7 @@ def _world_points(r) -> np.ndarray:
 @SETTINGS
 @given(offsets, scales, directions, st.booleans())
 def test_recentred_view_keeps_camera_space_geometry(offset, scale, direction, world_vertices):
+    """Offsets to 1e8 m, scales 1e-3..1e3: camera-space error <= 1e-12 x offset, engine coordinates <= 8 sizes."""
     scene = _scene(offset, scale, direction, world_vertices)
     before = {
         r.tag: (_world_points(r).copy(), r.revision("transform"), r.revision("geometry")) for r in scene.renderables
