@@ -509,6 +509,8 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "points_world_far_1e6": lambda: _hc_world_points((1e6, 2e6, -1e6)),
         "curve_world_origin": lambda: _hc_world_curve((0.0, 0.0, 0.0)),
         "curve_world_far_1e6": lambda: _hc_world_curve((-1e6, 1e6, 1e6)),
+        "tiny_scale_default_clip": lambda: _hc_default_clip(1e-4),
+        "huge_scale_default_clip": lambda: _hc_default_clip(1e4),
     }
     if include_heavy:
         cases["mesh_2M_triangles"] = lambda: _hc_big_mesh()
@@ -647,6 +649,8 @@ HARD_CASE_DESCRIPTIONS = {
     "distant_point_light_soft_1e3": "the default 0.25 m point light 1e3 m away: must light like the hard one",
     "distant_point_light_soft_1e4": "the default 0.25 m point light 1e4 m away: must light like the hard one",
     "resolution_percentage_2": "32x32 at resolution_percentage 2: a 1x1 image",
+    "tiny_scale_default_clip": "the 1e-4 scene with the default near 0.1: reported (warning), empty image",
+    "huge_scale_default_clip": "the 1e4 scene with the default far 100: reported (warning), empty image",
     "points_world_origin": "a 300-point cloud in world coordinates at the origin",
     "points_world_far_1e6": "the point cloud in world coordinates ~2e6 m from the origin (vertex re-centring)",
     "curve_world_origin": "a curve with world-coordinate keypoints at the origin",
@@ -751,4 +755,15 @@ def _hc_world_curve(offset: Any) -> Scene:
     scene = _hc_base(offset=off)
     scene.renderables.clear()
     scene.renderables.add_curve_nurbs(keys + off, 0.08, DiffuseMaterial(), UniformColors((0.3, 0.7, 0.4)), tag="curve")
+    return scene
+
+
+def _hc_default_clip(scale: float) -> Scene:
+    """The reference scene at ``scale`` with the camera's default near/far (0.1, 100): everything is
+    clipped, which :func:`blendify_core.render` reports with a warning naming near or far."""
+    scene = _hc_base(scale=scale)
+    cam = scene.camera
+    cam.far = max(cam.far, 100.0)  # type: ignore[union-attr]  (order: near < far at every step)
+    cam.near = 0.1  # type: ignore[union-attr]
+    cam.far = 100.0  # type: ignore[union-attr]
     return scene

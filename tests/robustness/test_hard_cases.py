@@ -116,6 +116,10 @@ def test_hard_case_renders_finite(backend, case, request):
     if case == "no_lights":
         assert any("no lights" in m for m in messages)
         assert np.allclose(result.rgba[..., :3], 0, atol=1e-6), "no light must give a black image"
+    if case.endswith("default_clip"):
+        word = "camera.near" if "tiny" in case else "camera.far"
+        assert any(word in m for m in messages), f"no warning naming {word}: {messages}"
+        assert not np.isfinite(result.depth).any() and np.allclose(result.rgba[..., 3], 0)
     if case == "empty_scene":
         assert not np.isfinite(result.depth).any() and (result.instance == -1).all()
         assert np.allclose(result.rgba[..., 3], 0)
