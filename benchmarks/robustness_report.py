@@ -207,7 +207,8 @@ def build(results: dict[tuple[str, str], tuple[str, str]], elapsed: float, slow:
     )
     if other:
         docs = {}
-        for module in (hard, bad, _load("test_recentre_properties")):
+        modules = [_load(f.stem) for f in sorted(SUITE.glob("test_*.py"))]
+        for module in modules:
             for name in dir(module):
                 obj = getattr(module, name)
                 if name.startswith("test_") and callable(obj):
