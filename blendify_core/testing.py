@@ -511,6 +511,9 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "curve_world_far_1e6": lambda: _hc_world_curve((-1e6, 1e6, 1e6)),
         "tiny_scale_default_clip": lambda: _hc_default_clip(1e-4),
         "huge_scale_default_clip": lambda: _hc_default_clip(1e4),
+        "zero_strength_lights": lambda: _hc_zero_lights(),
+        "fully_transparent_materials": lambda: _hc_transparent(),
+        "huge_emission_1e30": lambda: _hc_emission(1e30),
     }
     if include_heavy:
         cases["mesh_2M_triangles"] = lambda: _hc_big_mesh()
@@ -651,6 +654,9 @@ HARD_CASE_DESCRIPTIONS = {
     "resolution_percentage_2": "32x32 at resolution_percentage 2: a 1x1 image",
     "tiny_scale_default_clip": "the 1e-4 scene with the default near 0.1: reported (warning), empty image",
     "huge_scale_default_clip": "the 1e4 scene with the default far 100: reported (warning), empty image",
+    "zero_strength_lights": "point and sun lights of 0 W, background of strength 0: black, not NaN",
+    "fully_transparent_materials": "material alpha 0 and 1e-6, a texture with alpha 0 everywhere",
+    "huge_emission_1e30": "an emitter of strength 1e30 (float32 max is 3.4e38)",
     "points_world_origin": "a 300-point cloud in world coordinates at the origin",
     "points_world_far_1e6": "the point cloud in world coordinates ~2e6 m from the origin (vertex re-centring)",
     "curve_world_origin": "a curve with world-coordinate keypoints at the origin",
@@ -766,4 +772,32 @@ def _hc_default_clip(scale: float) -> Scene:
     cam.far = max(cam.far, 100.0)  # type: ignore[union-attr]  (order: near < far at every step)
     cam.near = 0.1  # type: ignore[union-attr]
     cam.far = 100.0  # type: ignore[union-attr]
+    return scene
+
+
+def _hc_zero_lights() -> Scene:
+    scene = _hc_base(lights=False)
+    scene.lights.add_point(0.0, translation=(0, -2.0, 2.0))
+    scene.lights.add_sun(0.0)
+    scene.lights.set_background_light(0.0)
+    return scene
+
+
+def _hc_transparent() -> Scene:
+    scene = _hc_base()
+    scene.renderables["sphere"].update_material(PrincipledBSDFMaterial(alpha=0.0))
+    scene.renderables["cube"].update_material(PrincipledBSDFMaterial(alpha=1e-6))
+    quad = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], float) * 0.5 + [0, -0.6, 0]
+    tex = np.zeros((4, 4, 4), np.uint8)
+    tex[..., 0] = 255
+    uv = VertexUV([[0, 0], [1, 0], [1, 1], [0, 1]])
+    scene.renderables.add_mesh(quad, [[0, 1, 2, 3]], DiffuseMaterial(), TextureColors(tex, uv), tag="clear_quad")
+    return scene
+
+
+def _hc_emission(strength: float) -> Scene:
+    scene = _hc_base()
+    scene.renderables["sphere"].update_material(
+        PrincipledBSDFMaterial(emission_color=(1.0, 1.0, 1.0), emission_strength=strength)
+    )
     return scene
