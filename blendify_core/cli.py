@@ -63,12 +63,11 @@ def _render(args: argparse.Namespace) -> int:
         seed=args.seed,
         outputs=_outputs(args.outputs),
     )
+    from ._worker import _save
+
+    # the same files as a batch job: OUT = rgb (or the first output), OUT.<name>.<ext> for the others
     out = Path(args.output)
-    result.save(out)
-    if out.suffix.lower() == ".png":
-        for name in result.meta["settings"]["outputs"]:
-            if name != "rgb":
-                result.save(out.with_name(f"{out.stem}.{name}{out.suffix}"), output=name)
+    _save(result, str(out), tuple(result.meta["settings"]["outputs"]))
     t = result.meta.get("timings", {}).get("total", 0.0)
     print(f"wrote {out} ({result.meta['backend']}, {t:.2f} s)")
     return 0
