@@ -964,3 +964,27 @@ def test_bad_cli_input(case: BadCli, tmp_path: Path) -> None:
     for word in case.words:
         assert word.lower() in lines[0].lower(), f"message does not name {word!r}: {lines[0]}"
     assert _listing(ctx.out) == [], f"files left behind: {_listing(ctx.out)}"
+
+
+@pytest.mark.parametrize(
+    ("outputs", "suffix", "files"),
+    [
+        ("depth", ".png", ["r.png"]),
+        ("depth,normal", ".png", ["r.normal.png", "r.png"]),
+        ("rgb,depth", ".exr", ["r.depth.exr", "r.exr"]),
+    ],
+)
+def test_cli_render_without_rgb_writes_the_requested_outputs(outputs, suffix, files, tmp_path):
+    """`blendify render --outputs depth` writes the depth image (it failed after rendering: no 'rgb'), and
+    .exr gets one file per output like .png (extra outputs were dropped), the same files as a batch job."""
+    _skip_unavailable("pyrender")
+    ctx = Ctx(tmp_path)
+    argv = ["render", str(ctx.scene_file()), "-b", "pyrender", "-s", "1", "--outputs", outputs]
+    proc = subprocess.run(
+        [sys.executable, "-m", "blendify_core", *argv, "-o", str(ctx.out / f"r{suffix}")],
+        capture_output=True,
+        text=True,
+        timeout=CLI_TIMEOUT,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert _listing(ctx.out) == files
