@@ -877,6 +877,26 @@ CLI: list[BadCli] = [
         "pyrender",
     ),
     BadCli(
+        "cli-scene-without-camera",
+        "render of a scene file without a camera",
+        lambda c: ["render", str(c.scene_file(_no_camera())), "-b", "pyrender", "-o", str(c.out / "r.png")],
+        ("camera",),
+        "pyrender",
+    ),
+    BadCli(
+        "cli-seed-negative",
+        "render --seed -5",
+        lambda c: ["render", str(c.scene_file()), "-b", "pyrender", "--seed", "-5", "-o", str(c.out / "r.png")],
+        ("seed",),
+        "pyrender",
+    ),
+    BadCli(
+        "cli-demo-backend-unknown",
+        "demo -b povray",
+        lambda c: ["demo", "-b", "povray", "--size", "16", "-o", str(c.out / "d.png")],
+        ("povray",),
+    ),
+    BadCli(
         "cli-demo-size-zero", "demo --size 0", lambda c: ["demo", "--size", "0", "-o", str(c.out / "d.png")], ("size",)
     ),
     BadCli(
@@ -928,6 +948,12 @@ CLI: list[BadCli] = [
         ("x.npz",),
     ),
 ]
+
+
+def _no_camera() -> bf.Scene:
+    scene = bf.Scene()
+    scene.renderables.add_sphere_nurbs(0.5, bf.DiffuseMaterial(), bf.UniformColors((0.5, 0.5, 0.5)), tag="ball")
+    return scene
 
 
 def _unreadable(ctx: Ctx) -> Path:
