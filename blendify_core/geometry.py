@@ -39,9 +39,15 @@ class TriMesh:
         return len(self.faces) == 0
 
 
-def triangulate_polygons(polygons: list[np.ndarray] | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Fan-triangulate polygons: (F, 3) int32 triangles, (F,) int32 polygon index, (F, 3) int32 corner
-    index within the polygon (for per-corner data such as FacesUV)."""
+def triangulate_polygons(
+    polygons: list[np.ndarray] | np.ndarray, vertices: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Triangulate polygons: (F, 3) int32 triangles, (F,) int32 polygon index, (F, 3) int32 corner
+    index within the polygon (for per-corner data such as FacesUV).
+
+    Convex polygons (and every polygon when ``vertices`` is None) are fan-triangulated from their first
+    corner; with ``vertices``, concave polygons are ear-clipped in their best-fit plane instead (a fan
+    would cover area outside them). Either way a k-gon gives k - 2 triangles with its winding."""
     if isinstance(polygons, np.ndarray) and polygons.ndim == 2:
         m, k = polygons.shape
         if k == 3:
@@ -52,14 +58,25 @@ def triangulate_polygons(polygons: list[np.ndarray] | np.ndarray) -> tuple[np.nd
             )
         j = np.arange(1, k - 1)
         corners = np.stack([np.zeros_like(j), j, j + 1], axis=1)  # (k-2, 3)
-        tris = polygons[:, corners].reshape(-1, 3)
+        all_corners = np.tile(corners, (m, 1)).astype(np.int32)
+        if vertices is not None and m:
+            for i in np.flatnonzero(_concave(np.asarray(vertices, dtype=np.float64)[polygons])):
+                ear = _ear_clip(np.asarray(vertices, dtype=np.float64)[polygons[i]])
+                if ear is not None:
+                    all_corners[i * (k - 2) : (i + 1) * (k - 2)] = ear
+        tris = np.take_along_axis(np.repeat(polygons, k - 2, axis=0), all_corners, axis=1)
         poly = np.repeat(np.arange(m, dtype=np.int32), k - 2)
-        return tris.astype(np.int32), poly, np.tile(corners, (m, 1)).astype(np.int32)
+        return tris.astype(np.int32), poly, all_corners
     tris_l, poly_l, corner_l = [], [], []
     for i, p in enumerate(polygons):
         p = np.asarray(p)
         j = np.arange(1, len(p) - 1)
         corners = np.stack([np.zeros_like(j), j, j + 1], axis=1)
+        if vertices is not None and len(p) > 3:
+            pts = np.asarray(vertices, dtype=np.float64)[p]
+            if _concave(pts[None])[0]:
+                ear = _ear_clip(pts)
+                corners = corners if ear is None else ear
         tris_l.append(p[corners])
         poly_l.append(np.full(len(j), i))
         corner_l.append(corners)
@@ -70,6 +87,64 @@ def triangulate_polygons(polygons: list[np.ndarray] | np.ndarray) -> tuple[np.nd
         np.concatenate(poly_l).astype(np.int32),
         np.concatenate(corner_l).astype(np.int32),
     )
+
+
+def _newell(pts: np.ndarray) -> np.ndarray:
+    """(M, 3) Newell normals of polygons (M, k, 3) (area-weighted, robust for non-planar polygons)."""
+    nxt = np.roll(pts, -1, axis=1)
+    return np.cross(pts, nxt).sum(axis=1)
+
+
+def _concave(pts: np.ndarray) -> np.ndarray:
+    """(M,) bool: polygons (M, k, 3) with a reflex corner (turning against their Newell normal)."""
+    n = _newell(pts)
+    e = np.roll(pts, -1, axis=1) - pts  # edge i: corner i -> i + 1
+    turn = np.einsum("mkj,mj->mk", np.cross(e, np.roll(e, -1, axis=1)), n)
+    scale = np.linalg.norm(e, axis=2) * np.linalg.norm(np.roll(e, -1, axis=1), axis=2)
+    scale = scale * np.linalg.norm(n, axis=1, keepdims=True)
+    return (turn < -1e-9 * scale).any(axis=1) & (np.linalg.norm(n, axis=1) > 0)
+
+
+def _ear_clip(pts: np.ndarray) -> np.ndarray | None:
+    """(k - 2, 3) corner triples triangulating the simple polygon ``pts`` (k, 3) by ear clipping in its
+    Newell plane, keeping its winding; None when it is not simple (the caller keeps the fan)."""
+    n = _newell(pts[None])[0]
+    n = n / np.linalg.norm(n)
+    u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    w = np.cross(n, u)
+    q = np.stack([(pts - pts[0]) @ u, (pts - pts[0]) @ w], axis=1)  # counter-clockwise about n
+
+    def cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+        return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+
+    eps = 1e-12 * float(np.ptp(q, axis=0).max()) ** 2
+    idx = list(range(len(q)))
+    out = []
+    while len(idx) > 3:
+        for t in range(len(idx)):
+            a, b, c = idx[t - 1], idx[t], idx[(t + 1) % len(idx)]
+            if cross(q[a], q[b], q[c]) <= eps:
+                continue  # reflex or flat corner: not an ear
+            inside = False
+            for o in idx:
+                if o in (a, b, c):
+                    continue
+                if (
+                    cross(q[a], q[b], q[o]) >= -eps
+                    and cross(q[b], q[c], q[o]) >= -eps
+                    and cross(q[c], q[a], q[o]) >= -eps
+                ):
+                    inside = True
+                    break
+            if not inside:
+                out.append((a, b, c))
+                del idx[t]
+                break
+        else:
+            return None
+    out.append(tuple(idx))
+    return np.array(out, dtype=np.int32)
 
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

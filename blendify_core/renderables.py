@@ -199,7 +199,9 @@ class Renderable(Positionable):
         return f"{type(self).__name__}(tag={self.tag!r})"
 
 
-def _check_faces(faces: Any, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int | None]:
+def _check_faces(
+    faces: Any, n_vertices: int, vertices: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int | None]:
     """Validate polygons and triangulate them. Returns triangles, polygon index, corner index, polygon
     count and the common polygon size (None when sizes differ)."""
     if isinstance(faces, np.ndarray) or (
@@ -215,7 +217,7 @@ def _check_faces(faces: Any, n_vertices: int) -> tuple[np.ndarray, np.ndarray, n
             raise InvalidSceneError(
                 f"faces: vertex indices must be in [0, {n_vertices - 1}], got range [{arr.min()}, {arr.max()}]"
             )
-        tris, poly, corner = triangulate_polygons(arr)
+        tris, poly, corner = triangulate_polygons(arr, vertices)
         return tris, poly, corner, arr.shape[0], (arr.shape[1] if arr.shape[0] else 3)
     if not isinstance(faces, (list, tuple)):
         raise InvalidSceneError(
@@ -229,7 +231,7 @@ def _check_faces(faces: Any, n_vertices: int) -> tuple[np.ndarray, np.ndarray, n
         if p.min() < 0 or p.max() >= n_vertices:
             raise InvalidSceneError(f"faces[{i}]: vertex indices must be in [0, {n_vertices - 1}], got {p.tolist()}")
         polys.append(p)
-    tris, poly, corner = triangulate_polygons(polys)
+    tris, poly, corner = triangulate_polygons(polys, vertices)
     return tris, poly, corner, len(polys), None
 
 
@@ -258,7 +260,7 @@ class Mesh(Renderable):
         if v.shape[1] != 3:
             raise InvalidSceneError(f"vertices: expected shape (N, 3), got {_describe(v)}")
         self._vertices = v
-        tris, poly, corner, n_poly, k = _check_faces(faces, len(v))
+        tris, poly, corner, n_poly, k = _check_faces(faces, len(v), v)
         self._faces, self._face_polygon, self._face_corner = frozen(tris), frozen(poly), frozen(corner)
         self.n_polygons, self.polygon_size = n_poly, k
         if uv_map is not None and not isinstance(uv_map, UVMap):
