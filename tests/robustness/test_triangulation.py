@@ -1,0 +1,56 @@
+"""Concave polygon faces are triangulated inside the polygon (a fan from the first corner covered area
+outside an L-shaped hexagon, depending on which corner came first)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import blendify_core as bf
+from blendify_core.geometry import triangulate_polygons
+
+L_SHAPE = np.array([[1, 1], [1, 2], [0, 2], [0, 0], [2, 0], [2, 1]], float)  # area 3, one reflex corner
+
+
+def _area(v2: np.ndarray, tris: np.ndarray) -> float:
+    a, b, c = v2[tris[:, 0]], v2[tris[:, 1]], v2[tris[:, 2]]
+    return float(np.abs(np.cross(b - a, c - a)).sum() / 2)
+
+
+def _signed(v2: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    a, b, c = v2[tris[:, 0]], v2[tris[:, 1]], v2[tris[:, 2]]
+    return np.cross(b - a, c - a)
+
+
+@pytest.mark.parametrize("start", range(6))
+@pytest.mark.parametrize("reverse", [False, True])
+@pytest.mark.parametrize("ragged", [False, True])
+def test_concave_polygon_is_covered_exactly(start, reverse, ragged):
+    poly = np.roll(np.arange(6), -start)
+    if reverse:
+        poly = poly[::-1]
+    v3 = np.c_[L_SHAPE, np.zeros(6)]
+    faces = [poly, np.array([0, 3, 4])] if ragged else poly[None]
+    tris, pidx, corner = triangulate_polygons(faces, v3)
+    mine = tris[pidx == 0]
+    assert len(mine) == 4
+    assert _area(L_SHAPE, mine) == pytest.approx(3.0), "triangles cover area outside the polygon"
+    signs = np.sign(_signed(L_SHAPE, mine))
+    assert (signs == (-1 if reverse else 1)).all(), "winding changed"
+    for t, p, c in zip(tris, pidx, corner, strict=True):
+        assert np.array_equal(np.asarray(faces[p])[c], t)  # corners index back into the polygon
+
+
+def test_convex_polygons_keep_the_fan():
+    v3 = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    tris, _, _ = triangulate_polygons(np.array([[0, 1, 2, 3]]), v3)
+    assert tris.tolist() == [[0, 1, 2], [0, 2, 3]]
+
+
+def test_mesh_with_a_concave_face_has_the_polygon_area():
+    scene = bf.Scene()
+    poly = np.roll(np.arange(6), -1)
+    mesh = scene.renderables.add_mesh(
+        np.c_[L_SHAPE, np.zeros(6)], [poly], bf.DiffuseMaterial(), bf.UniformColors((0.5, 0.5, 0.5)), tag="L"
+    )
+    assert _area(L_SHAPE, np.asarray(mesh.faces)) == pytest.approx(3.0)
