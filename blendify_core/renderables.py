@@ -236,9 +236,10 @@ def _check_faces(
 
 
 class Mesh(Renderable):
-    """A polygon mesh: ``vertices`` (N, 3), ``faces`` (M, k) or a list of polygons of any size (fan
-    triangulated). ``faces_material`` (M,) gives a material index per polygon when ``material`` and
-    ``colors`` are lists. ``uv_map`` gives UVs for data textures when the colours have none."""
+    """A polygon mesh: ``vertices`` (N, 3), ``faces`` (M, k) or a list of polygons of any size
+    (triangulated: a fan for convex polygons, ear clipping for concave ones). ``faces_material`` (M,)
+    gives a material index per polygon when ``material`` and ``colors`` are lists. ``uv_map`` gives UVs
+    for data textures when the colours have none."""
 
     kind = "mesh"
     prefix = "Mesh"
@@ -331,7 +332,7 @@ class Mesh(Renderable):
 
     @property
     def faces(self) -> np.ndarray:
-        """(F, 3) int32 triangles (after fan triangulation)."""
+        """(F, 3) int32 triangles (after triangulation)."""
         return self._faces
 
     @property
