@@ -514,6 +514,7 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "zero_strength_lights": lambda: _hc_zero_lights(),
         "fully_transparent_materials": lambda: _hc_transparent(),
         "huge_emission_1e30": lambda: _hc_emission(1e30),
+        "concave_polygon_faces": lambda: _hc_concave(),
     }
     if include_heavy:
         cases["mesh_2M_triangles"] = lambda: _hc_big_mesh()
@@ -657,6 +658,7 @@ HARD_CASE_DESCRIPTIONS = {
     "zero_strength_lights": "point and sun lights of 0 W, background of strength 0: black, not NaN",
     "fully_transparent_materials": "material alpha 0 and 1e-6, a texture with alpha 0 everywhere",
     "huge_emission_1e30": "an emitter of strength 1e30 (float32 max is 3.4e38)",
+    "concave_polygon_faces": "an L-shaped hexagon face (one reflex corner) seen from above: silhouette known",
     "points_world_origin": "a 300-point cloud in world coordinates at the origin",
     "points_world_far_1e6": "the point cloud in world coordinates ~2e6 m from the origin (vertex re-centring)",
     "curve_world_origin": "a curve with world-coordinate keypoints at the origin",
@@ -800,4 +802,18 @@ def _hc_emission(strength: float) -> Scene:
     scene.renderables["sphere"].update_material(
         PrincipledBSDFMaterial(emission_color=(1.0, 1.0, 1.0), emission_strength=strength)
     )
+    return scene
+
+
+#: the L-shaped hexagon of ``concave_polygon_faces`` (x, y), area 3, listed from a corner whose fan leaks
+HC_L_SHAPE = np.array([[1, 2], [0, 2], [0, 0], [2, 0], [2, 1], [1, 1]], float) - 1.0
+
+
+def _hc_concave() -> Scene:
+    scene = Scene()
+    scene.renderables.add_mesh(
+        np.c_[HC_L_SHAPE, np.zeros(6)], [list(range(6))], DiffuseMaterial(), UniformColors((0.6, 0.6, 0.6)), tag="L"
+    )
+    scene.set_orthographic_camera(_HC_RES, ortho_scale=2.5, translation=(0, 0, 3.0), near=0.1, far=10)
+    scene.lights.set_background_light(1.0)
     return scene

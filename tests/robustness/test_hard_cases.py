@@ -162,6 +162,12 @@ def _check_known_answer(case, scene, result):
         assert (hit & ~np.isfinite(expected)).sum() <= 0.02 * hit.size, "plane silhouette: extra pixels"
         rel = np.abs(depth[both] - expected[both]) / expected[both]
         assert np.quantile(rel, 0.99) < 1e-3, f"plane depth q99 relative error {np.quantile(rel, 0.99):.2e}"
+    if case == "concave_polygon_faces":
+        origins, _ = cam.pixel_rays()
+        x, y = origins[:, 0] + 1.0, origins[:, 1] + 1.0
+        inside = ((x >= 0) & (x <= 2) & (y >= 0) & (y <= 1)) | ((x >= 0) & (x <= 1) & (y >= 1) & (y <= 2))
+        expected = inside.reshape(hit.shape)
+        assert (hit != expected).sum() <= 2, f"silhouette differs from the L shape on {(hit != expected).sum()} px"
     if "markers" in case:
         _check_markers(scene, result)
 
