@@ -63,6 +63,8 @@ class Backend(abc.ABC):
     #: True for Monte Carlo renderers: ``target_error`` renders independent passes until the estimated
     #: error is low enough (see ``blendify_core.render.render_to_target``)
     path_tracer: ClassVar[bool] = False
+    #: the smallest image the engine renders; the core pads smaller cameras and crops the result
+    min_resolution: ClassVar[tuple[int, int]] = (1, 1)
 
     def __init__(self, **options: Any) -> None:
         if options:

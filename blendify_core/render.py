@@ -81,6 +81,16 @@ _OUTPUT_FIELDS = {
 }
 
 
+def _padded_camera(cam: Any, width: int, height: int) -> Any:
+    """A copy of ``cam`` with a larger image whose extra pixels extend right and down (same intrinsics)."""
+    padded = cam.copy()
+    pixel = getattr(cam, "pixel_size", None)
+    padded._resolution = (width, height)
+    if pixel is not None:
+        padded._ortho_scale = pixel * width  # same pixel size over the wider image
+    return padded
+
+
 def _check_outputs(result: Any, settings: RenderSettings, cam: Any, backend_name: str) -> None:
     """Hold a backend to the RenderResult contract: every requested output present with the camera's
     shape (cast to the canonical dtype), every other output None."""
@@ -179,6 +189,12 @@ def render(
         from .distortion import margin_camera
 
         render_cam, src = margin_camera(out_cam)  # type: ignore[arg-type]
+    crop = None
+    min_w, min_h = getattr(inst, "min_resolution", (1, 1))
+    if render_cam.width < min_w or render_cam.height < min_h:
+        # engines with a minimum image size render a larger image with the same pixels at the top left
+        crop = (render_cam.height, render_cam.width)
+        render_cam = _padded_camera(render_cam, max(render_cam.width, min_w), max(render_cam.height, min_h))
     view = scene if render_cam is cam else scene.with_camera(render_cam)
     from .recentre import needs_recentring, recentred_view
 
@@ -197,6 +213,11 @@ def render(
                 "not noise)"
             )
     _check_outputs(result, settings, render_cam, inst.name)
+    if crop is not None:
+        for attr in ("rgba", "depth", "normal", "albedo", "instance"):
+            data = getattr(result, attr)
+            if data is not None:
+                setattr(result, attr, np.ascontiguousarray(data[: crop[0], : crop[1]]))
 
     if src is not None:
         from .distortion import remap_result

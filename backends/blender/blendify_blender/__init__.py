@@ -72,6 +72,8 @@ class CyclesBackend(Backend):
     engine = "bpy"
     qualities = ("final", "draft", "preview")
     path_tracer = True
+    #: Blender renders at least 4x4 pixels; the core renders smaller images padded and crops them
+    min_resolution = (4, 4)
 
     def __init__(
         self,

@@ -104,8 +104,13 @@ def render_built(built: BuiltScene, settings: RenderSettings, verbose: bool = Fa
     try:
         t0 = time.perf_counter()
         with _runtime.capture_output("render", verbose) as cap:
+            # the depth pass (one sample per pixel) also tells where nothing was hit, so the filtered
+            # normal/albedo passes can be 0 there as the output contract says
+            passes = outputs
+            if ("normal" in outputs or "albedo" in outputs) and "depth" not in outputs:
+                passes = (*outputs, "depth")
             with _runtime.engine_errors("setting up the render passes", cap):
-                _setup_passes(built, outputs, directory)
+                _setup_passes(built, passes, directory)
             t1 = time.perf_counter()
             with _runtime.engine_errors("rendering", cap):
                 res = bpy.ops.render.render(write_still=False, scene=built.bscene.name)
@@ -118,17 +123,21 @@ def render_built(built: BuiltScene, settings: RenderSettings, verbose: bool = Fa
         rgba = _read_exr(_find(directory, "rgba"))
         if "rgb" in outputs:
             result.rgba = np.stack([rgba["R"], rgba["G"], rgba["B"], rgba["A"]], axis=-1)
-        if "depth" in outputs:
+        miss = None
+        if "depth" in passes:
             z = _read_exr(_find(directory, "depth"))
             d = z.get("R", z.get("Z", z.get("V")))
             if d is None:
                 raise RenderError(f"cycles: unexpected depth channels {sorted(z)}")
-            result.depth = np.where(d >= _BACKGROUND_DEPTH, np.inf, d).astype(np.float32)
+            miss = d >= _BACKGROUND_DEPTH
+            if "depth" in outputs:
+                result.depth = np.where(miss, np.inf, d).astype(np.float32)
         if "normal" in outputs:
             n = _read_exr(_find(directory, "normal"))
             nrm = np.stack([n["X"], n["Y"], n["Z"]], axis=-1)
             length = np.linalg.norm(nrm, axis=-1, keepdims=True)
-            result.normal = np.divide(nrm, length, out=np.zeros_like(nrm), where=length > 1e-6).astype(np.float32)
+            hit = (length > 1e-6) if miss is None else (length > 1e-6) & ~miss[..., None]
+            result.normal = np.divide(nrm, length, out=np.zeros_like(nrm), where=hit).astype(np.float32)
         if "instance" in outputs:
             ix = _read_exr(_find(directory, "instance"))
             idx = ix.get("R", ix.get("X", ix.get("V")))
@@ -137,7 +146,10 @@ def render_built(built: BuiltScene, settings: RenderSettings, verbose: bool = Fa
             result.instance = (np.rint(idx).astype(np.int32) - 1).astype(np.int32)
         if "albedo" in outputs:
             a = _read_exr(_find(directory, "albedo"))
-            result.albedo = np.stack([a["R"], a["G"], a["B"]], axis=-1).astype(np.float32)
+            albedo = np.stack([a["R"], a["G"], a["B"]], axis=-1).astype(np.float32)
+            if miss is not None:
+                albedo[miss] = 0.0
+            result.albedo = albedo
         timings["read_outputs"] = time.perf_counter() - t2
         result.instance_tags = list(built.instance_tags)
         result.meta["timings"] = timings
