@@ -14,8 +14,8 @@ from blendify_core.stats import estimate_reference
 from blendify_core.testing import bunny_scene, look_at_camera, pointcloud_scene
 
 RES = 32
-K = 6
-SPP = 64
+K = 8
+SPP = 256
 
 
 def _floor(s: bf.Scene) -> None:
