@@ -56,6 +56,7 @@ WRITERS = {
 @pytest.mark.parametrize("writer", list(WRITERS))
 @pytest.mark.parametrize("existing", [False, True], ids=["new", "overwrite"])
 def test_failed_write_leaves_nothing_behind(writer, exc, existing, tmp_path, monkeypatch):
+    """A writer failing half-way leaves no partial/temporary file; an existing file is unchanged."""
     name, patch, call = WRITERS[writer]
     target = tmp_path / name
     if existing:
@@ -94,6 +95,7 @@ def test_exr_failure_leaves_nothing_behind(tmp_path, monkeypatch):
 
 
 def test_successful_writes_leave_only_the_file(tmp_path):
+    """A successful save leaves exactly the file (no temporary file), readable again."""
     _result().save(tmp_path / "x.png")
     _result().save(tmp_path / "x.npz")
     _scene().save(tmp_path / "s.npz")

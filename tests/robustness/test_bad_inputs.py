@@ -1014,3 +1014,16 @@ def test_cli_render_without_rgb_writes_the_requested_outputs(outputs, suffix, fi
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert _listing(ctx.out) == files
+
+
+def test_render_many_reports_a_corrupt_scene_job_as_failed(tmp_path):
+    """A batch job whose scene file is corrupt fails with the reason (naming the file), the run goes on,
+    and no output file is written."""
+    ctx = Ctx(tmp_path)
+    bad = ctx.file("bad.npz", os.urandom(300))
+    jobs = [bf.RenderJob(bad, ctx.out / "a.png", backend="pyrender", samples=1)]
+    report = bf.render_many(jobs, workers=1, progress=False, manifest=False)
+    assert not report.ok
+    (status,) = report.jobs
+    assert status.status == "failed" and "bad.npz" in status.reason, status.reason
+    assert _listing(ctx.out) == []

@@ -26,6 +26,7 @@ def _signed(v2: np.ndarray, tris: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize("reverse", [False, True])
 @pytest.mark.parametrize("ragged", [False, True])
 def test_concave_polygon_is_covered_exactly(start, reverse, ragged):
+    """An L-shaped hexagon from any start corner, either winding: 4 triangles of total area 3, same winding."""
     poly = np.roll(np.arange(6), -start)
     if reverse:
         poly = poly[::-1]
@@ -42,12 +43,14 @@ def test_concave_polygon_is_covered_exactly(start, reverse, ragged):
 
 
 def test_convex_polygons_keep_the_fan():
+    """Convex polygons are triangulated as before (fan from the first corner)."""
     v3 = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
     tris, _, _ = triangulate_polygons(np.array([[0, 1, 2, 3]]), v3)
     assert tris.tolist() == [[0, 1, 2], [0, 2, 3]]
 
 
 def test_mesh_with_a_concave_face_has_the_polygon_area():
+    """Mesh(faces=[concave polygon]) triangles cover exactly the polygon."""
     scene = bf.Scene()
     poly = np.roll(np.arange(6), -1)
     mesh = scene.renderables.add_mesh(
