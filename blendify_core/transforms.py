@@ -131,6 +131,9 @@ def quaternion_from_rotation(
         if mode == "quaternionXYZW":
             q = np.array([q[3], q[0], q[1], q[2]])
         n = np.linalg.norm(q)
+        if not np.isfinite(n):  # |q|^2 overflows float64 (|q| > ~1e154): scale first, only the direction counts
+            q = np.asarray(q, dtype=np.float64) / np.abs(q).max()
+            n = np.linalg.norm(q)
         if n < 1e-12:
             raise InvalidSceneError(f"{name}: expected a non-zero quaternion, got {np.asarray(q).tolist()}")
         q = np.array(q, dtype=np.float64)
