@@ -427,13 +427,13 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "camera_at_target": lambda: _hc_camera(_hc_base(), translation=(0, 0, 0.0)),
         "roll_180": lambda: _hc_camera(_hc_base(), rotation=(np.zeros(3), 180.0)),
         "unnormalised_quaternion": lambda: _hc_camera(
-            _hc_base(), rotation_mode="quaternionWXYZ", rotation=(5.0, 5.0, 0.0, 0.0), translation=(0, 4.0, 0)
+            _hc_base(), rotation_mode="quaternionWXYZ", rotation=(5.0, -5.0, 0.0, 0.0), translation=(0, 4.0, 0)
         ),
         "near_singular_rotmat": lambda: _hc_camera(
             _hc_base(),
             rotation_mode="rotmat",
             translation=(0, 4.0, 0),
-            rotation=np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]) + 1e-4 * rng().standard_normal((3, 3)),
+            rotation=np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]]) + 1e-4 * rng().standard_normal((3, 3)),
         ),
         "euler_gimbal_lock": lambda: _hc_camera(
             _hc_base(), rotation_mode="eulerXYZ", rotation=(90, 90, 0), translation=(4.0, 0, 0)
@@ -515,6 +515,9 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "fully_transparent_materials": lambda: _hc_transparent(),
         "huge_emission_1e30": lambda: _hc_emission(1e30),
         "concave_polygon_faces": lambda: _hc_concave(),
+        "huge_norm_quaternion": lambda: _hc_camera(
+            _hc_base(), rotation_mode="quaternionWXYZ", rotation=(1e200, -1e200, 0.0, 0.0), translation=(0, 4.0, 0)
+        ),
     }
     if include_heavy:
         cases["mesh_2M_triangles"] = lambda: _hc_big_mesh()
@@ -532,6 +535,7 @@ HARD_CASE_REFERENCE = {
     "distant_point_light_soft_1e3": "distant_point_light_hard_1e4",
     "points_world_far_1e6": "points_world_origin",
     "curve_world_far_1e6": "curve_world_origin",
+    "huge_norm_quaternion": "unnormalised_quaternion",
     "distant_point_light_soft_1e4": "distant_point_light_hard_1e4",
 }
 
@@ -609,8 +613,8 @@ HARD_CASE_DESCRIPTIONS = {
     "look_straight_up": "look_at with the view direction parallel to the up axis (up)",
     "camera_at_target": "look_at with the camera at its target",
     "roll_180": "look_at with a 180 degree roll",
-    "unnormalised_quaternion": "camera rotation from a quaternion of norm 7",
-    "near_singular_rotmat": "camera rotation matrix with 1e-4 noise (re-orthonormalised)",
+    "unnormalised_quaternion": "camera rotation from a quaternion of norm 7 (looking at the objects)",
+    "near_singular_rotmat": "camera rotation matrix with 1e-4 noise (re-orthonormalised; looking at the objects)",
     "euler_gimbal_lock": "Euler XYZ (90, 90, 0): gimbal lock",
     "fov_near_0": "fov 1e-3 rad from 4 km away",
     "fov_near_180": "fov 179 degrees",
@@ -659,6 +663,7 @@ HARD_CASE_DESCRIPTIONS = {
     "fully_transparent_materials": "material alpha 0 and 1e-6, a texture with alpha 0 everywhere",
     "huge_emission_1e30": "an emitter of strength 1e30 (float32 max is 3.4e38)",
     "concave_polygon_faces": "an L-shaped hexagon face (one reflex corner) seen from above: silhouette known",
+    "huge_norm_quaternion": "camera rotation from a quaternion of norm 1.4e200 (|q|^2 overflows float64)",
     "points_world_origin": "a 300-point cloud in world coordinates at the origin",
     "points_world_far_1e6": "the point cloud in world coordinates ~2e6 m from the origin (vertex re-centring)",
     "curve_world_origin": "a curve with world-coordinate keypoints at the origin",
