@@ -140,11 +140,6 @@ def test_pyrender_geometry_only_runs_no_colour_pass(pyrender):
     assert "gbuffer" in t and "color" not in t
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="backend problem (reported): Cycles path-traces the full lit image with every sample and bounce "
-    "even when only depth/normal/instance are requested",
-)
 def test_cycles_geometry_only_runs_no_lighting(cycles):
     es = _geometry_render(cycles).meta["engine_settings"]
-    assert es["max_bounces"] == 0 or es["samples"] == 1
+    assert es["geometry_only"] and es["samples"] == 1 and es["max_bounces"] == 0 and not es["denoise"]

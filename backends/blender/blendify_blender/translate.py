@@ -664,17 +664,21 @@ def apply_engine_settings(
     r, cy = sc.render, sc.cycles
     r.engine = "CYCLES"
     cy.device = device
-    cy.samples = int(settings.samples)
-    cy.preview_samples = int(settings.samples)
+    # without a colour output nothing needs lighting: one sample (the depth/index passes use one anyway)
+    # and no bounces give the geometric passes from the same first hit, at a fraction of the cost
+    geometry_only = "rgb" not in settings.outputs
+    samples = 1 if geometry_only else int(settings.samples)
+    cy.samples = samples
+    cy.preview_samples = samples
     cy.seed = int(settings.seed)
     cy.use_animated_seed = False
-    cy.use_denoising = bool(settings.denoise)
+    cy.use_denoising = bool(settings.denoise) and not geometry_only
     if settings.denoise:
         cy.denoiser = "OPENIMAGEDENOISE"
         cy.denoising_input_passes = "RGB_ALBEDO_NORMAL"
         cy.denoising_use_gpu = False
     # target_error is handled by the core (independent passes, CyclesBackend.path_tracer = True)
-    cy.use_adaptive_sampling = bool(settings.adaptive)
+    cy.use_adaptive_sampling = bool(settings.adaptive) and not geometry_only
     cy.adaptive_threshold = 0.01
     cy.adaptive_min_samples = 0
     cy.time_limit = float(settings.time_limit) if settings.time_limit else 0.0
@@ -700,7 +704,9 @@ def apply_engine_settings(
         "caustics_reflective": True,
         "caustics_refractive": True,
     }
-    if eff is not None:
+    if geometry_only:
+        bounces = {k: (False if isinstance(v, bool) else 0) for k, v in bounces.items()}
+    elif eff is not None:
         if not eff.indirect_diffuse:
             bounces["diffuse_bounces"] = 0
         if not eff.glossy:
@@ -748,6 +754,7 @@ def apply_engine_settings(
         "film_transparent": r.film_transparent,
         "view_transform": "Standard",
         "effects_used": eff is not None,
+        "geometry_only": geometry_only,
     }
 
 

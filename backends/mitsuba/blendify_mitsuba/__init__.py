@@ -169,6 +169,7 @@ class MitsubaBackend(Backend):
     icosphere mesh; None = the measured default of the variant, see DEFAULT_MAX_ANALYTIC_SPHERES).
     """
 
+    path_tracer = True  # target_error: independent passes until the estimated error is reached
     name = "mitsuba"
     engine = "mitsuba"
     qualities = ("final", "draft", "preview")
