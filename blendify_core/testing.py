@@ -515,6 +515,8 @@ def hard_cases(include_heavy: bool = False) -> dict[str, Any]:
         "fully_transparent_materials": lambda: _hc_transparent(),
         "huge_emission_1e30": lambda: _hc_emission(1e30),
         "concave_polygon_faces": lambda: _hc_concave(),
+        "empty_mesh": lambda: _hc_add_empty("mesh"),
+        "empty_pointcloud": lambda: _hc_add_empty("points"),
         "huge_norm_quaternion": lambda: _hc_camera(
             _hc_base(), rotation_mode="quaternionWXYZ", rotation=(1e200, -1e200, 0.0, 0.0), translation=(0, 4.0, 0)
         ),
@@ -664,6 +666,8 @@ HARD_CASE_DESCRIPTIONS = {
     "huge_emission_1e30": "an emitter of strength 1e30 (float32 max is 3.4e38)",
     "concave_polygon_faces": "an L-shaped hexagon face (one reflex corner) seen from above: silhouette known",
     "huge_norm_quaternion": "camera rotation from a quaternion of norm 1.4e200 (|q|^2 overflows float64)",
+    "empty_mesh": "the reference scene plus a mesh with 5 vertices and no faces",
+    "empty_pointcloud": "the reference scene plus a point cloud of 0 points",
     "points_world_origin": "a 300-point cloud in world coordinates at the origin",
     "points_world_far_1e6": "the point cloud in world coordinates ~2e6 m from the origin (vertex re-centring)",
     "curve_world_origin": "a curve with world-coordinate keypoints at the origin",
@@ -821,4 +825,15 @@ def _hc_concave() -> Scene:
     )
     scene.set_orthographic_camera(_HC_RES, ortho_scale=2.5, translation=(0, 0, 3.0), near=0.1, far=10)
     scene.lights.set_background_light(1.0)
+    return scene
+
+
+def _hc_add_empty(kind: str) -> Scene:
+    scene = _hc_base()
+    grey = UniformColors((0.5, 0.5, 0.5))
+    if kind == "mesh":
+        verts = np.random.default_rng(5).uniform(size=(5, 3))
+        scene.renderables.add_mesh(verts, np.zeros((0, 3), int), DiffuseMaterial(), grey, tag="empty")
+    else:
+        scene.renderables.add_pointcloud(np.zeros((0, 3)), DiffuseMaterial(), grey, tag="empty")
     return scene
