@@ -61,7 +61,7 @@ def triangulate_polygons(
         all_corners = np.tile(corners, (m, 1)).astype(np.int32)
         if vertices is not None and m:
             for i in np.flatnonzero(_concave(np.asarray(vertices, dtype=np.float64)[polygons])):
-                ear = _ear_clip(np.asarray(vertices, dtype=np.float64)[polygons[i]])
+                ear = _ear_clip_checked(np.asarray(vertices, dtype=np.float64)[polygons[i]], int(i))
                 if ear is not None:
                     all_corners[i * (k - 2) : (i + 1) * (k - 2)] = ear
         tris = np.take_along_axis(np.repeat(polygons, k - 2, axis=0), all_corners, axis=1)
@@ -75,7 +75,7 @@ def triangulate_polygons(
         if vertices is not None and len(p) > 3:
             pts = np.asarray(vertices, dtype=np.float64)[p]
             if _concave(pts[None])[0]:
-                ear = _ear_clip(pts)
+                ear = _ear_clip_checked(pts, i)
                 corners = corners if ear is None else ear
         tris_l.append(p[corners])
         poly_l.append(np.full(len(j), i))
@@ -103,6 +103,23 @@ def _concave(pts: np.ndarray) -> np.ndarray:
     scale = np.linalg.norm(e, axis=2) * np.linalg.norm(np.roll(e, -1, axis=1), axis=2)
     scale = scale * np.linalg.norm(n, axis=1, keepdims=True)
     return (turn < -1e-9 * scale).any(axis=1) & (np.linalg.norm(n, axis=1) > 0)
+
+
+#: concave polygons with more corners than this keep the fan (ear clipping here is O(k^2): ~1 s at 1000)
+MAX_EAR_CLIP_CORNERS = 1000
+
+
+def _ear_clip_checked(pts: np.ndarray, index: int) -> np.ndarray | None:
+    if len(pts) > MAX_EAR_CLIP_CORNERS:
+        import warnings
+
+        warnings.warn(
+            f"faces[{index}]: concave polygon of {len(pts)} corners (> {MAX_EAR_CLIP_CORNERS}) is fan-triangulated "
+            "and may cover area outside it; triangulate it before passing it in",
+            stacklevel=4,
+        )
+        return None
+    return _ear_clip(pts)
 
 
 def _ear_clip(pts: np.ndarray) -> np.ndarray | None:
