@@ -57,3 +57,17 @@ def test_mesh_with_a_concave_face_has_the_polygon_area():
         np.c_[L_SHAPE, np.zeros(6)], [poly], bf.DiffuseMaterial(), bf.UniformColors((0.5, 0.5, 0.5)), tag="L"
     )
     assert _area(L_SHAPE, np.asarray(mesh.faces)) == pytest.approx(3.0)
+
+
+def test_huge_concave_polygon_keeps_the_fan_with_a_warning():
+    """A concave polygon of more than MAX_EAR_CLIP_CORNERS corners is not ear-clipped (that would take
+    minutes): fan triangles and a warning naming the face, immediately."""
+    from blendify_core.geometry import MAX_EAR_CLIP_CORNERS
+
+    k = MAX_EAR_CLIP_CORNERS + 2
+    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
+    r = np.where(np.arange(k) % 2, 0.5, 1.0)  # a star: every other corner is reflex
+    v = np.c_[r * np.cos(t), r * np.sin(t), np.zeros(k)]
+    with pytest.warns(UserWarning, match=r"faces\[0\]: concave polygon"):
+        tris, _, _ = triangulate_polygons([np.arange(k)], v)
+    assert len(tris) == k - 2 and (tris[:, 0] == 0).all()
