@@ -159,6 +159,14 @@ class MitsubaNative:
     n_analytic_spheres: int = 0
 
 
+def _sampler_count(native: Any) -> int:
+    """Samples per pixel the loaded sensor really takes (stratified samplers round the request up)."""
+    try:
+        return int(native.scene.sensors()[0].sampler().sample_count())
+    except Exception:  # a scene without a sensor (never built by this backend): report the plan
+        return int(native.spp)
+
+
 class MitsubaBackend(Backend):
     """Mitsuba 3 backend.
 
@@ -174,8 +182,19 @@ class MitsubaBackend(Backend):
     engine = "mitsuba"
     qualities = ("final", "draft", "preview")
 
-    def __init__(self, variant: str | None = None, max_analytic_spheres: int | None = None, **options: Any) -> None:
+    SAMPLERS = ("independent", "stratified", "multijitter", "ldsampler", "orthogonal")
+
+    def __init__(
+        self,
+        variant: str | None = None,
+        max_analytic_spheres: int | None = None,
+        sampler: str = "independent",
+        **options: Any,
+    ) -> None:
         super().__init__(**options)
+        if sampler not in self.SAMPLERS:
+            raise InvalidSceneError(f"sampler: expected one of {list(self.SAMPLERS)}, got {sampler!r}")
+        self.sampler = sampler
         from ._variant import KNOWN_VARIANTS
 
         if variant is not None and (not isinstance(variant, str) or variant not in KNOWN_VARIANTS):
@@ -310,7 +329,7 @@ class MitsubaBackend(Backend):
                 "pixel_format": "rgba",
                 "rfilter": {"type": "box"} if settings.pixel_filter == "box" else {"type": "gaussian"},
             }
-            sampler = {"type": "independent", "sample_count": spp}
+            sampler = {"type": self.sampler, "sample_count": spp}
             try:
                 composite = bool(settings.transparent_background) and effects.emission
                 tr = translate_scene(scene, film, sampler, integrator, self.max_analytic_spheres, render_cam, composite)
@@ -462,8 +481,9 @@ class MitsubaBackend(Backend):
             "max_depth": native.integrator["max_depth"],
             "hide_emitters": native.integrator["hide_emitters"],
             "spp": settings.samples,
-            "rendered_spp": native.spp,
+            "rendered_spp": _sampler_count(native),
             "samples": settings.samples,
+            "sampler": self.sampler,
             "seed": settings.seed,
             "pixel_filter": settings.pixel_filter,
             "alpha_compositing": native.coverage_scene is not None,
