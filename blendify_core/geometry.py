@@ -60,10 +60,17 @@ def triangulate_polygons(
         corners = np.stack([np.zeros_like(j), j, j + 1], axis=1)  # (k-2, 3)
         all_corners = np.tile(corners, (m, 1)).astype(np.int32)
         if vertices is not None and m:
-            for i in np.flatnonzero(_concave(np.asarray(vertices, dtype=np.float64)[polygons])):
-                ear = _ear_clip_checked(np.asarray(vertices, dtype=np.float64)[polygons[i]], int(i))
-                if ear is not None:
-                    all_corners[i * (k - 2) : (i + 1) * (k - 2)] = ear
+            reflex = _reflex(np.asarray(vertices, dtype=np.float64)[polygons])
+            if k == 4:  # vectorised: a quad reflex at corner 1 or 3 is split along the diagonal 1-3
+                flip = reflex[:, 1] | reflex[:, 3]
+                quads = all_corners.reshape(m, 2, 3)
+                quads[flip] = [[1, 2, 3], [1, 3, 0]]
+                all_corners = quads.reshape(-1, 3)
+            else:
+                for i in np.flatnonzero(reflex.any(axis=1)):
+                    ear = _ear_clip_checked(np.asarray(vertices, dtype=np.float64)[polygons[i]], int(i))
+                    if ear is not None:
+                        all_corners[i * (k - 2) : (i + 1) * (k - 2)] = ear
         tris = np.take_along_axis(np.repeat(polygons, k - 2, axis=0), all_corners, axis=1)
         poly = np.repeat(np.arange(m, dtype=np.int32), k - 2)
         return tris.astype(np.int32), poly, all_corners
@@ -95,14 +102,20 @@ def _newell(pts: np.ndarray) -> np.ndarray:
     return np.cross(pts, nxt).sum(axis=1)
 
 
-def _concave(pts: np.ndarray) -> np.ndarray:
-    """(M,) bool: polygons (M, k, 3) with a reflex corner (turning against their Newell normal)."""
+def _reflex(pts: np.ndarray) -> np.ndarray:
+    """(M, k) bool: reflex corners of polygons (M, k, 3) (turning against their Newell normal)."""
     n = _newell(pts)
     e = np.roll(pts, -1, axis=1) - pts  # edge i: corner i -> i + 1
-    turn = np.einsum("mkj,mj->mk", np.cross(e, np.roll(e, -1, axis=1)), n)
+    turn = np.einsum("mkj,mj->mk", np.cross(e, np.roll(e, -1, axis=1)), n)  # turn at corner i + 1
     scale = np.linalg.norm(e, axis=2) * np.linalg.norm(np.roll(e, -1, axis=1), axis=2)
     scale = scale * np.linalg.norm(n, axis=1, keepdims=True)
-    return (turn < -1e-9 * scale).any(axis=1) & (np.linalg.norm(n, axis=1) > 0)
+    flags = (turn < -1e-9 * scale) & (np.linalg.norm(n, axis=1) > 0)[:, None]
+    return np.roll(flags, 1, axis=1)
+
+
+def _concave(pts: np.ndarray) -> np.ndarray:
+    """(M,) bool: polygons (M, k, 3) with a reflex corner."""
+    return _reflex(pts).any(axis=1)
 
 
 #: concave polygons with more corners than this keep the fan (ear clipping here is O(k^2): ~1 s at 1000)
