@@ -61,7 +61,7 @@ def needs_recentring(scene: Any) -> bool:
         return True
     for r in scene.renderables:
         m, s = _vertex_magnitude(r)
-        if m > FAR_RATIO * max(s, 1e-300) and m > 1e3:
+        if m > FAR_RATIO * max(s, 1e-300):  # spans < 1e-3 of its coordinates: float32 keeps < ~2e4 steps across it
             return True
     return False
 
@@ -97,7 +97,7 @@ def _shift_object(obj: Any, origin: np.ndarray, key: Any) -> Any:
         if v is None or not len(v):
             continue
         m, s = float(np.abs(v).max()), float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-        if m > FAR_RATIO * max(s, 1e-300) and m > 1e3:
+        if m > FAR_RATIO * max(s, 1e-300):  # spans < 1e-3 of its coordinates: float32 keeps < ~2e4 steps across it
             c = _snap((v.max(axis=0) + v.min(axis=0)) / 2, max(s, 1e-12))
             shifted = np.asarray(v, dtype=np.float64) - c
             shifted.flags.writeable = False
