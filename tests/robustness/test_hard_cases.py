@@ -41,48 +41,21 @@ def backend(request):
     return request.param
 
 
-MITSUBA_FAR_SOFT_LIGHT = (
-    "mitsuba: a point light with a radius (shadow_soft_size 0.25, the default) >= 3 km away gives a BLACK "
-    "image (cycles/pyrender light it like the hard light): the sphere emitter's solid angle underflows in float32"
-)
-#: backend bugs found by this suite (backends are not edited here): (backend, case) -> reason
+#: backend bugs found by this suite (backends are not edited here): (backend, case) -> reason. Fixed by the
+#: backend maintainers during the session (now plain passes): cycles 1x1 / resolution_percentage images
+#: (4x4), cycles albedo of nearly transparent surfaces (2x colour on background pixels), cycles normals on
+#: silhouette pixels whose centre ray misses, mitsuba soft point lights far away (1.9x too bright / black).
 KNOWN_BACKEND_BUGS = {
-    ("cycles", "resolution_1x1"): (
-        "cycles returns a 4x4 image for a 1x1 camera (Blender clamps the render resolution to >= 4 px): "
-        "bf.render raises RenderError 'returned the rgb output with shape (4, 4, 4), expected (1, 1, 4)'"
-    ),
-    ("cycles", "fully_transparent_materials"): (
-        "cycles: a surface of material alpha 1e-6 (base colour linear 0.6038) gives albedo 1.2077 = 2x its "
-        "colour, outside [0, 1], on ~150 pixels that depth/instance report as background (+inf, -1)"
-    ),
     ("pyrender", "empty_pointcloud"): (
         "pyrender: a point cloud of 0 points fails the render: RenderError 'pyrender: rendering failed "
         "(ValueError: zero-size array to reduction operation minimum which has no identity)'; cycles and "
         "mitsuba render the rest of the scene"
     ),
-    ("cycles", "resolution_percentage_2"): (
-        "cycles returns a 4x4 image for a 32x32 camera at resolution_percentage 2 (1x1 expected): RenderError"
-    ),
-    ("mitsuba", "distant_point_light_soft_1e4"): MITSUBA_FAR_SOFT_LIGHT,
 }
 #: pairs that must render alike, but do not in a backend
-REFERENCE_BUGS = {
-    ("mitsuba", "distant_point_light_soft_1e3"): (
-        "mitsuba: a point light with a radius (shadow_soft_size 0.25, the default) 1 km away lights the scene "
-        "~1.9x too brightly (mean 0.142 vs 0.075 for the hard light; cycles 0.075, pyrender 0.071): float32 "
-        "precision of the sphere-emitter cone sampling when radius/distance ~ 2.5e-4"
-    ),
-    ("mitsuba", "distant_point_light_soft_1e4"): MITSUBA_FAR_SOFT_LIGHT,
-}
-#: backends whose normal/albedo passes are not 0 on pixels whose centre ray hits nothing (depth +inf,
-#: instance -1): they come from the anti-aliased samples, so silhouette pixels get a unit normal
-BACKGROUND_PASS_BUG = {
-    "cycles": (
-        "cycles: normal output is a unit vector (not 0) on silhouette pixels whose centre ray misses "
-        "(depth +inf, instance -1); the contract says 0 where nothing was hit (16 such pixels in 'origin' at "
-        "32x32 and 4 spp, 40 at 64 spp, none at 1 spp)"
-    ),
-}
+REFERENCE_BUGS: dict[tuple[str, str], str] = {}
+#: backends whose normal/albedo passes are not 0 on pixels whose centre ray hits nothing
+BACKGROUND_PASS_BUG: dict[str, str] = {}
 
 
 def _render(scene, backend, seed=0):
