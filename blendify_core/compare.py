@@ -913,10 +913,11 @@ class CrosscheckReport:
 
     @property
     def passed(self) -> bool:
-        """Every pair passed its tier (and its statistical test, with ``repeats``) and no available
-        backend failed to render."""
+        """Every pair passed its tier (and its statistical test, with ``repeats``), no available backend
+        failed to render, and at least one pair was compared (nothing compared proves nothing)."""
         return (
             not self.errors
+            and bool(self.pairs)
             and all(r.passed for r in self.pairs.values())
             and all(z.passed for z in self.ztests.values())
         )

@@ -44,14 +44,9 @@ def backend(request):
 #: backend bugs found by this suite (backends are not edited here): (backend, case) -> reason. Fixed by the
 #: backend maintainers during the session (now plain passes): cycles 1x1 / resolution_percentage images
 #: (4x4), cycles albedo of nearly transparent surfaces (2x colour on background pixels), cycles normals on
-#: silhouette pixels whose centre ray misses, mitsuba soft point lights far away (1.9x too bright / black).
-KNOWN_BACKEND_BUGS = {
-    ("pyrender", "empty_pointcloud"): (
-        "pyrender: a point cloud of 0 points fails the render: RenderError 'pyrender: rendering failed "
-        "(ValueError: zero-size array to reduction operation minimum which has no identity)'; cycles and "
-        "mitsuba render the rest of the scene"
-    ),
-}
+#: silhouette pixels whose centre ray misses, mitsuba soft point lights far away (1.9x too bright / black),
+#: pyrender point clouds of 0 points (failed the whole render).
+KNOWN_BACKEND_BUGS: dict[tuple[str, str], str] = {}
 #: pairs that must render alike, but do not in a backend
 REFERENCE_BUGS: dict[tuple[str, str], str] = {}
 #: backends whose normal/albedo passes are not 0 on pixels whose centre ray hits nothing

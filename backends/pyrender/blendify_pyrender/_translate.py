@@ -384,6 +384,8 @@ def build_renderable(r: Renderable) -> Built:
     """Translate one renderable to a pyrender mesh (object space, re-centred)."""
     notes: list[str] = []
     if isinstance(r, PointCloud):
+        if r.num_vertices == 0:  # nothing to draw (pyrender cannot bound an empty primitive)
+            return Built(None, np.zeros(3), notes)
         mesh, centre = _pointcloud(r, r.materials[0], notes)
         return Built(mesh, centre, notes)
     tm = r.to_mesh()
