@@ -78,7 +78,7 @@ FINDINGS = [
         "fixed by its maintainers (288bf6a)",
         "a 0.25 m point light 1 km away was 1.9x too bright, 3 km away black",
     ),
-    ("pyrender", "open: strict xfail", "a point cloud of 0 points fails the render (ValueError in the backend)"),
+    ("pyrender", "fixed (0e8ee61)", "a point cloud of 0 points failed the render (ValueError in the backend)"),
 ]
 
 
