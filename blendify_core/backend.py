@@ -217,10 +217,10 @@ def shared_backend(name: str, **options: Any) -> Backend:
     """The process-wide default instance of ``name`` with ``options`` (reused across ``bf.render`` calls
     so contexts and translated scenes stay warm)."""
     try:
-        key = (name, tuple(sorted(options.items())))
+        key: Any = (name, tuple(sorted(options.items())))
         hash(key)
-    except TypeError:
-        return get_backend(name, **options)
+    except TypeError:  # unhashable option values (lists, dicts): key them by their repr
+        key = (name, repr(sorted(options.items(), key=lambda kv: kv[0])))
     with _lock:
         inst = _shared.get(key)
         if inst is None or inst._closed:

@@ -201,6 +201,9 @@ def render(
     origin = None
     if needs_recentring(view):
         view, origin = recentred_view(view)
+    precision_warning = _precision_check(scene)
+    if precision_warning:
+        warnings.warn(precision_warning, stacklevel=2)
 
     t_call = time.perf_counter()
     if settings.target_error is not None and getattr(inst, "path_tracer", False):
@@ -239,6 +242,8 @@ def render(
         meta["recentred_origin"] = origin.tolist()
     if clip_warning:
         meta.setdefault("warnings", []).append(clip_warning)
+    if precision_warning:
+        meta.setdefault("warnings", []).append(precision_warning)
     meta["scene_fingerprint"] = scene.fingerprint()
     if not result.instance_tags:
         result.instance_tags = [r.tag for r in scene.renderables]
@@ -391,3 +396,24 @@ def render_to_target(inst: Backend, scene: Any, settings: RenderSettings) -> Ren
     meta["target_reached"] = bool(estimate <= target)
     meta.setdefault("timings", {})["render"] = time.perf_counter() - t0
     return first
+
+
+#: float64 keeps ~16 digits: beyond this ratio of coordinate magnitude to scene size, even the IR's own
+#: numbers cannot place the objects to 1e-3 of their size (re-centring cannot recover lost digits)
+PRECISION_RATIO = 1e12
+
+
+def _precision_check(scene: Any) -> str | None:
+    """A warning when coordinates are so large relative to the scene's size that float64 itself loses it."""
+    from .recentre import _scene_scale
+
+    if scene.bounds() is None:
+        return None
+    magnitude, size = _scene_scale(scene)
+    if magnitude > PRECISION_RATIO * size:
+        return (
+            f"scene: coordinates of magnitude {magnitude:.3g} for a scene {size:.3g} across exceed float64 "
+            "precision (about 16 digits): objects may collapse or vanish; move the scene nearer the origin "
+            "or scale it"
+        )
+    return None
