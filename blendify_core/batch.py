@@ -368,7 +368,8 @@ class _Manifest:
     def add(self, record: dict[str, Any]) -> None:
         self.records[record["key"]] = record
         if self.jsonl:
-            assert self._fh is not None
+            if self._fh is None:
+                raise BlendifyError("batch manifest: add() before the manifest was opened (internal error)")
             self._fh.write(json.dumps(record, sort_keys=True) + "\n")
             self._fh.flush()
             os.fsync(self._fh.fileno())

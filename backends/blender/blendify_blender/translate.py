@@ -26,7 +26,7 @@ import numpy as np
 
 from blendify_core.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
 from blendify_core.effects import analyse_effects
-from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import InvalidSceneError, RenderError
 from blendify_core.lights import AreaLight, PointLight, SpotLight, SunLight
 from blendify_core.renderables import (
     CurveBezier,
@@ -849,7 +849,8 @@ class Translator:
             self._scene_ref = weakref.ref(scene.renderables)
             stats["new_scene"] = True
         built = self.built
-        assert built is not None
+        if built is None:  # set just above for a new scene; an internal invariant
+            raise RenderError("cycles: the translated scene is missing (internal error)")
         try:
             self._sync_contents(scene, settings, built, stats)
         except BaseException:

@@ -149,7 +149,8 @@ class WorkerClient:
                 "attached_blends": list(getattr(scene, "attached_blends", [])),  # not in scene files
             }
             proc = self._proc
-            assert proc.stdin is not None and proc.stdout is not None
+            if proc.stdin is None or proc.stdout is None:  # started without pipes: cannot talk to it
+                raise RenderError("cycles: the isolated render worker has no stdin/stdout pipe")
             try:
                 proc.stdin.write(json.dumps(request) + "\n")
                 proc.stdin.flush()

@@ -47,7 +47,8 @@ scene = mi.load_dict({
 img = mi.render(scene, spp=2)
 import numpy as np
 a = np.array(img)
-assert a.shape == (4, 4, 3) and np.isfinite(a).all(), a
+if a.shape != (4, 4, 3) or not np.isfinite(a).all():
+    raise SystemExit(f"probe render gave shape {a.shape} or non-finite values")
 print("BLENDIFY_PROBE_OK")
 """
 
