@@ -24,11 +24,16 @@ __all__ = ["needs_recentring", "recentred_view"]
 FAR_RATIO = 1e3
 
 
-def _scene_scale(scene: Any) -> tuple[float, float]:
-    """(largest coordinate magnitude, scene size) from the camera position and the bounds."""
+_BOUNDS_UNKNOWN: Any = object()
+
+
+def _scene_scale(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> tuple[float, float]:
+    """(largest coordinate magnitude, scene size) from the camera position and the bounds
+    (``bounds``: ``scene.bounds()`` when the caller has it already)."""
     cam = scene.camera
     magnitude = float(np.abs(cam.translation).max())
-    bounds = scene.bounds()
+    if bounds is _BOUNDS_UNKNOWN:
+        bounds = scene.bounds()
     if bounds is None:
         return magnitude, 1.0
     lo, hi = bounds
@@ -55,8 +60,8 @@ def _vertex_magnitude(r: Any) -> tuple[float, float]:
     return 0.0, 1.0
 
 
-def needs_recentring(scene: Any) -> bool:
-    magnitude, size = _scene_scale(scene)
+def needs_recentring(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> bool:
+    magnitude, size = _scene_scale(scene, bounds)
     if magnitude > FAR_RATIO * size:
         return True
     for r in scene.renderables:
@@ -112,12 +117,12 @@ def _shift_object(obj: Any, origin: np.ndarray, key: Any) -> Any:
     return view
 
 
-def recentred_view(scene: Any) -> tuple[Any, np.ndarray]:
+def recentred_view(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> tuple[Any, np.ndarray]:
     """A view of ``scene`` translated by ``-origin`` (float64) and the origin used."""
     from .lights import LightsCollection
     from .renderables import RenderablesCollection
 
-    magnitude, size = _scene_scale(scene)
+    magnitude, size = _scene_scale(scene, bounds)
     grid = 2.0 ** np.ceil(np.log2(max(size, 1e-300)))
     origin = _snap(scene.camera.translation, grid)
     key = ("recentred", tuple(origin.tolist()))

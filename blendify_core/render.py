@@ -176,7 +176,8 @@ def render(
         warnings.warn(
             "scene has no lights, no background and no emissive material: the colour image will be black", stacklevel=2
         )
-    clip_warning = _clip_check(scene)
+    bounds = scene.bounds()  # once per render: the clip, precision and re-centring checks share it
+    clip_warning = _clip_check(scene, bounds)
     if clip_warning:
         warnings.warn(clip_warning, stacklevel=2)
     approximations = check_capabilities(inst, scene, settings)
@@ -199,9 +200,9 @@ def render(
     from .recentre import needs_recentring, recentred_view
 
     origin = None
-    if needs_recentring(view):
-        view, origin = recentred_view(view)
-    precision_warning = _precision_check(scene)
+    if needs_recentring(view, bounds):
+        view, origin = recentred_view(view, bounds)
+    precision_warning = _precision_check(scene, bounds)
     if precision_warning:
         warnings.warn(precision_warning, stacklevel=2)
 
@@ -300,10 +301,9 @@ def _normalise_timings(t: dict[str, Any], call: float) -> None:
             t["read_back"] = read_back
 
 
-def _clip_check(scene: Any) -> str | None:
-    """A warning when the scene's geometry lies entirely outside the camera's [near, far] depth range."""
+def _clip_check(scene: Any, bounds: Any) -> str | None:
+    """A warning when the scene's geometry (``bounds``) lies entirely outside the camera's [near, far]."""
     cam = scene.camera
-    bounds = scene.bounds()
     if bounds is None:
         return None
     lo, hi = bounds
@@ -403,13 +403,13 @@ def render_to_target(inst: Backend, scene: Any, settings: RenderSettings) -> Ren
 PRECISION_RATIO = 1e12
 
 
-def _precision_check(scene: Any) -> str | None:
+def _precision_check(scene: Any, bounds: Any) -> str | None:
     """A warning when coordinates are so large relative to the scene's size that float64 itself loses it."""
     from .recentre import _scene_scale
 
-    if scene.bounds() is None:
+    if bounds is None:
         return None
-    magnitude, size = _scene_scale(scene)
+    magnitude, size = _scene_scale(scene, bounds)
     if magnitude > PRECISION_RATIO * size:
         return (
             f"scene: coordinates of magnitude {magnitude:.3g} for a scene {size:.3g} across exceed float64 "

@@ -83,7 +83,8 @@ def factory_reset() -> None:
                 raise RenderError("cycles: the Cycles add-on is not available in this bpy session")
 
 
-_RESET_COLLECTIONS = (
+#: the bpy.data collections the backend creates datablocks in (checked for leaks, emptied on reset)
+_COLLECTIONS = (
     "objects",
     "meshes",
     "materials",
@@ -94,8 +95,12 @@ _RESET_COLLECTIONS = (
     "worlds",
     "node_groups",
     "pointclouds",
-    "textures",
     "collections",
+    "textures",
+)
+#: every collection a soft reset empties: the above plus what an attached .blend file may bring
+_RESET_COLLECTIONS = (
+    *_COLLECTIONS,
     "actions",
     "hair_curves",
     "grease_pencils",
@@ -217,27 +222,10 @@ def engine_errors(what: str, capture: _Capture | None = None) -> Iterator[None]:
         raise RenderError(f"cycles: {what} failed: {msg}") from exc
 
 
-_COLLECTIONS = (
-    "objects",
-    "meshes",
-    "materials",
-    "images",
-    "lights",
-    "cameras",
-    "curves",
-    "worlds",
-    "node_groups",
-    "pointclouds",
-    "collections",
-    "textures",
-    "scenes",
-)
-
-
 def datablock_counts() -> dict[str, int]:
     """Number of datablocks per bpy.data collection (to check that nothing leaks)."""
     bpy = bpy_module()
-    return {name: len(getattr(bpy.data, name)) for name in _COLLECTIONS}
+    return {name: len(getattr(bpy.data, name)) for name in (*_COLLECTIONS, "scenes")}
 
 
 @contextlib.contextmanager
