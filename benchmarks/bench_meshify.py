@@ -1,6 +1,6 @@
 """Benchmark of the point-cloud utilities: meshify_pointcloud on the bunny scan and estimate_normals at scale.
 
-Meshify: the vertices of ../shared/data/bunny.ply with synthetic sRGB colours (a smooth one and a
+Meshify: the vertices of tests/data/bunny.ply with synthetic sRGB colours (a smooth one and a
 high-frequency one, both functions of position) are reconstructed into a textured mesh; the texture
 colour error is measured at the input points (reproduction) and, for a mesh built from 90% of the
 points, at the 10% held out (prediction), texture looked up bilinearly at the UV of the point's closest

@@ -328,8 +328,8 @@ def main(argv: list[str] | None = None) -> int:
     doc += [
         "## Tolerance tiers (`blendify_core.compare.TIERS`)",
         "",
-        "CONV = `../shared/docs/CONVENTIONS.md` (the project's measurement notes, sections 5, 6, 11, 13, made with "
-        "the same engine versions); "
+        "CONV = `docs/conventions.md`, section *Measurements behind the tolerance tiers* (sections 5, 6, 11, 13, "
+        "made with the same engine versions); "
         "'measured' = this report. The per-number comments are next to `TIERS` in `blendify_core/compare.py`.",
         "",
         *notes,

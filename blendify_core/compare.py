@@ -97,8 +97,8 @@ HIGHER_IS_BETTER = frozenset({"ssim", "psnr", "iou", "agreement"})
 
 # ---------------------------------------------------------------------------------------------------
 # Tolerance tiers: output -> metric -> threshold (upper bound, or lower bound for HIGHER_IS_BETTER).
-# Every number cites the measurement behind it. "CONV" = ../shared/docs/CONVENTIONS.md (the project's
-# measurement notes, made by the lead with the same engine versions); "XC" = benchmarks/crosscheck_report.py, whose
+# Every number cites the measurement behind it. "CONV" = docs/conventions.md, section "Measurements behind
+# the tolerance tiers" (made with the same engine versions); "XC" = benchmarks/crosscheck_report.py, whose
 # measured table is in docs/crosscheck.md (re-run it after changing a backend, then revisit the numbers).
 # ---------------------------------------------------------------------------------------------------
 _GEOMETRY: dict[str, dict[str, float]] = {

@@ -28,15 +28,23 @@ __all__ = [
     "look_at_camera",
 ]
 
-DATA_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DATA_DIR = Path(__file__).resolve().parents[1] / "tests" / "data"
+"""The repository's test data (``tests/data`` of the checkout: small files with their source and licence)."""
 
 
 def data_path(name: str) -> Path:
-    """Path of a file in the project's shared test data (``../shared/data`` next to the checkout)."""
-    for base in (DATA_DIR, Path(__file__).resolve().parents[1] / "shared" / "data"):
-        if (base / name).exists():
-            return base / name
-    raise FileNotFoundError(f"test data {name!r} not found in {DATA_DIR}")
+    """Path of a file of the repository's test data (``tests/data``, see its README for sources and licences).
+
+    The files ship with the source checkout, not with an installed wheel: outside a checkout this raises
+    ``FileNotFoundError`` saying so.
+    """
+    path = DATA_DIR / name
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"test data {name!r} not found in {DATA_DIR}: the test data ships with the source checkout of "
+            "blendify-core (tests/data), not with an installed package"
+        )
+    return path
 
 
 def look_at_camera(
@@ -176,7 +184,7 @@ def expected_plane_depth(scene: Scene) -> np.ndarray:
 def bunny_scene(
     resolution: tuple[int, int] = (128, 128), vertex_colors: bool = True, plane: bool = True, light: str = "sun"
 ) -> Scene:
-    """The Stanford bunny (``../shared/data/bunny.ply``, +Y up rotated to +Z up) on a plane, lit by a sun
+    """The Stanford bunny (``tests/data/bunny.ply``, +Y up rotated to +Z up) on a plane, lit by a sun
     (or an area light), with colours from its normals."""
     import trimesh
 

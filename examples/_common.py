@@ -22,7 +22,7 @@ def out_dir(args: argparse.Namespace) -> Path:
 
 
 def data_file(name: str) -> Path:
-    """A file of the project's shared test data (../shared/data next to the checkout)."""
+    """A file of the repository's test data (tests/data, sources and licences in its README)."""
     from blendify_core.testing import data_path
 
     return data_path(name)

@@ -59,10 +59,8 @@ def artifacts_dir(request: pytest.FixtureRequest, tmp_path: Path) -> Path:
 
 
 @pytest.fixture
-def shared_data() -> Path:
-    """The project's shared test data folder (../shared/data); skips (with the reason) when absent."""
+def data_dir() -> Path:
+    """The repository's test data folder (tests/data, with sources and licences in its README)."""
     from blendify_core.testing import DATA_DIR
 
-    if not DATA_DIR.is_dir():
-        pytest.skip(f"shared test data not found at {DATA_DIR}")
     return DATA_DIR

@@ -26,22 +26,6 @@ from blendify_core.testing import every_feature_scene
 # ---------------------------------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def shared_data(tmp_path_factory) -> Path:
-    """A folder holding 'fuze uv.jpg': the project's shared data when present (../shared/data), else a
-    generated stand-in, so the round-trip tests also run on a fresh clone without the shared data."""
-    from blendify_core.testing import DATA_DIR
-
-    if (DATA_DIR / "fuze uv.jpg").is_file():
-        return DATA_DIR
-    folder = tmp_path_factory.mktemp("stand_in_data")
-    rgb = np.random.default_rng(5).integers(0, 256, size=(64, 48, 3), dtype=np.uint8)
-    from PIL import Image
-
-    Image.fromarray(rgb).save(folder / "fuze uv.jpg", quality=90)
-    return folder
-
-
 def _write_png(path: Path, array: np.ndarray) -> Path:
     from PIL import Image
 
@@ -49,12 +33,12 @@ def _write_png(path: Path, array: np.ndarray) -> Path:
     return path
 
 
-def full_scene(folder: Path, shared_data: Path, *, env_from_file: bool = False, ortho: bool = False) -> bf.Scene:
+def full_scene(folder: Path, data_dir: Path, *, env_from_file: bool = False, ortho: bool = False) -> bf.Scene:
     """every_feature_scene plus everything it leaves out: FacesUV on quads with a file texture, ragged
     polygons, texture/normal maps from files and arrays, every light shape, an environment map,
     distortion (or an orthographic camera), emit_shadows=False, a shadow catcher, smooth shading."""
     tex_path = folder / "fuze uv.jpg"
-    shutil.copy(shared_data / "fuze uv.jpg", tex_path)
+    shutil.copy(data_dir / "fuze uv.jpg", tex_path)
     rough_png = _write_png(folder / "rough.png", (np.arange(64, dtype=np.uint8).reshape(8, 8) * 4))
     normal_png = _write_png(folder / "normal.png", np.full((4, 4, 3), (128, 128, 255), dtype=np.uint8))
 
@@ -301,9 +285,9 @@ def assert_same_scene(a: bf.Scene, b: bf.Scene) -> None:
 
 
 @pytest.mark.parametrize("variant", ["perspective-env-array", "ortho-env-file"])
-def test_round_trip_of_every_feature(tmp_path, shared_data, variant):
+def test_round_trip_of_every_feature(tmp_path, data_dir, variant):
     file_variant = variant == "ortho-env-file"
-    scene = full_scene(tmp_path, shared_data, env_from_file=file_variant, ortho=file_variant)
+    scene = full_scene(tmp_path, data_dir, env_from_file=file_variant, ortho=file_variant)
     path = tmp_path / "scene.npz"
     scene.save(path)
     loaded = bf.Scene.load(path)
@@ -318,8 +302,8 @@ def test_round_trip_of_every_feature(tmp_path, shared_data, variant):
     assert again.fingerprint() == scene.fingerprint()
 
 
-def test_loaded_arrays_are_canonical_and_read_only(tmp_path, shared_data):
-    scene = full_scene(tmp_path, shared_data)
+def test_loaded_arrays_are_canonical_and_read_only(tmp_path, data_dir):
+    scene = full_scene(tmp_path, data_dir)
     scene.save(tmp_path / "s.npz")
     loaded = bf.Scene.load(tmp_path / "s.npz")
     mesh = loaded.renderables["ragged"]
@@ -329,10 +313,10 @@ def test_loaded_arrays_are_canonical_and_read_only(tmp_path, shared_data):
         mesh.vertices[0, 0] = 1.0
 
 
-def test_moving_the_folder_keeps_textures_working(tmp_path, shared_data):
+def test_moving_the_folder_keeps_textures_working(tmp_path, data_dir):
     src = tmp_path / "a"
     src.mkdir()
-    scene = full_scene(src, shared_data, env_from_file=True)
+    scene = full_scene(src, data_dir, env_from_file=True)
     scene.save(src / "scene.npz")
     dst = tmp_path / "b"
     shutil.copytree(src, dst)
@@ -342,13 +326,13 @@ def test_moving_the_folder_keeps_textures_working(tmp_path, shared_data):
     assert Path(tex.texture_path).parent == dst.resolve()
     from PIL import Image
 
-    with Image.open(shared_data / "fuze uv.jpg") as im:
+    with Image.open(data_dir / "fuze uv.jpg") as im:
         assert tex.image().shape == (im.height, im.width, 3)
     assert loaded.fingerprint() == bf.Scene.load(dst / "scene.npz").fingerprint()
 
 
-def test_absolute_paths_when_asked(tmp_path, shared_data):
-    scene = full_scene(tmp_path, shared_data)
+def test_absolute_paths_when_asked(tmp_path, data_dir):
+    scene = full_scene(tmp_path, data_dir)
     out = tmp_path / "sub"
     out.mkdir()
     scene.save(out / "abs.npz", relative_paths=False)
@@ -369,8 +353,8 @@ def test_empty_scene_round_trip(tmp_path):
     assert loaded.fingerprint() == s.fingerprint()
 
 
-def test_no_pickle_in_scene_files(tmp_path, shared_data):
-    scene = full_scene(tmp_path, shared_data)
+def test_no_pickle_in_scene_files(tmp_path, data_dir):
+    scene = full_scene(tmp_path, data_dir)
     scene.save(tmp_path / "s.npz")
     with np.load(tmp_path / "s.npz", allow_pickle=False) as data:
         assert "__header__" in data.files
@@ -394,8 +378,8 @@ def _child_fingerprint(code: str) -> str:
     return out.stdout.strip().splitlines()[-1]
 
 
-def test_fingerprint_is_stable_across_processes(tmp_path, shared_data):
-    scene = full_scene(tmp_path, shared_data)
+def test_fingerprint_is_stable_across_processes(tmp_path, data_dir):
+    scene = full_scene(tmp_path, data_dir)
     scene.save(tmp_path / "s.npz")
     fp = scene.fingerprint()
     assert len(fp) == 64 and int(fp, 16) >= 0
@@ -681,9 +665,9 @@ def test_bad_scene_files_raise_invalid_scene_error(saved, tmp_path, name):
     assert str(path.name) in str(info.value)
 
 
-def test_texture_outside_the_folder_needs_allow_outside(tmp_path, shared_data):
+def test_texture_outside_the_folder_needs_allow_outside(tmp_path, data_dir):
     tex = tmp_path / "fuze uv.jpg"
-    shutil.copy(shared_data / "fuze uv.jpg", tex)
+    shutil.copy(data_dir / "fuze uv.jpg", tex)
     s = bf.Scene()
     s.renderables.add_mesh(
         [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
@@ -702,8 +686,8 @@ def test_texture_outside_the_folder_needs_allow_outside(tmp_path, shared_data):
     assert Path(loaded.renderables["Mesh_000"].colors.texture_path) == tex.resolve()
 
 
-def test_missing_texture_after_save_is_a_clear_error(tmp_path, shared_data):
-    scene = full_scene(tmp_path, shared_data)
+def test_missing_texture_after_save_is_a_clear_error(tmp_path, data_dir):
+    scene = full_scene(tmp_path, data_dir)
     scene.save(tmp_path / "s.npz")
     (tmp_path / "fuze uv.jpg").unlink()
     with pytest.raises(InvalidSceneError, match="no such file"):
@@ -776,14 +760,14 @@ def test_random_scene_round_trips_bit_for_bit(tmp_path, q1, q2, q3, t, rough, co
 # ---------------------------------------------------------------------------------------------------
 
 
-def test_file_textures_are_never_decoded_by_the_core(tmp_path, shared_data, monkeypatch):
+def test_file_textures_are_never_decoded_by_the_core(tmp_path, data_dir, monkeypatch):
     import blendify_core.colors as colors_mod
 
     def forbidden(path):
         raise AssertionError(f"the core decoded {path}")
 
     monkeypatch.setattr(colors_mod, "load_image", forbidden)
-    scene = full_scene(tmp_path, shared_data, env_from_file=True)  # RGB jpg texture + environment
+    scene = full_scene(tmp_path, data_dir, env_from_file=True)  # RGB jpg texture + environment
     tex = scene.renderables["fuze_quads"].colors
     assert tex.has_alpha is False  # from the file header
     from blendify_core.features import scene_features

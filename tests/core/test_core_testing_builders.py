@@ -72,7 +72,7 @@ def test_builders_are_deterministic_and_round_trip(tmp_path, name):
     assert bf.Scene.load(tmp_path / f"{name}.npz").fingerprint() == a.fingerprint()
 
 
-def test_bunny_scene(shared_data):
+def test_bunny_scene(data_dir):
     pytest.importorskip("trimesh", reason="trimesh is not installed")
     s = testing.bunny_scene((32, 32))
     bunny = s.renderables["bunny"]

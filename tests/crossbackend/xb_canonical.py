@@ -23,7 +23,7 @@ from blendify_core.testing import (
 
 
 def fuze_scene(resolution: tuple[int, int] = (96, 128)) -> bf.Scene:
-    """The textured bottle (../shared/data/fuze.obj + its JPEG, per-vertex UVs), sun + sky."""
+    """The textured bottle (tests/data/fuze.obj + its JPEG, per-vertex UVs), sun + sky."""
     import trimesh
     from PIL import Image
 
