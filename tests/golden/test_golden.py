@@ -1,8 +1,13 @@
 """Golden images: small reference renders per backend and scene, compared with named tolerances.
 
-References live in ``tests/golden/<backend>/<case>.png`` (8-bit sRGB, straight alpha, <= 128 px) and are
+References live in ``tests/golden/<engine>/<case>.png`` (8-bit sRGB, straight alpha, <= 128 px) and are
 regenerated only on purpose: ``pytest tests/golden --update-golden``. On a mismatch the actual, expected
-and diff images are written to ``artifacts/golden/<backend>/`` so the failure can be looked at.
+and diff images are written to ``artifacts/golden/<engine>/`` so the failure can be looked at.
+
+Mitsuba has one set of references per variant (``mitsuba_scalar_rgb``, ``mitsuba_llvm_ad_rgb``): the variants
+draw different random sequences, so at a golden's sample count their images differ by more than the
+tolerances. ``scalar_rgb`` is always tested; ``llvm_ad_rgb`` where its libLLVM is usable (skipped with the
+reason otherwise), so the outcome never depends on which variant the machine happens to pick.
 
 Path tracers render with a fixed seed, a box filter and no denoiser, which is deterministic on one
 machine; the tolerances absorb what may differ between CPUs and library builds (a few 8-bit levels on
@@ -18,10 +23,17 @@ import pytest
 
 import blendify_core as bf
 from blendify_core import testing as T
+from blendify_core.backend import shared_backend
 
 HERE = Path(__file__).resolve().parent
 ARTIFACTS = HERE.parents[1] / "artifacts" / "golden"
-BACKENDS = ("cycles", "mitsuba", "pyrender")
+#: golden engine name -> (backend, backend options)
+ENGINES: dict[str, tuple[str, dict[str, str]]] = {
+    "cycles": ("cycles", {}),
+    "mitsuba_scalar_rgb": ("mitsuba", {"variant": "scalar_rgb"}),
+    "mitsuba_llvm_ad_rgb": ("mitsuba", {"variant": "llvm_ad_rgb"}),
+    "pyrender": ("pyrender", {}),
+}
 SAMPLES = 16
 
 CASES = {
@@ -41,15 +53,28 @@ TOLERANCE = {
 }
 
 
-def _status(name: str) -> str | None:
+def _status(engine: str) -> str | None:
+    name, options = ENGINES[engine]
     st = bf.available_backends().get(name)
     if st is None:
         return f"backend {name!r} is not registered"
-    return None if st.available else f"backend {name!r} unavailable: {st.reason}"
+    if not st.available:
+        return f"backend {name!r} unavailable: {st.reason}"
+    wanted = options.get("variant")
+    if wanted is not None:
+        choice = shared_backend(name, **options).variant_choice
+        if choice.variant != wanted:
+            return f"Mitsuba variant {wanted} unavailable here: {choice.reason}"
+    return None
 
 
-def _render(backend: str, case: str) -> np.ndarray:
-    result = bf.render(CASES[case](), backend=backend, samples=SAMPLES, seed=0, quality="final", denoise=False)
+def _render(engine: str, case: str) -> np.ndarray:
+    name, options = ENGINES[engine]
+    result = bf.render(
+        CASES[case](), backend=name, samples=SAMPLES, seed=0, quality="final", denoise=False, **options
+    )
+    if "variant" in options:
+        assert result.meta["variant"] == options["variant"], f"rendered with {result.meta['variant']}"
     return result.to_srgb8()
 
 
@@ -93,7 +118,7 @@ def _write_failure(backend: str, case: str, actual: np.ndarray, expected: np.nda
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
-@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("backend", sorted(ENGINES))
 def test_golden(backend: str, case: str, update_golden: bool) -> None:
     reason = _status(backend)
     if reason:
