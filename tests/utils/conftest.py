@@ -64,3 +64,14 @@ def small_scene():
     scene.renderables.add_cube_mesh(1.0, bf.DiffuseMaterial(), bf.UniformColors((0.8, 0.2, 0.2)))
     scene.lights.add_sun(strength=2.0)
     return scene
+
+
+@pytest.fixture
+def open3d():
+    """Open3D (the optional `mesh` extra); skips with the import error when it is missing or cannot load
+    (its wheel needs the system library libusb-1.0, absent on a fresh machine)."""
+    try:
+        import open3d as o3d
+    except ImportError as exc:
+        pytest.skip(f"Open3D (optional 'mesh' extra for meshify_pointcloud) unavailable: {exc}")
+    return o3d

@@ -113,8 +113,7 @@ def _texture_error(res: MeshifyResult, pts, cols):
 
 
 @pytest.mark.parametrize("method", ["ball_pivoting", "poisson"])
-def test_meshify_sphere_with_open3d(rng, method):
-    pytest.importorskip("open3d", reason="Open3D (optional extra for meshify_pointcloud) is not installed")
+def test_meshify_sphere_with_open3d(open3d, rng, method):
     pts, cols = _sphere_cloud(rng)
     res = meshify_pointcloud(pts, cols, target_faces=3000, method=method)
     assert 0 < len(res.faces) <= 3000 and res.faces.dtype == np.int32
@@ -131,8 +130,7 @@ def test_meshify_sphere_with_open3d(rng, method):
     assert isinstance(mesh.colors, bf.TextureColors) and isinstance(mesh.colors.uv_map, bf.FacesUV)
 
 
-def test_meshify_uint8_colours_and_given_normals(rng):
-    pytest.importorskip("open3d", reason="Open3D (optional extra for meshify_pointcloud) is not installed")
+def test_meshify_uint8_colours_and_given_normals(open3d, rng):
     pts, cols = _sphere_cloud(rng, 3000)
     res = meshify_pointcloud(
         pts, np.round(cols * 255).astype(np.uint8), normals=pts, target_faces=None, texture_size=1024
@@ -183,8 +181,7 @@ def test_given_texture_size_is_exact_and_the_remainder_is_unused():
     assert set(np.unique(owner)) == set(range(-1, 200))
 
 
-def test_poisson_trims_the_surface_it_invents(rng):
-    pytest.importorskip("open3d", reason="Open3D (optional extra for meshify_pointcloud) is not installed")
+def test_poisson_trims_the_surface_it_invents(open3d, rng):
     pts, cols = _sphere_cloud(rng, 6000)
     upper = pts[:, 2] > 0.0  # an open hemisphere: Poisson closes it with a made-up surface
     res = meshify_pointcloud(pts[upper], cols[upper], method="poisson", target_faces=None)
