@@ -80,3 +80,26 @@ def test_cli_help_and_bad_arguments():
     assert bad.returncode == 2 and bad.stderr.strip().count("\n") == 0
     bad = subprocess.run([*run, "demo", "--size", "0"], capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "--size" in bad.stderr
+
+
+def test_ci_runs_the_quick_start_in_a_fresh_clone_as_a_user():
+    ci = (ROOT / ".ci" / "run").read_text()
+    fresh = ci.split("apt-get", 1)[0]  # everything before the optional system packages are installed
+    assert "git clone" in fresh and "mktemp -d" in fresh and "runuser" in fresh
+    assert "uv run blendify demo" in fresh and "uv run pytest" in fresh
+
+
+def test_nothing_reads_outside_the_repository():
+    """Tests, examples, benchmarks and the library use the repository's own data (tests/data)."""
+    pattern = re.compile(r"\.\./shared|parents\[\d\]\s*/\s*['\"]shared|['\"]shared['\"]\s*/\s*['\"]data")
+    offenders = []
+    for folder in ("blendify_core", "backends", "tests", "examples", "benchmarks"):
+        for path in (ROOT / folder).rglob("*.py"):
+            for n, line in enumerate(path.read_text().splitlines(), 1):
+                if pattern.search(line):
+                    offenders.append(f"{path.relative_to(ROOT)}:{n}: {line.strip()}")
+    assert not offenders, offenders
+    data = ROOT / "tests" / "data"
+    assert (data / "README.md").is_file()
+    for name in ("bunny.ply", "fuze.obj", "fuze.obj.mtl", "fuze uv.jpg"):
+        assert (data / name).is_file() and name.split()[0] in (data / "README.md").read_text()
