@@ -24,7 +24,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _info(args: argparse.Namespace) -> int:
-    from .backend import available_backends
+    from .backend import available_backends, get_backend_class
 
     print(f"blendify-core {__version__} (Python {platform.python_version()}, {platform.system()} {platform.machine()})")
     import numpy
@@ -36,6 +36,10 @@ def _info(args: argparse.Namespace) -> int:
         version = f" (engine {st.version})" if st.version else ""
         reason = f": {st.reason}" if st.reason else ""
         print(f"  {name:<10} {state}{version}{reason}")
+        # optional per-backend details (e.g. mitsuba: the variant chosen here and its probes)
+        details = getattr(get_backend_class(name), "info_details", None) if st.available else None
+        for line in details() if details is not None else ():
+            print(f"  {'':<10} {line}")
     return 0
 
 
