@@ -51,6 +51,19 @@ __all__ = ["CyclesBackend"]
 
 log = logging.getLogger("blendify_blender")
 
+
+def _fix_bpy_tags() -> None:
+    """Repair bpy's installed WHEEL tag (see ``_blendify_bpy_tags``, which ``_blendify_bpy_tags.pth`` also runs
+    at interpreter start-up): otherwise uv reinstalls bpy on every ``uv run``, under running renders."""
+    try:
+        import _blendify_bpy_tags
+    except ImportError:  # installed without the top-level helper (e.g. copied sources): nothing to do
+        return
+    _blendify_bpy_tags.fix()
+
+
+_fix_bpy_tags()
+
 _NOTES: dict[str, Capability] = {
     "primitive.sphere": Capability("exact", "the IR's shared tessellation (64x32 UV sphere, exact normals)"),
     "primitive.ellipsoid": Capability("exact", "the IR's shared tessellation (64x32, exact normals)"),
