@@ -34,6 +34,7 @@ from .errors import (
     BackendUnavailableError,
     BlendifyError,
     InvalidSceneError,
+    OutputError,
     RenderError,
     UnsupportedFeatureError,
 )
@@ -141,4 +142,5 @@ __all__ = [
     "UnsupportedFeatureError",
     "BackendUnavailableError",
     "RenderError",
+    "OutputError",
 ]

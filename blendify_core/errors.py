@@ -2,7 +2,8 @@
 
 Every error raised on purpose by the library derives from :class:`BlendifyError`, so callers can catch
 them all at once, and each also derives from the builtin exception a Python user would expect
-(``ValueError`` for bad input, ``ImportError`` for a missing engine, ``RuntimeError`` for a failed render).
+(``ValueError`` for bad input, ``ImportError`` for a missing engine, ``RuntimeError`` for a failed render,
+``OSError`` for a file that cannot be written).
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ __all__ = [
     "UnsupportedFeatureError",
     "BackendUnavailableError",
     "RenderError",
+    "OutputError",
+    "MissingFolderError",
 ]
 
 
@@ -39,3 +42,26 @@ class BackendUnavailableError(BlendifyError, ImportError):
 
 class RenderError(BlendifyError, RuntimeError):
     """The engine failed while translating or rendering; the message carries the engine's own words."""
+
+
+class OutputError(BlendifyError, OSError):
+    """A file the library writes for the user (an image, a scene file, a video, a report, a manifest) could
+    not be written. The message names the argument and the path; ``errno`` holds the cause's error number
+    (``errno.EACCES``, ``errno.ENAMETOOLONG``, ...) and ``filename`` the path."""
+
+    def __init__(self, message: str, path: str | None = None, errno: int | None = None):
+        super().__init__(message)
+        self.errno = errno
+        self.strerror = message
+        self.filename = path
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+    def __reduce__(self) -> tuple:  # keeps path and errno when a worker process sends the error back
+        return (type(self), (str(self), self.filename, self.errno))
+
+
+class MissingFolderError(OutputError, InvalidSceneError):
+    """The folder a file should be written into does not exist. An :class:`OutputError` (so an ``OSError``)
+    like every failed write, and also an :class:`InvalidSceneError`, as a bad path argument always was."""

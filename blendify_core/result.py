@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ._output import atomic_write
 from ._validate import as_path
 from .colorspace import linear_to_srgb
 from .errors import InvalidSceneError
@@ -32,33 +32,6 @@ def _jsonable(value: Any) -> Any:
     if isinstance(value, (str, int, float, bool)) or value is None:
         return value
     return repr(value)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def atomic_write(path: str | os.PathLike[str], writer: Any, suffix: str | None = None) -> Path:
-    """Call ``writer(tmp_path)`` on a temporary file in the destination folder, then rename it into place.
-
-    The destination folder must exist; nothing is left behind when the writer fails."""
-    p = Path(path)
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise InvalidSceneError(f"path: the folder {str(parent)!r} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=suffix or p.suffix, dir=parent)
-    os.close(fd)
-    try:
-        writer(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the user's usual mode
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return p
 
 
 @dataclass
@@ -129,7 +102,12 @@ class RenderResult:
     # -- saving ----------------------------------------------------------------------------------
     def save(self, path: str | os.PathLike[str], output: str = "rgb") -> Path:
         """Write ``.png`` (8-bit sRGB, straight alpha), ``.exr`` (linear float, needs ``openexr``) or
-        ``.npz`` (every output, lossless), atomically, with provenance in PNG text / EXR header / npz."""
+        ``.npz`` (every output, lossless), atomically, with provenance in PNG text / EXR header / npz.
+
+        The file gets the mode ``open(path, "w")`` would give it (``0o666 & ~umask``; an overwritten file
+        keeps its permission bits). A path that cannot be written (missing folder, existing folder,
+        read-only folder, name too long, NUL byte) raises :class:`~blendify_core.errors.OutputError`, an
+        ``OSError`` naming the path, and leaves nothing behind."""
         p = as_path("path", path)
         suffix = p.suffix.lower()
         if suffix not in (".png", ".exr", ".npz"):

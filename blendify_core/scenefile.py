@@ -57,23 +57,25 @@ def _walk_paths(obj: Any, fn: Any) -> Any:
 
 
 def save_scene(scene: Any, path: str | os.PathLike[str], relative_paths: bool = True) -> None:
-    from .result import atomic_write
+    from ._output import AtomicOutput
 
     p = as_path("path", path)
     if p.suffix.lower() != ".npz":
         raise InvalidSceneError(f"path: scene files end in .npz, got {str(path)!r}")
-    arrays: dict[str, np.ndarray] = {}
-    header = _scene_dict(scene, arrays)
-    base = p.resolve().parent
-    header = _walk_paths(header, lambda v: _rel(v, base, relative_paths))
-    payload = {k: np.ascontiguousarray(v) for k, v in arrays.items()}
-    payload[_HEADER] = np.frombuffer(json.dumps(header).encode("utf-8"), dtype=np.uint8)
-
-    def write(tmp: str) -> None:
-        with open(tmp, "wb") as f:
-            np.savez_compressed(f, **payload)
-
-    atomic_write(p, write)
+    # the destination is checked (folder, name, permissions) before the scene is serialised
+    out = AtomicOutput(p, arg="path")
+    try:
+        arrays: dict[str, np.ndarray] = {}
+        header = _scene_dict(scene, arrays)
+        base = p.resolve().parent
+        header = _walk_paths(header, lambda v: _rel(v, base, relative_paths))
+        payload = {k: np.ascontiguousarray(v) for k, v in arrays.items()}
+        payload[_HEADER] = np.frombuffer(json.dumps(header).encode("utf-8"), dtype=np.uint8)
+    except BaseException:
+        out.discard()
+        raise
+    with out, open(out.tmp, "wb") as f:
+        np.savez_compressed(f, **payload)
 
 
 def load_scene(path: str | os.PathLike[str], allow_outside: bool = False) -> Any:
