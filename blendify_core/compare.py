@@ -576,13 +576,19 @@ class CompareReport:
     def save(self, folder: str | os.PathLike[str]) -> Path:
         """Write ``diff_<output>.png`` for every output, the compared images (``a_<output>.png`` and
         ``b_<output>.png``, 8-bit previews), ``report.md`` and ``metrics.json`` into ``folder`` (created if
-        needed); returns the folder."""
+        needed); returns the folder. Each file is written atomically with the usual file mode; a file that
+        cannot be written raises :class:`~blendify_core.errors.OutputError` naming it."""
         from PIL import Image
 
-        out = Path(folder)
-        out.mkdir(parents=True, exist_ok=True)
+        from ._output import atomic_write, ensure_folder
+
+        out = ensure_folder(folder, arg="folder")
         for name, img in self.diff_images.items():
-            Image.fromarray(img).save(out / f"diff_{name}.png")
+            atomic_write(
+                out / f"diff_{name}.png",
+                lambda tmp, img=img: Image.fromarray(img).save(tmp, format="PNG"),
+                arg="folder",
+            )
         if self.results is not None:
             for label, r in zip(("a", "b"), self.results):
                 for o in self.diff_images:
@@ -592,12 +598,13 @@ class CompareReport:
                     ):
                         r.save(out / f"{label}_{o}.png", output=o)
         legend = "\n".join(f"- `diff_{k}.png`: {v}" for k, v in self.legends.items())
-        (out / "report.md").write_text(self.summary() + "\nDiff images:\n\n" + legend + "\n")
-        (out / "metrics.json").write_text(
+        _write_text(out / "report.md", self.summary() + "\nDiff images:\n\n" + legend + "\n")
+        _write_text(
+            out / "metrics.json",
             json.dumps(
                 {"tier": self.tier, "passed": self.passed, "failures": self.failures, "metrics": _json(self.metrics)},
                 indent=1,
-            )
+            ),
         )
         return out
 
@@ -1009,16 +1016,31 @@ class CrosscheckReport:
         return np.asarray(sheet)
 
     def save(self, folder: str | os.PathLike[str], name: str = "crosscheck") -> Path:
-        """Write ``<name>.png`` (contact sheet), ``<name>.md`` (report) and per-pair diff folders."""
+        """Write ``<name>.png`` (contact sheet), ``<name>.md`` (report) and per-pair diff folders, each file
+        atomically with the usual file mode (:class:`~blendify_core.errors.OutputError` when one cannot be
+        written)."""
         from PIL import Image
 
-        out = Path(folder)
-        out.mkdir(parents=True, exist_ok=True)
-        Image.fromarray(self.contact_sheet()).save(out / f"{name}.png")
-        (out / f"{name}.md").write_text(f"![contact sheet]({name}.png)\n\n" + self.summary())
+        from ._output import atomic_write, ensure_folder
+
+        out = ensure_folder(folder, arg="folder")
+        sheet = self.contact_sheet()
+        atomic_write(out / f"{name}.png", lambda tmp: Image.fromarray(sheet).save(tmp, format="PNG"), arg="name")
+        _write_text(out / f"{name}.md", f"![contact sheet]({name}.png)\n\n" + self.summary(), arg="name")
         for (a, b), rep in self.pairs.items():
             rep.save(out / f"{a}_vs_{b}")
         return out
+
+
+def _write_text(path: Path, text: str, arg: str = "folder") -> None:
+    """A report file, atomically (UTF-8)."""
+    from ._output import atomic_write
+
+    def write(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+
+    atomic_write(path, write, arg=arg)
 
 
 def _output_ok(rep: CompareReport, out: str) -> bool:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -74,7 +73,7 @@ def _read_manifest(path: Path) -> dict[str, dict[str, Any]]:
 
 def _rewrite_manifest(path: Path, entries: dict[str, dict[str, Any]]) -> None:
     """Replace the manifest by one line per frame (atomically): keeps it compact across resumed runs."""
-    from ..result import atomic_write
+    from .._output import atomic_write
 
     text = "".join(json.dumps(entries[k], sort_keys=True) + "\n" for k in sorted(entries))
 
@@ -82,15 +81,20 @@ def _rewrite_manifest(path: Path, entries: dict[str, dict[str, Any]]) -> None:
         with open(tmp, "w") as f:
             f.write(text)
 
-    atomic_write(path, writer)
+    atomic_write(path, writer, arg="frames_dir")
 
 
 def _append_manifest(path: Path, entry: dict[str, Any]) -> None:
     """Append one finished frame (O(1) per frame, durable before the next frame starts)."""
-    with open(path, "a") as f:
-        f.write(json.dumps(entry, sort_keys=True) + "\n")
-        f.flush()
-        os.fsync(f.fileno())
+    from .._output import output_error
+
+    try:
+        with open(path, "a") as f:  # a plain open: a new manifest gets the usual mode (0o666 & ~umask)
+            f.write(json.dumps(entry, sort_keys=True) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as exc:
+        raise output_error("frames_dir", path, exc) from exc
 
 
 def _even_rgb(frame: np.ndarray) -> np.ndarray:
@@ -116,7 +120,8 @@ def _video_frame(result_or_png: Any, background: np.ndarray) -> np.ndarray:
 
 
 class _VideoWriter:
-    """Writes frames to a temporary file next to ``path``; :meth:`finish` renames it into place."""
+    """Writes frames to a temporary file next to ``path`` (the mode of a plain ``open``, see
+    :mod:`blendify_core._output`); :meth:`finish` renames it into place, :meth:`abort` removes it."""
 
     def __init__(self, path: Path, fps: float, quality: float | None, codec: str) -> None:
         try:
@@ -127,16 +132,20 @@ class _VideoWriter:
                 "video_path: writing an MP4 needs the 'video' extra: pip install 'blendify-core[video]' "
                 "(imageio and imageio-ffmpeg)"
             ) from None
-        if not path.parent.is_dir():
-            raise InvalidSceneError(f"video_path: the folder {str(path.parent)!r} does not exist")
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix or ".mp4", dir=path.parent)
-        os.close(fd)
-        self.tmp = Path(tmp)
+        from .._output import AtomicOutput
+
+        # checks the folder, the name and the permissions before any frame is rendered
+        self._out = AtomicOutput(path, arg="video_path", suffix=path.suffix or ".mp4")
+        self.tmp = self._out.tmp
         self.path = path
         kwargs: dict[str, Any] = {"fps": fps, "codec": codec, "macro_block_size": 1, "pixelformat": "yuv420p"}
         if quality is not None:
             kwargs["quality"] = quality
-        self._writer = imageio.get_writer(str(self.tmp), format="FFMPEG", mode="I", **kwargs)
+        try:
+            self._writer = imageio.get_writer(str(self.tmp), format="FFMPEG", mode="I", **kwargs)
+        except BaseException:
+            self._out.discard()
+            raise
         self.shape: tuple[int, ...] | None = None
 
     def append(self, frame: np.ndarray) -> None:
@@ -150,17 +159,23 @@ class _VideoWriter:
         self._writer.append_data(frame)
 
     def finish(self) -> Path:
-        self._writer.close()
-        os.replace(self.tmp, self.path)
-        return self.path
+        from .._output import output_error
+
+        try:
+            self._writer.close()
+        except BaseException as exc:
+            self._out.discard()
+            if isinstance(exc, OSError):
+                raise output_error("video_path", self.path, exc) from exc
+            raise
+        return self._out.commit()
 
     def abort(self) -> None:
         try:
             self._writer.close()
         except Exception:  # noqa: BLE001 - the original error matters more
             pass
-        if self.tmp.exists():
-            self.tmp.unlink()
+        self._out.discard()
 
 
 def write_video(
@@ -330,8 +345,9 @@ def render_frames(
     manifest: dict[str, dict[str, Any]] = {}
     manifest_path: Path | None = None
     if frames_dir is not None:
-        fdir = Path(frames_dir)
-        fdir.mkdir(parents=True, exist_ok=True)
+        from .._output import ensure_folder
+
+        fdir = ensure_folder(frames_dir, arg="frames_dir")
         manifest_path = fdir / MANIFEST_NAME
         if resume:
             manifest = _read_manifest(manifest_path)
