@@ -358,7 +358,8 @@ def test_read_only_folder_raises_output_error(writer, tmp_path):
     name, call = FILE_WRITERS[writer]
     if writer == "video-mp4":
         pytest.importorskip("imageio_ffmpeg", reason="the MP4 writer needs the 'video' extra (imageio-ffmpeg)")
-    import PIL.PngImagePlugin  # noqa: F401  (imported before a forked child that cannot import)
+        import imageio.v2  # noqa: F401  (imported before the forked child, which may not read the venv)
+    import PIL.PngImagePlugin  # noqa: F401
 
     ro = tmp_path / "ro"
     ro.mkdir()
