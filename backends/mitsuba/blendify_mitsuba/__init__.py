@@ -222,6 +222,14 @@ class MitsubaBackend(Backend):
         return BackendStatus(True, None, cls.engine_version())
 
     @classmethod
+    def info_details(cls) -> list[str]:
+        """Lines for ``blendify info``: the variant a default ``MitsubaBackend()`` uses here and why, one line
+        per variant probe (the probes run now when the probe cache has no result for them)."""
+        from ._variant import describe
+
+        return describe(None)
+
+    @classmethod
     def capabilities(cls) -> dict[str, Capability]:
         caps = {name: Capability(*_CAPS[name]) for name in ALL_FEATURES if name in _CAPS}
         for name in ALL_FEATURES:
@@ -251,10 +259,11 @@ class MitsubaBackend(Backend):
 
     def _set_variant(self) -> Any:
         variant = self.variant  # resolve (and probe) before the first import of mitsuba/drjit
-        from ._variant import before_engine_import
+        from ._variant import before_engine_import, quiet_engine_import
 
         before_engine_import()
-        import mitsuba as mi
+        with quiet_engine_import(variant):
+            import mitsuba as mi
 
         if mi.variant() != variant:
             try:
