@@ -4,6 +4,13 @@ A job arrives as a plain dict of JSON-like values plus, at most, the bytes of a 
 no engine object ever crosses a process boundary. The worker loads the scene, renders it with
 ``bf.render`` (so the process-wide shared backend instance stays warm from job to job), writes the
 outputs atomically and returns a small dict describing what happened.
+
+Local pool workers are fresh interpreters started by ``blendify_core.batch`` as
+``python -c BOOTSTRAP FD blendify-batch-worker``: :data:`BOOTSTRAP` (standard library only) opens the
+connection on file descriptor (Windows: handle) FD, takes the parent's ``sys.path`` as the first message
+and runs :func:`pool_main`. Unlike multiprocessing's "spawn", it never imports the parent's ``__main__``,
+so a script without an ``if __name__ == "__main__":`` guard, ``python -``, ``python -c`` and notebooks
+can all call ``render_many``.
 """
 
 from __future__ import annotations
@@ -16,7 +23,31 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["run_job", "run_ray_job", "StartClock", "pool_main", "output_files", "rss_mb"]
+__all__ = ["run_job", "run_ray_job", "StartClock", "pool_main", "output_files", "rss_mb", "BOOTSTRAP", "in_pool_worker"]
+
+#: what a local pool worker runs (``python -c BOOTSTRAP FD LABEL``). Standard library only until the
+#: parent's ``sys.path`` is in place; an import error is sent to the parent (then the traceback goes to
+#: stderr and the process exits with code 1), so the parent can say why the worker could not start.
+BOOTSTRAP = """\
+import signal, sys
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+from multiprocessing import connection
+conn = (connection.PipeConnection if sys.platform == "win32" else connection.Connection)(int(sys.argv[1]))
+sys.path[:] = conn.recv()
+try:
+    from blendify_core._worker import pool_main
+except Exception as exc:
+    conn.send(("error", f"{type(exc).__name__}: {exc}"))
+    raise
+pool_main(conn)
+"""
+
+_IN_POOL_WORKER = False
+
+
+def in_pool_worker() -> bool:
+    """True inside a local pool worker process (render_many refuses to start a pool from there)."""
+    return _IN_POOL_WORKER
 
 
 def rss_mb() -> float | None:
@@ -179,6 +210,8 @@ def pool_main(conn: Any) -> None:
     the loop. Ctrl-C is left to the parent, which stops the workers itself."""
     import signal
 
+    global _IN_POOL_WORKER
+    _IN_POOL_WORKER = True
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         conn.send(("ready", os.getpid(), rss_mb()))

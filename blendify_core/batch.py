@@ -13,9 +13,12 @@ import dataclasses
 import datetime
 import hashlib
 import json
+import logging
 import os
+import re
 import shutil
 import socket
+import sys
 import tempfile
 import time
 from collections.abc import Iterable
@@ -42,6 +45,7 @@ STARTUP_TIMEOUT = 300.0
 _SETTING_NAMES = {f.name for f in dataclasses.fields(RenderSettings)} - {"extra"}
 _OUTPUT_SUFFIXES = (".png", ".exr", ".npz")
 _STATUSES = ("done", "skipped", "failed")
+log = logging.getLogger("blendify_core")
 
 
 def _cpu_count() -> int:
@@ -558,6 +562,82 @@ def _registrations() -> dict[str, str]:
     return out
 
 
+def _main_description(main: Any) -> str:
+    path = getattr(main, "__file__", None)
+    if isinstance(path, str) and not path.startswith("<"):
+        return f"the script {os.path.basename(path)}"
+    return "code run from stdin, `python -c` or a notebook"
+
+
+def _names_main(module: str, main: Any) -> bool:
+    """True when ``module`` is the script running as ``__main__`` (importing it would run it again)."""
+    spec = getattr(main, "__spec__", None)
+    if spec is not None and getattr(spec, "name", None) == module:
+        return True
+    path = getattr(main, "__file__", None)
+    if not isinstance(path, str) or path.startswith("<") or not os.path.isfile(path):
+        return False
+    mod = sys.modules.get(module)
+    if mod is not None:
+        origin = getattr(mod, "__file__", None)
+    elif "." in module:  # finding a submodule would import its packages: leave those to the worker
+        return False
+    else:
+        import importlib.util
+
+        try:
+            found = importlib.util.find_spec(module)
+        except (ImportError, ValueError):
+            return False
+        origin = None if found is None else found.origin
+    try:
+        return isinstance(origin, str) and os.path.samefile(origin, path)
+    except OSError:
+        return False
+
+
+def _check_backends_importable(jobs: list[RenderJob]) -> None:
+    """Fail before any work when a job's backend is registered in a way worker processes cannot import:
+    a class defined in ``__main__`` or inside a function, or a "module:Class" path naming the script
+    being run (workers are fresh interpreters that never run ``__main__``)."""
+    from . import backend as backend_mod
+
+    main = sys.modules.get("__main__")
+    for i, job in enumerate(jobs):
+        if job.backend is None:
+            continue
+        target = backend_mod._registered.get(job.backend)
+        name = job.backend
+        if isinstance(target, type):
+            qual = target.__qualname__
+            if target.__module__ == "__main__":
+                where = f"defined in __main__ ({_main_description(main)})"
+                why = "never run __main__"
+            elif "<locals>" in qual:
+                where = f"defined inside a function ({target.__module__}.{qual})"
+                why = "import a backend class by module and name"
+            else:
+                continue
+            cls = qual.rsplit(".", 1)[-1]
+            module = re.sub(r"\W", "_", name) + "_backend"
+            raise InvalidSceneError(
+                f"jobs[{i}]: backend {name!r} is registered as the class {cls} {where}; render_many's worker "
+                f"processes are fresh Python interpreters that {why}, so they cannot import it. Move {cls} "
+                f"to the top level of a module (e.g. {module}.py next to your script) and register it by path: "
+                f"bf.register_backend({name!r}, '{module}:{cls}'), or render in this process with "
+                "executor=concurrent.futures.ThreadPoolExecutor(1)"
+            )
+        if isinstance(target, str) and main is not None:
+            module, _, cls = target.partition(":")
+            if _names_main(module, main):
+                raise InvalidSceneError(
+                    f"jobs[{i}]: backend {name!r} is registered as {target!r}, but {module!r} is "
+                    f"{_main_description(main)} being run: every worker would import it and run the "
+                    f"script again. Move {cls or 'the backend class'} into a module of its own and register "
+                    "that path"
+                )
+
+
 def _remove_partial(files: list[str]) -> None:
     """Remove temporary files a killed worker left behind (``atomic_write`` names them ``.<name>.*``)."""
     for f in files:
@@ -590,27 +670,84 @@ def _signal_name(code: int | None) -> str:
 
 
 class _PoolWorker:
-    def __init__(self, ctx: Any) -> None:
+    """One local worker: a fresh interpreter running ``_worker.BOOTSTRAP`` (never the user's ``__main__``),
+    connected to this process by a duplex multiprocessing connection on an inherited descriptor."""
+
+    def __init__(self) -> None:
+        import subprocess
+        from multiprocessing import Pipe, spawn
+
         from . import _worker
 
-        parent, child = ctx.Pipe(duplex=True)
+        parent, child = Pipe(duplex=True)
+        handle = child.fileno()
+        kwargs: dict[str, Any] = {}
+        if sys.platform == "win32":  # pragma: no cover - not exercised on the project's machines
+            os.set_handle_inheritable(handle, True)
+            kwargs["startupinfo"] = subprocess.STARTUPINFO(lpAttributeList={"handle_list": [handle]})
+        else:
+            kwargs["pass_fds"] = (handle,)
+        flags = getattr(subprocess, "_args_from_interpreter_flags", list)()  # -O, -X ..., as multiprocessing does
+        cmd = [spawn.get_executable(), *flags, "-c", _worker.BOOTSTRAP, str(handle), "blendify-batch-worker"]
+        try:
+            self.proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, close_fds=True, **kwargs)
+        except OSError as exc:
+            parent.close()
+            raise BlendifyError(f"render_many: cannot start a worker process ({cmd[0]}): {exc}") from exc
+        finally:
+            child.close()
         self.conn = parent
-        self.proc = ctx.Process(target=_worker.pool_main, args=(child,), daemon=True, name="blendify-batch-worker")
-        self.proc.start()
-        child.close()
+        self.pid = self.proc.pid
+        # a waitable descriptor that becomes ready when the process exits (Linux); else death shows as EOF
+        self.sentinel: int | None = None
+        if hasattr(os, "pidfd_open"):
+            try:
+                self.sentinel = os.pidfd_open(self.pid)
+            except OSError:
+                self.sentinel = None
+        try:
+            parent.send(list(sys.path))
+        except OSError:
+            pass  # the process is already gone: the run loop sees it exit
         self.job: int | None = None
         self.assigned_at = 0.0
         self.started_at: float | None = None
         self.retired_at = 0.0
         self.count = 0
         self.ready = False
+        self.eof = False
+        self.start_error: str | None = None
         self.rss_mb: float | None = None
 
-    def kill(self) -> None:
-        if self.proc.is_alive():
-            self.proc.kill()
-        self.proc.join(timeout=10)
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def exitcode(self) -> int | None:
+        """The exit code (negative: killed by that signal), waiting up to 5 s for a process whose
+        connection closed to finish exiting; None if it is still running."""
+        import subprocess
+
+        try:
+            return self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            return None
+
+    def _release(self) -> None:
         self.conn.close()
+        if self.sentinel is not None:
+            os.close(self.sentinel)
+            self.sentinel = None
+
+    def kill(self) -> None:
+        import subprocess
+
+        if self.alive():
+            self.proc.kill()
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:  # stuck in the kernel: leave it, it cannot run any more Python
+            pass
+        self._release()
 
     def retire(self) -> None:
         """Ask the worker to exit after closing its backends (without waiting for it)."""
@@ -622,12 +759,9 @@ class _PoolWorker:
 
     def reap(self, grace: float) -> bool:
         """True once a retired worker has exited (killed when it takes longer than ``grace`` seconds)."""
-        if self.proc.is_alive() and time.monotonic() - self.retired_at < grace:
+        if self.alive() and time.monotonic() - self.retired_at < grace:
             return False
-        if self.proc.is_alive():
-            self.proc.kill()
-        self.proc.join(timeout=10)
-        self.conn.close()
+        self.kill()
         return True
 
 
@@ -639,38 +773,60 @@ def _run_local(
     threads: int,
     recycle_above_mb: float | None = None,
 ) -> None:
-    import multiprocessing
+    import subprocess
+    from multiprocessing import spawn as mp_spawn
     from multiprocessing.connection import wait
 
-    ctx = multiprocessing.get_context("spawn")
+    from . import _worker
+
+    if _worker.in_pool_worker():
+        raise BlendifyError(
+            "render_many: called inside one of render_many's own worker processes (a module the workers "
+            "import, e.g. the module of a backend registered by path, starts a batch when it is imported); "
+            'guard that code with `if __name__ == "__main__":` or move the backend into a module of its own'
+        )
+    if getattr(sys, "frozen", False) and mp_spawn.get_executable() == sys.executable:
+        raise BlendifyError(
+            "render_many: the local pool starts worker processes as `python -c ...`, which a frozen application "
+            "cannot run; point multiprocessing.set_executable() at a Python interpreter, or pass "
+            "executor=concurrent.futures.ThreadPoolExecutor(...)"
+        )
     queue = list(reversed(pending))  # pop() from the end keeps job order
     pool: list[_PoolWorker] = []
     retiring: list[_PoolWorker] = []
+    startup_failures = 0
+    gave_up: str | None = None  # set when workers cannot start at all: the remaining jobs fail with this
 
     def spawn() -> None:
-        pool.append(_PoolWorker(ctx))
+        if gave_up is None:
+            pool.append(_PoolWorker())
 
     def busy() -> list[_PoolWorker]:
         return [w for w in pool if w.job is not None]
 
-    startup_failures = 0
-
     def fail_and_replace(w: _PoolWorker, reason: str) -> None:
-        nonlocal startup_failures
-        if not w.ready and w.job is not None and startup_failures < 3:
-            # the worker died while starting (e.g. an import error): the job never ran, try it again
+        nonlocal startup_failures, gave_up
+        if not w.ready:
             startup_failures += 1
-            queue.append(w.job)
-            run.release(w.job)
-            w.job = None
+            detail = f"{w.start_error}; " if w.start_error else ""
+            reason = f"worker failed to start ({detail}{reason}); see the worker's stderr"
+            if w.start_error is not None or startup_failures >= 3:
+                # an import error, or three workers in a row died before they could take a job: every
+                # further worker would die the same way, so the remaining jobs fail now with the reason
+                gave_up = reason
+            elif w.job is not None:  # e.g. killed while starting: the job never ran, try it again
+                queue.append(w.job)
+                run.release(w.job)
+                w.job = None
         if w.job is not None:
-            if not w.ready:
-                reason = f"worker failed to start ({reason}); see the worker's stderr"
-            run.finish(w.job, {"status": "failed", "reason": reason, "pid": w.proc.pid})
+            run.finish(w.job, {"status": "failed", "reason": reason, "pid": w.pid})
             w.job = None
         w.kill()
         pool.remove(w)
-        if queue and len(pool) < workers:
+        if gave_up is not None:
+            while queue:
+                run.finish(queue.pop(), {"status": "failed", "reason": gave_up})
+        elif queue and len(pool) < workers:
             spawn()
 
     try:
@@ -681,7 +837,7 @@ def _run_local(
                 spawn()
             now = time.monotonic()
             for w in list(pool):
-                if w.job is None and queue and w.proc.is_alive():
+                if w.job is None and queue and not w.eof and w.alive():
                     index = queue.pop()
                     try:
                         w.conn.send(run.payload(index, threads, "path"))
@@ -705,10 +861,10 @@ def _run_local(
                 elif run.timeout is not None:
                     deadlines.append(w.started_at + run.timeout)
             retiring[:] = [w for w in retiring if not w.reap(30.0)]
-            if retiring:
-                deadlines.append(time.monotonic() + 0.5)
+            if retiring or any(w.sentinel is None for w in pool):
+                deadlines.append(time.monotonic() + 0.5)  # poll exits that no descriptor reports
             wait_for = max(0.0, min(deadlines) - time.monotonic()) if deadlines else None
-            handles = [w.conn for w in pool] + [w.proc.sentinel for w in pool]
+            handles: list[Any] = [w.conn for w in pool] + [w.sentinel for w in pool if w.sentinel is not None]
             ready = set(wait(handles, timeout=wait_for))
             for w in list(pool):
                 if w.conn in ready:
@@ -718,6 +874,8 @@ def _run_local(
                             if msg[0] == "ready":
                                 w.ready = True
                                 startup_failures = 0
+                            elif msg[0] == "error":
+                                w.start_error = str(msg[1])
                             elif msg[0] == "start" and msg[1] == w.job:
                                 w.started_at = time.monotonic()
                             elif msg[0] == "result" and msg[1] == w.job:
@@ -726,10 +884,11 @@ def _run_local(
                                 w.count += 1
                                 w.rss_mb = msg[2].get("rss_mb")
                     except (EOFError, OSError):
-                        pass  # the sentinel tells what happened
-                if not w.proc.is_alive() or w.proc.sentinel in ready:
-                    w.proc.join(timeout=5)
-                    fail_and_replace(w, f"worker crashed: {_signal_name(w.proc.exitcode)}")
+                        w.eof = True  # the process exited (or closed its end): find out how below
+                if w.eof or (w.sentinel is not None and w.sentinel in ready) or not w.alive():
+                    code = w.exitcode()
+                    how = _signal_name(code) if code is not None else "it closed its connection (killed)"
+                    fail_and_replace(w, f"worker crashed: {how}")
                     continue
                 over_memory = recycle_above_mb is not None and w.rss_mb is not None and w.rss_mb > recycle_above_mb
                 if w.job is None and ((recycle_after and w.count >= recycle_after) or over_memory):
@@ -747,13 +906,16 @@ def _run_local(
                         fail_and_replace(w, f"timeout: the job ran longer than {run.timeout:g} s (worker killed)")
     finally:
         for w in pool:
-            if w.job is None and w.proc.is_alive():
+            if w.job is None and w.alive():
                 w.retire()
                 retiring.append(w)
             else:
                 w.kill()
         for w in retiring:
-            w.proc.join(timeout=max(0.0, 30.0 - (time.monotonic() - w.retired_at)))
+            try:
+                w.proc.wait(timeout=max(0.0, 30.0 - (time.monotonic() - w.retired_at)))
+            except subprocess.TimeoutExpired:
+                pass
             w.reap(0.0)
 
 
@@ -770,8 +932,6 @@ def _run_ray(
     recycle_after: int | None,
     threads: int | None,
 ) -> tuple[int, int]:
-    import sys
-
     if "ray" not in sys.modules:
         # Under `uv run`, Ray would start every worker through `uv run` in a packaged copy of the working
         # directory (re-syncing the environment per worker); use the driver's interpreter instead.
@@ -908,23 +1068,30 @@ def render_many(
 
     Every job ends "done", "skipped" (its key is already "done" in the manifest and its files exist) or
     "failed" with the reason (the engine's error, ``"timeout: ..."``, ``"worker crashed: ..."``). A failing
-    job never stops the run. Outputs are written atomically by the workers; after each finished job one
-    record is appended to the manifest (``manifest``: a ``.jsonl`` (default) or ``.json`` path; None =
-    ``blendify_manifest.jsonl`` in the common folder of the outputs; False = no manifest, no resume).
+    job never stops the run; check ``report.ok`` (a run with failed jobs also logs one warning on the
+    ``blendify_core`` logger, and ``blendify batch`` exits with code 1). Outputs are written atomically
+    by the workers; after each finished job one record is appended to the manifest (``manifest``: a
+    ``.jsonl`` (default) or ``.json`` path; None = ``blendify_manifest.jsonl`` in the common folder of
+    the outputs; False = no manifest, no resume).
     A record's key is the SHA-256 of ``scene.fingerprint()`` + backend + settings (except ``threads``) +
     backend options + output path, so re-running the same batch skips finished jobs and retries failed
     ones; changing a scene or a setting renders the job again.
 
     ``executor``:
 
-    - None or ``"local"``: a pool of ``workers`` (default: one per core) spawned processes, each keeping
+    - None or ``"local"``: a pool of ``workers`` (default: one per core) worker processes, each keeping
       ``bf.render``'s backend instance warm and replaced by a fresh process after ``recycle_after`` jobs
       (engines leak; None = never) or as soon as its resident memory exceeds ``recycle_above_mb`` MiB
       after a job (None = no limit). Jobs without ``threads`` get ``cores // workers`` engine threads.
       A crash (segfault, ``os.abort``, being killed) fails only the job it was running; the pool starts
       a new worker and the run goes on. ``timeout`` (seconds of rendering, from when the worker starts
-      the render) kills the worker and fails the job. Scripts that call this must guard their entry
-      point with ``if __name__ == "__main__":`` (the "spawn" start method re-imports the main module).
+      the render) kills the worker and fails the job. Workers are fresh interpreters (``sys.executable``
+      with this process's ``sys.path`` and environment) that never import ``__main__``, so no
+      ``if __name__ == "__main__":`` guard is needed: scripts, ``python -``, ``python -c`` and notebooks
+      all work. The one thing they cannot reach is a backend registered as a class defined in
+      ``__main__`` (or inside a function): render_many raises before starting, saying to move it into a
+      module and register it as ``"module:Class"``. When workers cannot start at all (e.g. a broken
+      install), the remaining jobs fail with the worker's error instead of one crash per job.
     - ``"ray"``, ``"ray://host:port"`` (Ray client) or ``"ray:ADDRESS"`` (e.g. ``"ray:auto"``): Ray tasks with
       ``max_retries=0``, ``num_cpus`` = engine threads per job (default: ``cluster CPUs // workers`` when
       ``workers`` is given, else 1) and ``max_calls=recycle_after`` (Ray's worker recycling). Uses the
@@ -989,6 +1156,8 @@ def render_many(
             raise InvalidSceneError(f"timeout: expected a positive number of seconds or None, got {timeout!r}")
         timeout = float(timeout)
     kind, address = _executor_kind(executor)
+    if kind in ("local", "ray"):
+        _check_backends_importable(jobs)
 
     if manifest is False or not jobs:
         man = None
@@ -1042,7 +1211,18 @@ def render_many(
             man.close()
     statuses = [run.statuses[i] for i in range(len(jobs))]
     name = kind if kind != "futures" else type(executor).__name__
-    return BatchReport(statuses, name, used_workers, time.perf_counter() - t0, None if man is None else str(man.path))
+    report = BatchReport(statuses, name, used_workers, time.perf_counter() - t0, None if man is None else str(man.path))
+    if report.failed:  # a run whose jobs failed must not pass for a success in a script that ignores the report
+        first = report.failed[0]
+        log.warning(
+            "render_many: %d of %d jobs failed (first: jobs[%d] %s: %s); report.failed has every reason",
+            len(report.failed),
+            len(report),
+            first.index,
+            first.output,
+            first.reason,
+        )
+    return report
 
 
 def _executor_kind(executor: Any) -> tuple[str, str | None]:

@@ -107,7 +107,7 @@ def _batch(args: argparse.Namespace) -> int:
         manifest=args.manifest,
     )
     print(report.summary())
-    return 0 if report.ok else 1
+    return 0 if report.ok else 1  # any failed job, even with others done, exits 1 (documented in --help)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -140,7 +140,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .batch import DEFAULT_RECYCLE_AFTER
 
-    p = sub.add_parser("batch", help="render many scene files listed in a JSON-lines file, resumably")
+    p = sub.add_parser(
+        "batch",
+        help="render many scene files listed in a JSON-lines file, resumably",
+        description="Render many scene files listed in a JSON-lines file, resumably (run it again to skip "
+        "finished jobs and retry failed ones).",
+        epilog="exit code: 0 when every job is done or skipped; 1 when any job failed (the summary lists each "
+        "reason) or the batch could not run (one error line instead of the summary); 2 for bad arguments.",
+    )
     p.add_argument("jobs", help='JSON lines: {"scene": "a.npz", "output": "a.png", "backend": ..., "samples": ...}')
     p.add_argument("--executor", default="local", help="local (process pool), ray, or ray:ADDRESS")
     p.add_argument("-w", "--workers", type=int, default=None, help="parallel jobs (default: one per core)")

@@ -394,26 +394,32 @@ def test_bad_input_is_rejected_with_the_argument_name(tmp_path):
     assert len(bf.render_many([], progress=False)) == 0
 
 
-def test_workers_that_cannot_start_fail_the_jobs_without_hanging(tmp_path):
-    script = tmp_path / "broken.py"
-    script.write_text(
-        f"import json, sys; sys.path.insert(0, {str(HERE)!r})\n"
-        "if __name__ == '__mp_main__':\n"
-        "    raise SystemExit(3)  # every worker process dies while starting\n"
-        "import blendify_core as bf\n"
-        "from batch_fake_backend import FAKE, TARGET, tiny_scene\n"
-        "bf.register_backend(FAKE, TARGET)\n"
-        "if __name__ == '__main__':\n"
-        f"    jobs = [bf.RenderJob(tiny_scene(t), {str(tmp_path)!r} + f'/{{t}}.png', backend=FAKE) for t in 'ab']\n"
-        "    report = bf.render_many(jobs, workers=1, progress=False, manifest=False)\n"
-        "    print(json.dumps([j.reason for j in report]))\n"
-    )
-    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr[-2000:]
-    reasons = json.loads(out.stdout.strip().splitlines()[-1])
-    assert len(reasons) == 2
-    for r in reasons:
-        assert r is not None and "worker failed to start" in r and "exited with code 3" in r
+@pytest.mark.parametrize(
+    "init, expected, most_starts",
+    [
+        ("raise SystemExit(3)\n", "exited with code 3", 4),  # dies silently: retried, then given up
+        ("raise ImportError('broken install')\n", "ImportError: broken install", 2),  # not retried
+    ],
+)
+def test_workers_that_cannot_start_fail_the_jobs_without_hanging(tmp_path, capfd, init, expected, most_starts):
+    """Workers take this process's sys.path: a broken ``blendify_core`` first on it kills every worker
+    while it starts. The jobs fail with the reason, once workers plainly cannot start no more are tried."""
+    shadow = tmp_path / "shadow"
+    (shadow / "blendify_core").mkdir(parents=True)
+    (shadow / "blendify_core" / "__init__.py").write_text(f"import sys\nsys.stderr.write('worker start\\n')\n{init}")
+    jobs = [job(tmp_path, t) for t in "abcdef"]
+    sys.path.insert(0, str(shadow))
+    try:
+        t0 = time.monotonic()
+        report = bf.render_many(jobs, workers=2, progress=False, manifest=False)
+    finally:
+        sys.path.remove(str(shadow))
+    assert time.monotonic() - t0 < 60
+    assert report.counts["failed"] == 6 and render_log(tmp_path) == []
+    for r in report:
+        assert "worker failed to start" in r.reason and expected in r.reason, r.reason
+    err = capfd.readouterr().err
+    assert 2 <= err.count("worker start") <= most_starts, err[-3000:]
 
 
 def test_blender_script_folders_of_the_parent_do_not_shadow_bpy_in_workers(tmp_path):

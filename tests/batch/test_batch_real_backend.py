@@ -4,6 +4,9 @@ backend is available."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -42,3 +45,28 @@ def test_render_many_with_a_real_backend(tmp_path):
         expected = a / np.pi * 3.0 * np.cos(np.deg2rad(20.0))
         assert np.median(rgba[..., :3]) == pytest.approx(expected, rel=0.05)
     assert bf.render_many(jobs, workers=2, progress=False).statuses == ["skipped"] * 3
+
+
+@pytest.mark.slow
+def test_unguarded_script_on_stdin_with_a_real_backend(tmp_path):
+    """The same frames from code fed to ``python -`` without a main guard: the workers start the real
+    engine without re-running the caller's code."""
+    name = _backend()
+    code = (
+        "import sys\n"
+        "import blendify_core as bf\n"
+        "from blendify_core.testing import plane_scene\n"
+        "scenes = [plane_scene('sun', (32, 32), albedo=a) for a in (0.3, 0.8)]\n"
+        f"jobs = [bf.RenderJob(s, f'plane{{i}}.npz', backend={name!r}, samples=4) for i, s in enumerate(scenes)]\n"
+        "report = bf.render_many(jobs, workers=2, timeout=120, progress=False)\n"
+        "print(report.summary())\n"
+        "sys.exit(0 if report.ok else 1)\n"
+    )
+    proc = subprocess.run([sys.executable, "-"], input=code, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr[-3000:]
+    assert "2 jobs: 2 done" in proc.stdout and "Traceback" not in proc.stderr
+    for i, a in enumerate((0.3, 0.8)):
+        with np.load(tmp_path / f"plane{i}.npz") as data:
+            rgba = data["rgba"]
+        expected = a / np.pi * 3.0 * np.cos(np.deg2rad(20.0))
+        assert np.median(rgba[..., :3]) == pytest.approx(expected, rel=0.05)
