@@ -74,13 +74,14 @@ def factory_reset() -> None:
         with contextlib.suppress(Exception):
             bpy.context.preferences.filepaths.use_scripts_auto_execute = False
         if not hasattr(bpy.context.scene, "cycles"):
-            # seen once: the Cycles add-on not re-registered after the reset; register it again
-            import addon_utils
-
-            log.warning("cycles: the Cycles add-on was not registered after a factory reset; enabling it")
-            addon_utils.enable("cycles", default_set=True)
-            if not hasattr(bpy.context.scene, "cycles"):
-                raise RenderError("cycles: the Cycles add-on is not available in this bpy session")
+            # A reset re-registers Cycles every time (2000 resets in 10 fresh processes: never missing). It is
+            # missing only when bpy's files were deleted under this process, i.e. bpy was reinstalled while it
+            # ran (146 of 360 resets beside a reinstall loop; re-enabling the add-on rescued none of them).
+            # uv did that on every `uv run` until _blendify_bpy_tags repaired bpy's installed WHEEL tag.
+            raise RenderError(
+                "cycles: the Cycles add-on is not registered after a factory reset: bpy's files changed under this "
+                "process (was bpy reinstalled while it ran?)"
+            )
 
 
 #: the bpy.data collections the backend creates datablocks in (checked for leaks, emptied on reset)
