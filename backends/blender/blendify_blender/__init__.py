@@ -32,6 +32,12 @@ Outputs come from per-pass single-layer EXR files (a compositor File Output node
 fails with non-square pixels) in a private temporary directory removed after reading. Ctrl-C during an
 in-process render is honoured when Cycles finishes the frame (Cycles cannot be cancelled from the bpy
 module); with ``isolate=True`` it is immediate (the worker is killed and restarted on the next render).
+
+Environment: bpy 5.0.1's installed ``WHEEL`` file carries the wrong tag (cp39 for a cp311 wheel), which made
+uv reinstall bpy on every ``uv run``, under running renders. This distribution also installs the top-level
+module ``_blendify_bpy_tags`` and ``_blendify_bpy_tags.pth`` (hatch ``force-include``: present in the wheel
+and in the editable install alike); the .pth repairs the tag when an interpreter starts, and importing this
+package does it again. Details and measurements in that module's docstring.
 """
 
 from __future__ import annotations
