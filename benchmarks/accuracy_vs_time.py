@@ -9,7 +9,7 @@ and the clamp off, ``draft`` and ``preview`` (Cycles, denoised), Mitsuba ``final
 analysis, and pyrender ``preview``. Path-traced configurations are swept over samples per pixel.
 
 Error = relative MSE over the premultiplied RGB pixel channels, mean((x - ref)^2 / (ref^2 + 0.01)) (the
-same floor as ``blendify_core.render.relative_error_estimate``), against a converged Cycles reference
+same floor as ``blendify_core.pipeline.render.relative_error_estimate``), against a converged Cycles reference
 (full settings, ``REF_SPP`` samples, another seed) and a converged Mitsuba one. The time at relMSE 1e-3
 is interpolated log-log between the bracketing sweep points; times of points up to 64 spp are the faster of two
 identical runs (the machine is shared). Glass is swept to 1024 spp. Every image uses the 1 px box filter (the
@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 import blendify_core as bf
-from blendify_core.colorspace import linear_to_srgb
+from blendify_core.ir.colorspace import linear_to_srgb
 from blendify_core.testing import bunny_scene, data_path, look_at_camera, pointcloud_scene
 
 RESULTS = Path(__file__).parent / "results"

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 
 import blendify_core as bf
-from blendify_core.colors import UniformColors
-from blendify_core.materials import PrincipledBSDFMaterial
+from blendify_core.ir.colors import UniformColors
+from blendify_core.ir.materials import PrincipledBSDFMaterial
 from blendify_core.testing import primitives_scene
 
 RESULTS = Path(__file__).resolve().parent / "results"

@@ -57,7 +57,7 @@ PC_CAM = np.array([2.4, -2.4, 1.8])
 
 
 def _look_at_matrix(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
-    from blendify_core.transforms import look_at_rotation
+    from blendify_core.ir.transforms import look_at_rotation
 
     m = np.eye(4)
     m[:3, :3] = look_at_rotation(pos, target)
@@ -198,7 +198,7 @@ def run_pointcloud(impl: str) -> dict[str, Any]:
 def run_translation(impl: str) -> dict[str, Any]:
     import bpy
 
-    from blendify_core.geometry import icosphere
+    from blendify_core.ir.geometry import icosphere
 
     ico = icosphere(7)
     v, f = ico.vertices, ico.faces
@@ -321,7 +321,7 @@ def run_primitives(impl: str) -> dict[str, Any]:
         from blendify_blender import CyclesBackend
 
         import blendify_core as bf
-        from blendify_core.settings import resolve_settings
+        from blendify_core.pipeline.settings import resolve_settings
 
         backend = CyclesBackend()
         scene = bf.Scene()
@@ -346,7 +346,7 @@ def run_primitives(impl: str) -> dict[str, Any]:
         return {"batches": batches, "n_objects": n_objects}
     import mathutils
 
-    from blendify_core.geometry import tube_along_polyline, uv_sphere
+    from blendify_core.ir.geometry import tube_along_polyline, uv_sphere
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
@@ -488,7 +488,7 @@ def _memory_scene(i: int) -> Any:
 
     if i % 2 == 0:
         return testing.pointcloud_scene(n=2000 + 37 * i, resolution=(64, 64), seed=i)
-    from blendify_core.geometry import icosphere
+    from blendify_core.ir.geometry import icosphere
 
     scene = testing.primitives_scene((64, 48))
     rng = np.random.default_rng(i)

@@ -116,7 +116,7 @@ def bench_meshify(quick: bool) -> list[str]:
 
 
 def bench_normals(quick: bool) -> list[str]:
-    from blendify_core.geometry import icosphere
+    from blendify_core.ir.geometry import icosphere
 
     rng = np.random.default_rng(0)
     rows = [

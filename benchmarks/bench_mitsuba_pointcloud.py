@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from blendify_core import testing
-from blendify_core.settings import resolve_settings
+from blendify_core.pipeline.settings import resolve_settings
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from blendify_core import testing
-from blendify_core.settings import resolve_settings
+from blendify_core.pipeline.settings import resolve_settings
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -54,7 +54,7 @@ def _time_mitsuba(scene, variant: str, settings, repeats: int) -> dict:
 
 
 def _time_cycles(scene, settings, repeats: int) -> dict:
-    from blendify_core.backend import get_backend
+    from blendify_core.pipeline.backend import get_backend
 
     try:
         backend = get_backend("cycles")
@@ -112,7 +112,7 @@ def main() -> None:
 def _save_images(light: str, engines: dict) -> None:
     from PIL import Image
 
-    from blendify_core.colorspace import linear_to_srgb
+    from blendify_core.ir.colorspace import linear_to_srgb
 
     tiles = [r["image"] for r in engines.values() if "image" in r]
     if not tiles:

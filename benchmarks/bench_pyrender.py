@@ -43,7 +43,7 @@ def build_scene(name: str):  # type: ignore[no-untyped-def]
     if name == "bunny":
         return testing.bunny_scene(RES)
     from blendify_core import DiffuseMaterial, PrincipledBSDFMaterial, Scene, UniformColors, VertexColors
-    from blendify_core.geometry import icosphere
+    from blendify_core.ir.geometry import icosphere
 
     ico = icosphere(8, radius=0.5)  # 20 * 4^8 = 1,310,720 triangles
     scene = Scene()
@@ -71,7 +71,7 @@ def orbit(scene, i: int) -> None:  # type: ignore[no-untyped-def]
     rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
     base = cam._bench_base if hasattr(cam, "_bench_base") else (cam.translation.copy(), cam.quaternion.copy())
     cam._bench_base = base
-    from blendify_core.transforms import matrix_to_quaternion, quaternion_to_matrix
+    from blendify_core.ir.transforms import matrix_to_quaternion, quaternion_to_matrix
 
     cam.set_position(
         rotation_mode="quaternionWXYZ",

@@ -95,7 +95,7 @@ def instanced(be, scene, n: int) -> dict:  # type: ignore[no-untyped-def]
     import pyrender
     from bench_pyrender import orbit
 
-    from blendify_core.geometry import icosphere
+    from blendify_core.ir.geometry import icosphere
 
     eng = be.engine_instance
     pts = scene.renderables["points"]

@@ -31,8 +31,8 @@ from test_xb_canonical import KNOWN  # noqa: E402
 from xb_canonical import CANONICAL  # noqa: E402
 
 import blendify_core as bf  # noqa: E402
-from blendify_core.compare import TIER_NOTES, TIERS, alpha_centroids  # noqa: E402
-from blendify_core.stats import ReferenceEstimate  # noqa: E402
+from blendify_core.evaluate.compare import TIER_NOTES, TIERS, alpha_centroids  # noqa: E402
+from blendify_core.evaluate.stats import ReferenceEstimate  # noqa: E402
 from blendify_core.testing import marker_scene, plane_scene  # noqa: E402
 
 BACKENDS = ("cycles", "mitsuba", "pyrender")
@@ -277,8 +277,8 @@ def main(argv: list[str] | None = None) -> int:
         doc += [
             "## Statistical test on real renders",
             "",
-            "`blendify_core.stats`: per-pixel Z-test (Šidák-corrected, t distribution for a K-render reference) "
-            "plus tile and whole-image aggregates. A correct render passes against its own reference; a 2 % "
+            "`blendify_core.evaluate.stats`: per-pixel Z-test (Šidák-corrected, t distribution for a K-render "
+            "reference) plus tile and whole-image aggregates. A correct render passes against its own reference; a 2 % "
             "bias fails.",
             "",
             *statistical_checks(status),
@@ -315,7 +315,7 @@ def main(argv: list[str] | None = None) -> int:
         "xc = bf.crosscheck(scene, samples=256)      # every available backend, every pair at its tier",
         "xc.pairs[('cycles', 'mitsuba')], xc.skipped; xc.save('out/')   # contact sheet + markdown report",
         "",
-        "from blendify_core.stats import estimate_reference",
+        "from blendify_core.evaluate.stats import estimate_reference",
         "ref = estimate_reference(scene, k=8, samples=16, backend='mitsuba')  # mean + variance from 8 seeds",
         "ref.z_test(bf.render(scene, backend='mitsuba', samples=16, seed=99).rgb).passed",
         "```",
@@ -326,7 +326,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
     notes = [f"- `{t}`: {why}" for t, why in TIER_NOTES.items()]
     doc += [
-        "## Tolerance tiers (`blendify_core.compare.TIERS`)",
+        "## Tolerance tiers (`blendify_core.evaluate.compare.TIERS`)",
         "",
         "CONV = `docs/conventions.md`, section *Measurements behind the tolerance tiers* (sections 5, 6, 11, 13, "
         "made with the same engine versions); "

@@ -5,20 +5,18 @@ Importing this package loads numpy and scipy only; engines are imported by their
 
 from __future__ import annotations
 
-from .backend import (
-    Backend,
-    BackendStatus,
-    Capability,
-    available_backends,
-    backend_names,
-    close_backends,
-    get_backend,
-    get_backend_class,
-    register_backend,
+from blendify_core.batch.run import BatchReport, RenderJob, render_many
+from blendify_core.errors import (
+    BackendUnavailableError,
+    BlendifyError,
+    InvalidSceneError,
+    OutputError,
+    RenderError,
+    UnsupportedFeatureError,
 )
-from .batch import BatchReport, RenderJob, render_many
-from .cameras import Camera, OrthographicCamera, PerspectiveCamera
-from .colors import (
+from blendify_core.evaluate.compare import CompareReport, CrosscheckReport, compare, crosscheck
+from blendify_core.ir.cameras import Camera, OrthographicCamera, PerspectiveCamera
+from blendify_core.ir.colors import (
     FacesUV,
     FileTextureColors,
     NormalMap,
@@ -28,17 +26,7 @@ from .colors import (
     VertexColors,
     VertexUV,
 )
-from .compare import CompareReport, CrosscheckReport, compare, crosscheck
-from .effects import Effects, analyse_effects
-from .errors import (
-    BackendUnavailableError,
-    BlendifyError,
-    InvalidSceneError,
-    OutputError,
-    RenderError,
-    UnsupportedFeatureError,
-)
-from .lights import (
+from blendify_core.ir.lights import (
     AreaLight,
     BackgroundLight,
     EnvironmentMap,
@@ -46,7 +34,7 @@ from .lights import (
     SpotLight,
     SunLight,
 )
-from .materials import (
+from blendify_core.ir.materials import (
     DiffuseMaterial,
     GlossyBSDFMaterial,
     Material,
@@ -57,8 +45,7 @@ from .materials import (
     PrincipledBSDFMaterial,
     PrincipledBSDFWireframeMaterial,
 )
-from .render import render
-from .renderables import (
+from blendify_core.ir.renderables import (
     CircleMesh,
     CubeMesh,
     CurveBezier,
@@ -69,10 +56,23 @@ from .renderables import (
     PointCloud,
     SphereNURBS,
 )
-from .result import RenderResult
-from .scene import Scene
-from .settings import RenderSettings, resolve_settings
-from .utils.animation import render_frames as render_frames
+from blendify_core.ir.scene import Scene
+from blendify_core.pipeline.backend import (
+    Backend,
+    BackendStatus,
+    Capability,
+    available_backends,
+    backend_names,
+    close_backends,
+    get_backend,
+    get_backend_class,
+    register_backend,
+)
+from blendify_core.pipeline.effects import Effects, analyse_effects
+from blendify_core.pipeline.render import render
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings, resolve_settings
+from blendify_core.utils.animation import render_frames as render_frames
 
 __version__ = "0.1.0"
 

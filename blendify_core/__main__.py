@@ -1,5 +1,5 @@
 """``python -m blendify_core`` runs the ``blendify`` command."""
 
-from .cli import main
+from blendify_core.cli.main import main
 
 raise SystemExit(main())

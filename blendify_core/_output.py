@@ -25,7 +25,7 @@ import stat
 from pathlib import Path
 from typing import Any
 
-from .errors import MissingFolderError, OutputError
+from blendify_core.errors import MissingFolderError, OutputError
 
 __all__ = ["AtomicOutput", "atomic_write", "ensure_folder", "output_error"]
 

@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from .colors import FacesUV, TextureColors, UniformColors, VertexColors, VertexUV
-from .materials import DiffuseMaterial, MetalMaterial, PlasticMaterial, PrincipledBSDFMaterial
-from .scene import Scene
+from blendify_core.ir.colors import FacesUV, TextureColors, UniformColors, VertexColors, VertexUV
+from blendify_core.ir.materials import DiffuseMaterial, MetalMaterial, PlasticMaterial, PrincipledBSDFMaterial
+from blendify_core.ir.scene import Scene
 
 __all__ = [
     "DATA_DIR",
@@ -195,7 +195,7 @@ def bunny_scene(
     faces = np.asarray(tm.faces)[:, [0, 2, 1]]
     scene = Scene()
     if vertex_colors:
-        from .geometry import vertex_normals
+        from blendify_core.ir.geometry import vertex_normals
 
         n = vertex_normals(v, faces)
         colors: Any = VertexColors(np.clip(np.abs(n) * 0.8 + 0.1, 0, 1))
@@ -282,8 +282,8 @@ def primitives_scene(resolution: tuple[int, int] = (128, 96)) -> Scene:
 def every_feature_scene(resolution: tuple[int, int] = (96, 72)) -> Scene:
     """One scene using (nearly) every IR feature: meshes with uniform/vertex/texture colours and per-face
     materials, a point cloud, all primitives, wireframe, emission, alpha, all light types."""
-    from .colors import NormalMap, TextureMap
-    from .materials import GlossyBSDFMaterial, PlasticWireframeMaterial
+    from blendify_core.ir.colors import NormalMap, TextureMap
+    from blendify_core.ir.materials import GlossyBSDFMaterial, PlasticWireframeMaterial
 
     scene = primitives_scene(resolution)
     r = scene.renderables
@@ -553,7 +553,7 @@ HARD_CASE_REFERENCE = {
 def _hc_world_vertices(offset: Any) -> Scene:
     """A torus mesh whose vertices are given in world coordinates around ``offset`` (identity pose), as
     scans and simulation output usually are."""
-    from .geometry import torus
+    from blendify_core.ir.geometry import torus
 
     off = np.asarray(offset, dtype=np.float64)
     t = torus(0.6, 0.25, 48, 24)
@@ -605,7 +605,7 @@ def _hc_empty() -> Scene:
 
 
 def _hc_big_mesh() -> Scene:
-    from .geometry import uv_sphere
+    from blendify_core.ir.geometry import uv_sphere
 
     m = uv_sphere(1.0, 1000, 1000)
     return _hc_mesh(m.vertices, m.faces)
@@ -702,7 +702,7 @@ def _hc_light_at_camera() -> Scene:
 
 
 def _hc_vertex_colors() -> Scene:
-    from .geometry import uv_sphere
+    from blendify_core.ir.geometry import uv_sphere
 
     scene = _hc_base()
     scene.renderables.clear()
@@ -785,7 +785,7 @@ def _hc_world_curve(offset: Any) -> Scene:
 
 def _hc_default_clip(scale: float) -> Scene:
     """The reference scene at ``scale`` with the camera's default near/far (0.1, 100): everything is
-    clipped, which :func:`blendify_core.render` reports with a warning naming near or far."""
+    clipped, which :func:`blendify_core.pipeline.render` reports with a warning naming near or far."""
     scene = _hc_base(scale=scale)
     cam = scene.camera
     cam.far = max(cam.far, 100.0)  # type: ignore[union-attr]  (order: near < far at every step)

@@ -7,7 +7,7 @@ import numpy as np
 from _common import out_dir, parser
 
 import blendify_core as bf
-from blendify_core.geometry import torus
+from blendify_core.ir.geometry import torus
 
 
 def main() -> None:

@@ -7,12 +7,12 @@ are imported by the functions that need them.
 
 from __future__ import annotations
 
-from .animation import FramesReport, render_frames, write_video
-from .colors import approximate_colors_from_camera
-from .image import blend_with_background, contact_sheet, crop_to_content, to_display_uint8
-from .meshify import MeshifyResult, add_meshified, meshify_pointcloud
-from .normals import estimate_normals, normals_from_mesh, orient_normals
-from .trajectory import Pose, Trajectory, apply_pose
+from blendify_core.utils.animation import FramesReport, render_frames, write_video
+from blendify_core.utils.colors import approximate_colors_from_camera
+from blendify_core.utils.image import blend_with_background, contact_sheet, crop_to_content, to_display_uint8
+from blendify_core.utils.meshify import MeshifyResult, add_meshified, meshify_pointcloud
+from blendify_core.utils.normals import estimate_normals, normals_from_mesh, orient_normals
+from blendify_core.utils.trajectory import Pose, Trajectory, apply_pose
 
 __all__ = [
     "estimate_normals",

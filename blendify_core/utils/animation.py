@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import _describe, as_float
-from ..errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.ir.validate import _describe, as_float
 
 __all__ = ["render_frames", "FramesReport", "MANIFEST_NAME", "write_video"]
 
@@ -44,7 +44,7 @@ class FramesReport:
 
 
 def _jsonable(value: Any) -> Any:
-    from ..result import _jsonable as core_jsonable
+    from blendify_core.pipeline.result import _jsonable as core_jsonable
 
     return core_jsonable(value)
 
@@ -73,7 +73,7 @@ def _read_manifest(path: Path) -> dict[str, dict[str, Any]]:
 
 def _rewrite_manifest(path: Path, entries: dict[str, dict[str, Any]]) -> None:
     """Replace the manifest by one line per frame (atomically): keeps it compact across resumed runs."""
-    from .._output import atomic_write
+    from blendify_core._output import atomic_write
 
     text = "".join(json.dumps(entries[k], sort_keys=True) + "\n" for k in sorted(entries))
 
@@ -86,7 +86,7 @@ def _rewrite_manifest(path: Path, entries: dict[str, dict[str, Any]]) -> None:
 
 def _append_manifest(path: Path, entry: dict[str, Any]) -> None:
     """Append one finished frame (O(1) per frame, durable before the next frame starts)."""
-    from .._output import output_error
+    from blendify_core._output import output_error
 
     try:
         with open(path, "a") as f:  # a plain open: a new manifest gets the usual mode (0o666 & ~umask)
@@ -106,7 +106,7 @@ def _even_rgb(frame: np.ndarray) -> np.ndarray:
 
 
 def _video_frame(result_or_png: Any, background: np.ndarray) -> np.ndarray:
-    from .image import blend_with_background
+    from blendify_core.utils.image import blend_with_background
 
     if isinstance(result_or_png, (str, Path)):
         from PIL import Image
@@ -132,7 +132,7 @@ class _VideoWriter:
                 "video_path: writing an MP4 needs the 'video' extra: pip install 'blendify-core[video]' "
                 "(imageio and imageio-ffmpeg)"
             ) from None
-        from .._output import AtomicOutput
+        from blendify_core._output import AtomicOutput
 
         # checks the folder, the name and the permissions before any frame is rendered
         self._out = AtomicOutput(path, arg="video_path", suffix=path.suffix or ".mp4")
@@ -159,7 +159,7 @@ class _VideoWriter:
         self._writer.append_data(frame)
 
     def finish(self) -> Path:
-        from .._output import output_error
+        from blendify_core._output import output_error
 
         try:
             self._writer.close()
@@ -188,7 +188,7 @@ def write_video(
 ) -> Path:
     """Encode PNG paths, uint8 images or RenderResults into an MP4 (H.264, yuv420p), atomically.
     Transparent pixels are composited over ``background`` (sRGB); odd sizes are padded to even."""
-    from .image import _color3, blend_with_background, to_display_uint8
+    from blendify_core.utils.image import _color3, blend_with_background, to_display_uint8
 
     bg = _color3("background", background)
     fps = as_float("fps", fps, min_value=0.0, exclusive_min=True)
@@ -211,7 +211,7 @@ def write_video(
 def _frame_plan(
     trajectory_or_callback: Any, fps: float, n_frames: int | None, interpolation: str, smoothness: float
 ) -> tuple[list[Any] | None, Callable[[Any, int], Any] | None, int]:
-    from .trajectory import Pose, Trajectory
+    from blendify_core.utils.trajectory import Pose, Trajectory
 
     if isinstance(trajectory_or_callback, Trajectory):
         poses = trajectory_or_callback.refine(1.0 / fps, interpolation=interpolation, smoothness=smoothness)
@@ -257,7 +257,7 @@ def render_frames(
     on_frame: Callable[[Any, int], Any] | None = None,
     **render_kwargs: Any,
 ) -> FramesReport:
-    """Render a sequence of frames of ``scene`` with :func:`blendify_core.render`.
+    """Render a sequence of frames of ``scene`` with :func:`blendify_core.pipeline.render`.
 
     ``trajectory_or_callback``:
       - a :class:`~blendify_core.utils.Trajectory`: refined every ``1 / fps`` seconds (``interpolation``,
@@ -284,12 +284,12 @@ def render_frames(
     The backend instance is resolved once and reused for every frame (``bf.render``'s shared instance),
     so backends that cache the translated scene only update what changed. ``progress=True`` shows a
     tqdm progress bar with ETA. The camera pose is restored afterwards (``restore_camera``).
-    Remaining keyword arguments go to :func:`blendify_core.render` (``samples``, ``outputs``, ``seed``,
+    Remaining keyword arguments go to :func:`blendify_core.pipeline.render` (``samples``, ``outputs``, ``seed``,
     backend options...).
     """
-    from ..render import choose_backend
-    from ..render import render as bf_render
-    from ..scene import Scene
+    from blendify_core.ir.scene import Scene
+    from blendify_core.pipeline.render import choose_backend
+    from blendify_core.pipeline.render import render as bf_render
 
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {_describe(scene)}")
@@ -305,12 +305,12 @@ def render_frames(
         )
     if poses is not None and scene.camera is None:
         raise InvalidSceneError("scene.camera: a trajectory moves the scene camera; set a camera first")
-    from .image import _color3
+    from blendify_core.utils.image import _color3
 
     bg = _color3("background", background)
 
     # resolve the backend once (a name stays a name so bf.render reuses its shared instance)
-    from ..backend import Backend
+    from blendify_core.pipeline.backend import Backend
 
     if backend is None:
         backend_name, _notes = choose_backend(quality)
@@ -327,7 +327,7 @@ def render_frames(
     outputs = tuple("rgb" if o == "rgba" else o for o in outputs)
     if video_path is not None and "rgb" not in outputs:
         raise InvalidSceneError("video_path: a video needs the 'rgb' output; add 'rgb' to outputs")
-    from ..backend import get_backend_class
+    from blendify_core.pipeline.backend import get_backend_class
 
     engine_version = backend.engine_version() if isinstance(backend, Backend) else None
     if engine_version is None and not isinstance(backend, Backend):
@@ -345,7 +345,7 @@ def render_frames(
     manifest: dict[str, dict[str, Any]] = {}
     manifest_path: Path | None = None
     if frames_dir is not None:
-        from .._output import ensure_folder
+        from blendify_core._output import ensure_folder
 
         fdir = ensure_folder(frames_dir, arg="frames_dir")
         manifest_path = fdir / MANIFEST_NAME
@@ -356,7 +356,7 @@ def render_frames(
     keep = keep_results or (fdir is None and video_path is None)
 
     report = FramesReport(backend=backend_name)
-    from .trajectory import apply_pose
+    from blendify_core.utils.trajectory import apply_pose
 
     cam = scene.camera
     saved_pose = None if cam is None else (cam.quaternion.copy(), cam.translation.copy())

@@ -6,8 +6,8 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import _describe, as_array
-from ..errors import InvalidSceneError
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.validate import _describe, as_array
 
 __all__ = ["approximate_colors_from_camera"]
 
@@ -51,7 +51,7 @@ def approximate_colors_from_camera(
     or one (3|4,) colour, float in [0, 1] or uint8. Values are passed through unchanged (no colour-space
     conversion), so pass sRGB colours to an sRGB VertexColors.
     """
-    from ..cameras import Camera, PerspectiveCamera
+    from blendify_core.ir.cameras import Camera, PerspectiveCamera
 
     n = as_array("normals", normals, dtype=np.float64, ndim=2)
     if n.shape[1] != 3:

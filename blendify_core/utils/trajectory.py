@@ -13,9 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import _describe, as_array, as_float
-from ..errors import InvalidSceneError
-from ..transforms import quaternion_from_rotation
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.transforms import quaternion_from_rotation
+from blendify_core.ir.validate import _describe, as_array, as_float
 
 __all__ = ["Pose", "Trajectory", "apply_pose"]
 
@@ -47,7 +47,7 @@ class Pose:
 
 def apply_pose(camera: Any, pose: Pose | dict[str, Any]) -> None:
     """Move a camera (or any blendify positionable object) to ``pose``."""
-    from ..transforms import Positionable
+    from blendify_core.ir.transforms import Positionable
 
     if not isinstance(camera, Positionable):
         raise InvalidSceneError(f"camera: expected a blendify camera or positionable object, got {_describe(camera)}")

@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core.backend import Backend
 from blendify_core.errors import RenderError
-from blendify_core.features import ALL_FEATURES, Capability
-from blendify_core.result import RenderResult
+from blendify_core.pipeline.backend import Backend
+from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.pipeline.result import RenderResult
 
 _LEAK: list[bytearray] = []
 
@@ -87,9 +87,9 @@ TARGET = "batch_fake_backend:FakeBackend"
 
 def tiny_scene(tag: str, resolution: tuple[int, int] = (16, 12)) -> Any:
     """A one-plane scene whose renderable tag names the job (the fake colours the frame from it)."""
-    from blendify_core.colors import UniformColors
-    from blendify_core.materials import DiffuseMaterial
-    from blendify_core.scene import Scene
+    from blendify_core.ir.colors import UniformColors
+    from blendify_core.ir.materials import DiffuseMaterial
+    from blendify_core.ir.scene import Scene
 
     scene = Scene()
     scene.set_orthographic_camera(resolution, ortho_scale=2.0, translation=(0, 0, 5.0), near=0.1, far=20)
@@ -100,6 +100,6 @@ def tiny_scene(tag: str, resolution: tuple[int, int] = (16, 12)) -> Any:
 
 def expected_red(tag: str) -> int:
     """The 8-bit sRGB red value the fake writes for ``tag``."""
-    from blendify_core.colorspace import linear_to_srgb
+    from blendify_core.ir.colorspace import linear_to_srgb
 
     return int(np.round(linear_to_srgb(np.float32((sum(tag.encode()) % 200) / 255.0)) * 255))

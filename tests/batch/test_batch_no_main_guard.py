@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from batch_fake_backend import FAKE, TARGET, FakeBackend, expected_red, tiny_scene
+from blendify_core.backend import register_backend, unregister_backend
 from PIL import Image
 
 import blendify_core as bf
-from blendify_core import _worker
-from blendify_core.backend import register_backend, unregister_backend
 from blendify_core.batch import MANIFEST_NAME
+from blendify_core.batch import worker as _worker
 from blendify_core.errors import BlendifyError, InvalidSceneError
 
 HERE = Path(__file__).resolve().parent

@@ -12,8 +12,8 @@ import pytest
 from batch_fake_backend import FAKE, TARGET, tiny_scene
 
 import blendify_core as bf
-from blendify_core.backend import register_backend, unregister_backend
-from blendify_core.batch import MANIFEST_NAME
+from blendify_core.batch.run import MANIFEST_NAME
+from blendify_core.pipeline.backend import register_backend, unregister_backend
 
 # workers must use this interpreter, not `uv run` in a packaged copy of the checkout
 os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
@@ -92,7 +92,7 @@ def test_ray_recycles_workers_and_takes_scene_files(tmp_path):
 
 
 def test_cli_batch_with_ray(tmp_path, capsys):
-    from blendify_core.cli import main
+    from blendify_core.cli.main import main
 
     (tmp_path / "sc").mkdir()
     rows = []

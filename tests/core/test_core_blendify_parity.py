@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.lights import LightsCollection
-from blendify_core.renderables import RenderablesCollection
+from blendify_core.ir.lights import LightsCollection
+from blendify_core.ir.renderables import RenderablesCollection
 
 POSE = ["rotation_mode", "rotation", "translation", "tag"]
 MISSING = object()
@@ -449,7 +449,7 @@ def test_all_area_light_shapes():
     areas = {shape: lights.add_area(shape, size).area for shape, size in sizes.items()}
     assert areas["square"] == 1.0 and areas["rectangle"] == 2.0
     assert np.isclose(areas["circle"], np.pi / 4) and np.isclose(areas["ellipse"], np.pi / 2)
-    assert bf.lights.SquareAreaLight is bf.AreaLight  # blendify's class names resolve
+    assert bf.ir.lights.SquareAreaLight is bf.AreaLight  # blendify's class names resolve
 
 
 def test_camera_properties_like_blendify():
@@ -736,7 +736,7 @@ def test_assigning_properties_goes_through_the_update_methods():
 
 
 def test_recentring_does_not_touch_the_users_objects():
-    from blendify_core.recentre import recentred_view
+    from blendify_core.pipeline.recentre import recentred_view
 
     s = bf.Scene()
     curve = s.renderables.add_curve_nurbs(

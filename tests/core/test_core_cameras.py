@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import blendify_core as bf
-from blendify_core.cameras import CV_FROM_BLENDER
+from blendify_core.ir.cameras import CV_FROM_BLENDER
 
 SETTINGS = settings(max_examples=120, deadline=None)
 

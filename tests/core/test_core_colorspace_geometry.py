@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import blendify_core as bf
-from blendify_core.colorspace import linear_to_srgb, linear_to_srgb8, srgb8_to_linear, srgb_to_linear
-from blendify_core.geometry import (
+from blendify_core.ir.colorspace import linear_to_srgb, linear_to_srgb8, srgb8_to_linear, srgb_to_linear
+from blendify_core.ir.geometry import (
     face_normals,
     icosphere,
     triangulate_polygons,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.effects import Effects
+from blendify_core.pipeline.effects import Effects
 
 WHITE = bf.UniformColors((0.8, 0.8, 0.8))
 V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1.0]])

@@ -14,12 +14,16 @@ import blendify_core
 
 FORBIDDEN = ("bpy", "mitsuba", "drjit", "pyrender", "OpenGL", "pyglet", "trimesh", "PIL", "matplotlib")
 # modules that exist to talk to heavy libraries on purpose (they import them lazily anyway)
-EXCLUDED = {"cli", "trimesh_io", "__main__"}
+EXCLUDED = {"cli", "cli.main", "cli.demo", "ir.from_trimesh", "__main__"}
 
 
 def _submodules() -> list[str]:
-    names = [m.name for m in pkgutil.iter_modules(blendify_core.__path__) if m.name not in EXCLUDED]
-    assert "scene" in names and "render" in names and "testing" in names, names
+    names = [
+        m.name.removeprefix("blendify_core.")
+        for m in pkgutil.walk_packages(blendify_core.__path__, prefix="blendify_core.")
+    ]
+    names = [n for n in names if n not in EXCLUDED]
+    assert "ir.scene" in names and "pipeline.render" in names and "testing" in names, names
     return sorted(names)
 
 
@@ -30,7 +34,7 @@ STAGES = {
     "build, fingerprint and analyse a scene": (
         "import blendify_core as bf\n"
         "from blendify_core.testing import every_feature_scene\n"
-        "from blendify_core.features import scene_features\n"
+        "from blendify_core.pipeline.capabilities import scene_features\n"
         "s = every_feature_scene()\n"
         "s.fingerprint()\n"
         "bf.analyse_effects(s)\n"

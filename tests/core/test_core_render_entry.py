@@ -12,11 +12,11 @@ import pytest
 from core_fake_backend import FakeBackend, close_fake_instances
 
 import blendify_core as bf
-from blendify_core import backend as backend_mod
-from blendify_core.backend import register_backend, unregister_backend
-from blendify_core.distortion import distort_points, undistort_points
 from blendify_core.errors import BackendUnavailableError, RenderError, UnsupportedFeatureError
-from blendify_core.features import ALL_FEATURES, Capability
+from blendify_core.pipeline import backend as backend_mod
+from blendify_core.pipeline.backend import register_backend, unregister_backend
+from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.pipeline.distortion import distort_points, undistort_points
 
 # ---------------------------------------------------------------------------------------------------
 # backend choice
@@ -160,7 +160,7 @@ def test_approximations_are_listed_and_strict_raises(fake_backend, simple_scene)
 
 def test_every_feature_name_is_checked(fake_backend):
     """A backend that supports nothing rejects every feature the every-feature scene uses."""
-    from blendify_core.features import scene_features
+    from blendify_core.pipeline.capabilities import scene_features
     from blendify_core.testing import every_feature_scene
 
     s = every_feature_scene()

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from blendify_core.errors import InvalidSceneError
-from blendify_core.result import RenderResult, atomic_write
+from blendify_core.pipeline.result import RenderResult, atomic_write
 
 META = {
     "backend": "fake",

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 import blendify_core as bf
 from blendify_core.errors import InvalidSceneError
-from blendify_core.transforms import look_at_rotation, quaternion_from_rotation, quaternion_to_matrix
+from blendify_core.ir.transforms import look_at_rotation, quaternion_from_rotation, quaternion_to_matrix
 
 SETTINGS = settings(max_examples=150, deadline=None)
 

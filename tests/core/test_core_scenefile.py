@@ -17,8 +17,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import blendify_core as bf
-from blendify_core.colors import TextureMap
 from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.colors import TextureMap
 from blendify_core.testing import every_feature_scene
 
 # ---------------------------------------------------------------------------------------------------
@@ -761,7 +761,7 @@ def test_random_scene_round_trips_bit_for_bit(tmp_path, q1, q2, q3, t, rough, co
 
 
 def test_file_textures_are_never_decoded_by_the_core(tmp_path, data_dir, monkeypatch):
-    import blendify_core.colors as colors_mod
+    import blendify_core.ir.colors as colors_mod
 
     def forbidden(path):
         raise AssertionError(f"the core decoded {path}")
@@ -770,7 +770,7 @@ def test_file_textures_are_never_decoded_by_the_core(tmp_path, data_dir, monkeyp
     scene = full_scene(tmp_path, data_dir, env_from_file=True)  # RGB jpg texture + environment
     tex = scene.renderables["fuze_quads"].colors
     assert tex.has_alpha is False  # from the file header
-    from blendify_core.features import scene_features
+    from blendify_core.pipeline.capabilities import scene_features
 
     scene_features(scene, ("rgb", "depth"))
     bf.analyse_effects(scene)

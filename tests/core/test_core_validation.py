@@ -8,8 +8,8 @@ import pytest
 
 import blendify_core as bf
 from blendify_core.errors import BlendifyError, InvalidSceneError
-from blendify_core.result import RenderResult
-from blendify_core.settings import resolve_settings
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import resolve_settings
 
 M = bf.PrincipledBSDFMaterial
 U = bf.UniformColors
@@ -543,13 +543,13 @@ def _fuzz_cases():
 
     for label, (fn, base) in _CALLS.items():
         target = {
-            "add_mesh": bf.renderables.RenderablesCollection.add_mesh,
-            "add_pointcloud": bf.renderables.RenderablesCollection.add_pointcloud,
-            "add_cylinder_mesh": bf.renderables.RenderablesCollection.add_cylinder_mesh,
-            "add_curve_nurbs": bf.renderables.RenderablesCollection.add_curve_nurbs,
-            "add_spot": bf.lights.LightsCollection.add_spot,
-            "add_area": bf.lights.LightsCollection.add_area,
-            "set_environment_map": bf.lights.LightsCollection.set_environment_map,
+            "add_mesh": bf.ir.renderables.RenderablesCollection.add_mesh,
+            "add_pointcloud": bf.ir.renderables.RenderablesCollection.add_pointcloud,
+            "add_cylinder_mesh": bf.ir.renderables.RenderablesCollection.add_cylinder_mesh,
+            "add_curve_nurbs": bf.ir.renderables.RenderablesCollection.add_curve_nurbs,
+            "add_spot": bf.ir.lights.LightsCollection.add_spot,
+            "add_area": bf.ir.lights.LightsCollection.add_area,
+            "set_environment_map": bf.ir.lights.LightsCollection.set_environment_map,
             "set_perspective_camera": bf.Scene.set_perspective_camera,
             "set_camera_from_opencv": bf.Scene.set_camera_from_opencv,
             "TextureColors": bf.TextureColors.__init__,

@@ -10,7 +10,7 @@ from xb_canonical import CANONICAL
 from xb_util import PAIRS, require
 
 import blendify_core as bf
-from blendify_core.compare import choose_tier
+from blendify_core.evaluate.compare import choose_tier
 
 OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
 
@@ -18,7 +18,7 @@ OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
 #: The pairs are xfail (not strict): when a backend fixes the cause, the test XPASSes and the entry goes.
 KNOWN = {
     ("fuze", "cycles"): "Cycles' smooth normals differ from the IR's (1 deg median, 5.3 deg q99 per pixel): "
-    "Blender recomputes angle-weighted vertex normals, blendify_core.geometry.vertex_normals is area-weighted "
+    "Blender recomputes angle-weighted vertex normals, blendify_core.ir.geometry.vertex_normals is area-weighted "
     "(on fuze.obj the two differ by 1.2 deg median, 11 deg q99 per vertex); the albedo differs by 3.4 % "
     "(Cycles filters its albedo pass over the pixel, Mitsuba looks the texture up at the pixel centre)",
     ("pointcloud", "pyrender"): "pyrender approximates points by coarser spheres (level of detail): depth "

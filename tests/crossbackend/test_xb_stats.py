@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.stats import ReferenceEstimate, estimate_reference
+from blendify_core.evaluate.stats import ReferenceEstimate, estimate_reference
 from blendify_core.testing import plane_scene
 
 K, SPP = 6, 8

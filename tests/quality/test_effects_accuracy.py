@@ -1,5 +1,5 @@
 """Effect-aware settings (``effects=True``) give the same image as full settings (``effects=False``) within
-noise: K independent renders of each, compared with the two-sample Welch test of blendify_core.stats.
+noise: K independent renders of each, compared with the two-sample Welch test of blendify_core.evaluate.stats.
 The time each side took is printed (the committed numbers are in benchmarks/results/accuracy_vs_time.md)."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.stats import estimate_reference
+from blendify_core.evaluate.stats import estimate_reference
 from blendify_core.testing import bunny_scene, look_at_camera, pointcloud_scene
 
 RES = 32

@@ -8,7 +8,7 @@ import dataclasses
 import pytest
 
 import blendify_core as bf
-from blendify_core.settings import RenderSettings, resolve_settings
+from blendify_core.pipeline.settings import RenderSettings, resolve_settings
 from blendify_core.testing import plane_scene
 
 

@@ -142,7 +142,7 @@ def many(**kw: Any) -> Callable[[Ctx], Any]:
 
 def read_jobs_file(text: str) -> Callable[[Ctx], Any]:
     def run(ctx: Ctx) -> Any:
-        from blendify_core.batch import read_jobs
+        from blendify_core.batch.run import read_jobs
 
         return read_jobs(ctx.file("jobs.jsonl", text.encode()))
 
@@ -482,7 +482,7 @@ API: list[Bad] = [
     Bad(
         "read-jobs-missing",
         "read_jobs of a missing file",
-        lambda c: __import__("blendify_core.batch").batch.read_jobs(c.inp / "none.jsonl"),
+        lambda c: __import__("blendify_core.batch.run").batch.read_jobs(c.inp / "none.jsonl"),
         bf.InvalidSceneError,
         ("jobs", "none.jsonl"),
     ),

@@ -15,7 +15,7 @@ from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 import blendify_core as bf
-from blendify_core.recentre import FAR_RATIO, needs_recentring, recentred_view
+from blendify_core.pipeline.recentre import FAR_RATIO, needs_recentring, recentred_view
 
 SETTINGS = settings(max_examples=300, deadline=None)
 

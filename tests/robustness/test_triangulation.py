@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.geometry import triangulate_polygons
+from blendify_core.ir.geometry import triangulate_polygons
 
 L_SHAPE = np.array([[1, 1], [1, 2], [0, 2], [0, 0], [2, 0], [2, 1]], float)  # area 3, one reflex corner
 
@@ -62,7 +62,7 @@ def test_mesh_with_a_concave_face_has_the_polygon_area():
 def test_huge_concave_polygon_keeps_the_fan_with_a_warning():
     """A concave polygon of more than MAX_EAR_CLIP_CORNERS corners is not ear-clipped (that would take
     minutes): fan triangles and a warning naming the face, immediately."""
-    from blendify_core.geometry import MAX_EAR_CLIP_CORNERS
+    from blendify_core.ir.geometry import MAX_EAR_CLIP_CORNERS
 
     k = MAX_EAR_CLIP_CORNERS + 2
     t = np.linspace(0, 2 * np.pi, k, endpoint=False)

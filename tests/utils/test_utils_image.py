@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import blendify_core as bf
-from blendify_core.colorspace import linear_to_srgb, srgb_to_linear
+from blendify_core.ir.colorspace import linear_to_srgb, srgb_to_linear
 from blendify_core.utils import blend_with_background, contact_sheet, crop_to_content, to_display_uint8
 
 

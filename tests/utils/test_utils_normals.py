@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import blendify_core as bf
-from blendify_core.geometry import icosphere
+from blendify_core.ir.geometry import icosphere
 from blendify_core.utils import estimate_normals, normals_from_mesh, orient_normals
 
 

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import blendify_core as bf
-from blendify_core.transforms import quaternion_from_rotation, quaternion_to_matrix
+from blendify_core.ir.transforms import quaternion_from_rotation, quaternion_to_matrix
 from blendify_core.utils import Pose, Trajectory, apply_pose
 
 

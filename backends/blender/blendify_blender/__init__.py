@@ -47,11 +47,11 @@ import logging
 import time
 from typing import Any
 
-from blendify_core.backend import Backend, BackendStatus
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
-from blendify_core.features import ALL_FEATURES, Capability
-from blendify_core.result import RenderResult
-from blendify_core.settings import RenderSettings
+from blendify_core.pipeline.backend import Backend, BackendStatus
+from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings
 
 __all__ = ["CyclesBackend"]
 

@@ -17,7 +17,7 @@ Security: nothing embedded in the file is ever executed, whatever the user's Ble
   evaluation: with auto-run off Blender would still run such expressions in its restricted namespace;
   the deleted drivers are listed in the warning.
 
-What is parsed into the IR (``scene`` must be a :class:`blendify_core.scene.Scene`):
+What is parsed into the IR (``scene`` must be a :class:`blendify_core.ir.scene.Scene`):
 
 - meshes and everything that converts to a mesh (curves, surfaces, text, metaballs, geometry-nodes
   output, collection and particle instances), evaluated through the depsgraph with the RENDER
@@ -25,16 +25,16 @@ What is parsed into the IR (``scene`` must be a :class:`blendify_core.scene.Scen
   world transform (scale and shear baked into the object-space vertices, rotation and translation kept
   as the pose); vertices are split where Blender's corner normals (sharp edges, flat faces) or corner
   colours differ, so smooth/flat shading is kept; ``visible_shadow`` -> ``emit_shadows``;
-- native point clouds (e.g. Geometry Nodes Mesh to Points) -> :class:`~blendify_core.renderables.PointCloud`
+- native point clouds (e.g. Geometry Nodes Mesh to Points) -> :class:`~blendify_core.ir.renderables.PointCloud`
   (per-point radius and colour attribute, emission from the colour -> ``particle_emission_strength``);
-- UV layers -> :class:`~blendify_core.colors.FacesUV`; colour attributes read by the material (Color
+- UV layers -> :class:`~blendify_core.ir.colors.FacesUV`; colour attributes read by the material (Color
   Attribute / Attribute node on the Base Color, any domain and storage) ->
-  :class:`~blendify_core.colors.VertexColors` (linear);
-- image textures on a Principled Base Color -> :class:`~blendify_core.colors.FileTextureColors`
+  :class:`~blendify_core.ir.colors.VertexColors` (linear);
+- image textures on a Principled Base Color -> :class:`~blendify_core.ir.colors.FileTextureColors`
   (external files, by absolute path; PACKED images are written to ``texture_dir`` if given, else to the
   cache directory ``$XDG_CACHE_HOME/blendify-core/blend-textures`` (``~/.cache/...``), named by the
   SHA-256 of their bytes, and never deleted by the library) or
-  :class:`~blendify_core.colors.TextureColors` (generated images: pixels read from Blender);
+  :class:`~blendify_core.ir.colors.TextureColors` (generated images: pixels read from Blender);
   texture-driven Roughness / Metallic -> ``roughness_map`` / ``metallic_map``, a tangent-space Normal
   Map node fed by an image -> ``normal_map``;
 - Principled BSDF (and Diffuse / Glossy / Emission shaders, a Mix with a Transparent BSDF = alpha, a Mix
@@ -439,7 +439,7 @@ _IMAGE_EXT = {
 
 
 def _param_ranges() -> dict[str, tuple[float | None, float | None]]:
-    from blendify_core.materials import PrincipledBSDFMaterial
+    from blendify_core.ir.materials import PrincipledBSDFMaterial
 
     return {p.name: (p.min_value, p.max_value) for p in PrincipledBSDFMaterial._params if p.kind == "float"}
 
@@ -618,7 +618,7 @@ class _Parser:
     # -- materials -------------------------------------------------------------------------------
     def material(self, mat: Any, where: str) -> tuple[Any, dict[str, Any]]:
         """(IR material, colour source description) of a Blender material (or None)."""
-        from blendify_core.materials import PrincipledBSDFMaterial
+        from blendify_core.ir.materials import PrincipledBSDFMaterial
 
         if mat is None:
             return PrincipledBSDFMaterial(color_space="linear"), {"kind": "uniform", "rgba": (0.8, 0.8, 0.8, 1.0)}
@@ -656,7 +656,7 @@ class _Parser:
 
     def _shader(self, node: Any, where: str) -> tuple[Any, dict[str, Any]] | None:
         """(IR material, colour description) of a shader node, or None when it cannot be parsed."""
-        from blendify_core.materials import GlossyBSDFMaterial, PrincipledBSDFMaterial
+        from blendify_core.ir.materials import GlossyBSDFMaterial, PrincipledBSDFMaterial
 
         if node.type == "BSDF_PRINCIPLED":
             return self._principled(node, where)
@@ -693,7 +693,7 @@ class _Parser:
     def _mix_shader(self, node: Any, where: str) -> tuple[Any, dict[str, Any]] | None:
         """Two patterns: a wireframe overlay (Mix with a Wireframe factor of two Principled BSDFs) and
         transparency (Mix of a Transparent BSDF and a shader, the factor being the alpha)."""
-        from blendify_core.materials import PrincipledBSDFWireframeMaterial
+        from blendify_core.ir.materials import PrincipledBSDFWireframeMaterial
 
         fac = node.inputs[0]
         a = self._link_from(node.inputs[1])
@@ -758,8 +758,8 @@ class _Parser:
         return c
 
     def _principled(self, node: Any, where: str) -> tuple[Any, dict[str, Any]]:
-        from blendify_core.colors import NormalMap, TextureMap
-        from blendify_core.materials import PrincipledBSDFMaterial
+        from blendify_core.ir.colors import NormalMap, TextureMap
+        from blendify_core.ir.materials import PrincipledBSDFMaterial
 
         params: dict[str, Any] = {}
         inputs = {s.name: s for s in node.inputs}
@@ -883,7 +883,7 @@ class _Parser:
             pend.meshes.append((name, spec))
 
     def _mesh_spec(self, bpy_obj: Any, me: Any, matrix: np.ndarray, name: str) -> dict[str, Any] | None:
-        from blendify_core.colors import FacesUV, FileTextureColors, TextureColors, UniformColors, VertexColors
+        from blendify_core.ir.colors import FacesUV, FileTextureColors, TextureColors, UniformColors, VertexColors
 
         me.calc_loop_triangles()
         nv, nt = len(me.vertices), len(me.loop_triangles)
@@ -1084,7 +1084,7 @@ class _Parser:
 
     def points_instance(self, bpy_obj: Any, matrix: np.ndarray, name: str, pend: _Pending) -> None:
         """A point cloud (native points, e.g. Geometry Nodes Mesh to Points) -> IR PointCloud."""
-        from blendify_core.colors import UniformColors, VertexColors
+        from blendify_core.ir.colors import UniformColors, VertexColors
 
         pc = bpy_obj.data
         attrs = pc.attributes
@@ -1410,7 +1410,7 @@ class _Parser:
 def _opaque_image(kind: str, data: Any) -> tuple[str, Any]:
     """An image whose alpha Blender does not use: files with a real alpha channel are read and their
     RGB kept in memory (the IR would otherwise make the surface transparent)."""
-    from blendify_core.colors import load_image
+    from blendify_core.ir.colors import load_image
 
     img = load_image(data) if kind == "file" else data
     if img.shape[2] != 4:
@@ -1422,7 +1422,7 @@ def _opaque_image(kind: str, data: Any) -> tuple[str, Any]:
 
 
 def _flip_uv_colors(c: Any) -> Any:
-    from blendify_core.colors import FacesUV, FileTextureColors, TextureColors
+    from blendify_core.ir.colors import FacesUV, FileTextureColors, TextureColors
 
     if isinstance(c, FileTextureColors):
         return FileTextureColors(c.texture_path, FacesUV(c.uv_map.data[:, ::-1]), c.color_space, c.interpolation)
@@ -1494,7 +1494,7 @@ def attach_blend(
     """Append a .blend's content into the IR ``scene``; returns the added renderables (see module docs).
 
     Args:
-        scene: the :class:`blendify_core.scene.Scene` to extend.
+        scene: the :class:`blendify_core.ir.scene.Scene` to extend.
         path: the .blend file (never opened as the main file; embedded Python never runs).
         with_camera: also replace ``scene.camera`` by the file's scene camera.
         scene_name: which scene of the file to import (default: the only one, or the first by name, with a
@@ -1504,7 +1504,7 @@ def attach_blend(
         texture_dir: where PACKED images are unpacked (default: :func:`default_texture_cache_dir`).
         warn: emit one :class:`BlendAttachWarning` listing what could not be parsed.
     """
-    from blendify_core.scene import Scene
+    from blendify_core.ir.scene import Scene
 
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core Scene, got {type(scene).__name__}")
@@ -1712,11 +1712,11 @@ def export_blend(scene: Any, path: str | os.PathLike[str], pack_textures: bool =
     the same tags back), and the file is written with ``bpy.data.libraries.write`` to a temporary name
     then renamed: no ``.blend1`` backup, the main file path and the working directory do not change.
     The built datablocks are removed afterwards. ``settings`` are render settings
-    (:func:`blendify_core.settings.resolve_settings` keywords, e.g. ``quality="final", samples=64``)
+    (:func:`blendify_core.pipeline.settings.resolve_settings` keywords, e.g. ``quality="final", samples=64``)
     stored in the file. Returns the written path.
     """
-    from blendify_core.scene import Scene
-    from blendify_core.settings import resolve_settings
+    from blendify_core.ir.scene import Scene
+    from blendify_core.pipeline.settings import resolve_settings
 
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core Scene, got {type(scene).__name__}")

@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 from blendify_core.errors import RenderError
-from blendify_core.result import RenderResult
-from blendify_core.settings import RenderSettings
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings
 
 from . import _runtime
 from .materials import ALBEDO_AOV

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
 from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
 
 from . import _runtime
 

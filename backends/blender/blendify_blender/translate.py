@@ -24,11 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
-from blendify_core.effects import analyse_effects
 from blendify_core.errors import InvalidSceneError, RenderError
-from blendify_core.lights import AreaLight, PointLight, SpotLight, SunLight
-from blendify_core.renderables import (
+from blendify_core.ir.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
+from blendify_core.ir.lights import AreaLight, PointLight, SpotLight, SunLight
+from blendify_core.ir.renderables import (
     CurveBezier,
     EllipsoidNURBS,
     Mesh,
@@ -37,7 +36,8 @@ from blendify_core.renderables import (
     PointCloud,
     SphereNURBS,
 )
-from blendify_core.settings import RenderSettings
+from blendify_core.pipeline.effects import analyse_effects
+from blendify_core.pipeline.settings import RenderSettings
 
 from . import _runtime
 from .materials import MaterialBuilder
@@ -764,7 +764,7 @@ def apply_engine_settings(
 
 
 def _check_scene(scene: Any) -> None:
-    from blendify_core.scene import Scene
+    from blendify_core.ir.scene import Scene
 
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
@@ -912,7 +912,7 @@ def build_scene(scene: Any, settings: RenderSettings | None = None, reset: bool 
 
     ``settings`` defaults to the "final" preset. With ``reset=True`` (default) bpy is first reset to an
     empty factory scene; with ``reset=False`` the objects are added to the current scene."""
-    from blendify_core.settings import resolve_settings
+    from blendify_core.pipeline.settings import resolve_settings
 
     _check_scene(scene)
     settings = settings or resolve_settings("final")

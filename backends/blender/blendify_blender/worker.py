@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
-from blendify_core.result import RenderResult, _jsonable
-from blendify_core.settings import RenderSettings
+from blendify_core.pipeline.result import RenderResult, _jsonable
+from blendify_core.pipeline.settings import RenderSettings
 
 __all__ = ["WorkerClient", "main"]
 
@@ -203,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
     os.dup2(2, 1)  # anything printed to stdout (Blender, Python) goes to the log, not the protocol
     sys.stdout = sys.stderr
 
-    from blendify_core.scene import Scene
+    from blendify_core.ir.scene import Scene
 
     from . import CyclesBackend
 

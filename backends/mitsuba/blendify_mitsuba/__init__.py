@@ -20,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core.backend import Backend, BackendStatus
 from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
-from blendify_core.features import ALL_FEATURES, Capability
-from blendify_core.result import RenderResult
-from blendify_core.settings import RenderSettings
+from blendify_core.pipeline.backend import Backend, BackendStatus
+from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings
 
 __all__ = ["MitsubaBackend", "MitsubaNative", "DEFAULT_MAX_ANALYTIC_SPHERES"]
 
@@ -292,8 +292,8 @@ class MitsubaBackend(Backend):
         """The integrator dictionary: ``path`` with max_depth = max_bounces + 2, or max_depth 2 (direct
         light only; 3 when a camera ray may have to pass through an area light's null surface) when
         ``settings.effects`` and the effect analysis finds no indirect light."""
-        from blendify_core.effects import analyse_effects
-        from blendify_core.lights import AreaLight, PointLight
+        from blendify_core.ir.lights import AreaLight, PointLight
+        from blendify_core.pipeline.effects import analyse_effects
 
         effects = analyse_effects(scene)
         # hide_emitters gives a coverage alpha under a sky and hides area lights from the camera (as in
@@ -313,7 +313,7 @@ class MitsubaBackend(Backend):
         return {"type": "path", "max_depth": int(max_depth), "hide_emitters": hide}, effects
 
     def translate(self, scene: Any, settings: RenderSettings) -> MitsubaNative:
-        from blendify_core.scene import Scene
+        from blendify_core.ir.scene import Scene
 
         if not isinstance(scene, Scene):
             raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")

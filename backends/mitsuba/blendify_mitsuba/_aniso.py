@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from blendify_core.cameras import PerspectiveCamera
+from blendify_core.ir.cameras import PerspectiveCamera
 
 __all__ = ["SquarePixelPlan", "plan_square_pixels", "resample_rows"]
 

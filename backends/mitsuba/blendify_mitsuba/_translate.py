@@ -22,11 +22,11 @@ from typing import Any
 import mitsuba as mi
 import numpy as np
 
-from blendify_core.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
 from blendify_core.errors import InvalidSceneError, UnsupportedFeatureError
-from blendify_core.geometry import TriMesh
-from blendify_core.lights import AreaLight, PointLight, SpotLight, SunLight
-from blendify_core.renderables import PlaneMesh, PointCloud, SphereNURBS
+from blendify_core.ir.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
+from blendify_core.ir.geometry import TriMesh
+from blendify_core.ir.lights import AreaLight, PointLight, SpotLight, SunLight
+from blendify_core.ir.renderables import PlaneMesh, PointCloud, SphereNURBS
 
 __all__ = ["ShapeInfo", "Translation", "translate_scene", "camera_dict", "light_dicts"]
 
@@ -211,7 +211,7 @@ def scene_background(scene: Any) -> np.ndarray | None:
 
 
 def environment_dict(env: Any, add: np.ndarray | None = None) -> dict[str, Any]:
-    """An ``envmap`` reproducing :func:`blendify_core.lights.equirect_uv`.
+    """An ``envmap`` reproducing :func:`blendify_core.ir.lights.equirect_uv`.
 
     Mitsuba's envmap looks up the local direction d at u = atan2(d_x, -d_z) / (2 pi) (mod 1),
     v = acos(d_y) / pi (v = 0 at the top row). Blender's mapping of a world direction w is
@@ -377,7 +377,7 @@ def _texture_dict(colors: Any, channel: str = "rgb") -> dict[str, Any]:
         h, w = raw_img.shape[:2]
         k = int(max(1, min(8, math.floor(math.sqrt(SRGB_UPSAMPLE_MAX_TEXELS / (h * w))))))
         if k > 1:
-            from blendify_core.colorspace import srgb_to_linear
+            from blendify_core.ir.colorspace import srgb_to_linear
 
             enc = raw_img.astype(np.float32)[..., :3] / 255.0
             if enc.shape[2] == 1:

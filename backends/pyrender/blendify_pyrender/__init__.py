@@ -40,11 +40,11 @@ import importlib.util
 import threading
 from typing import Any
 
-from blendify_core.backend import Backend, BackendStatus
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
-from blendify_core.features import Capability
-from blendify_core.result import RenderResult
-from blendify_core.settings import RenderSettings
+from blendify_core.pipeline.backend import Backend, BackendStatus
+from blendify_core.pipeline.capabilities import Capability
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings
 
 from ._capabilities import capability_table
 

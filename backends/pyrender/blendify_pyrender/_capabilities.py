@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from blendify_core.features import ALL_FEATURES, Capability
+from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 
 __all__ = ["CAPABILITIES", "capability_table"]
 

@@ -15,11 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core.cameras import OrthographicCamera
 from blendify_core.errors import RenderError
-from blendify_core.lights import AreaLight, SpotLight, SunLight
-from blendify_core.result import RenderResult
-from blendify_core.settings import RenderSettings
+from blendify_core.ir.cameras import OrthographicCamera
+from blendify_core.ir.lights import AreaLight, SpotLight, SunLight
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings
 
 from ._platform import GLContext
 

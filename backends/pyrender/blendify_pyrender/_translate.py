@@ -13,13 +13,13 @@ import numpy as np
 import pyrender
 from OpenGL.GL import GL_LINEAR, GL_LINEAR_MIPMAP_LINEAR, GL_NEAREST, GL_REPEAT
 
-from blendify_core.cameras import Camera, OrthographicCamera
-from blendify_core.colors import FacesUV, FileTextureColors, TextureColors, UniformColors, VertexColors, VertexUV
-from blendify_core.colorspace import linear_to_srgb8
-from blendify_core.geometry import face_normals, icosphere
-from blendify_core.lights import AreaLight, EnvironmentMap, PointLight, SpotLight, SunLight
-from blendify_core.materials import Material
-from blendify_core.renderables import Mesh, MeshPrimitive, PlaneMesh, PointCloud, Renderable
+from blendify_core.ir.cameras import Camera, OrthographicCamera
+from blendify_core.ir.colors import FacesUV, FileTextureColors, TextureColors, UniformColors, VertexColors, VertexUV
+from blendify_core.ir.colorspace import linear_to_srgb8
+from blendify_core.ir.geometry import face_normals, icosphere
+from blendify_core.ir.lights import AreaLight, EnvironmentMap, PointLight, SpotLight, SunLight
+from blendify_core.ir.materials import Material
+from blendify_core.ir.renderables import Mesh, MeshPrimitive, PlaneMesh, PointCloud, Renderable
 
 __all__ = [
     "MatrixCamera",

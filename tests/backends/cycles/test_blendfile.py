@@ -33,7 +33,8 @@ from blendify_blender.blendfile import (
     export_blend,
 )
 
-from blendify_core.colors import (
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.colors import (
     FacesUV,
     FileTextureColors,
     NormalMap,
@@ -43,15 +44,14 @@ from blendify_core.colors import (
     VertexColors,
     VertexUV,
 )
-from blendify_core.errors import InvalidSceneError
-from blendify_core.materials import (
+from blendify_core.ir.materials import (
     DiffuseMaterial,
     GlossyBSDFMaterial,
     PlasticWireframeMaterial,
     PrincipledBSDFMaterial,
     PrincipledBSDFWireframeMaterial,
 )
-from blendify_core.scene import Scene
+from blendify_core.ir.scene import Scene
 
 pytestmark = pytest.mark.cycles
 

@@ -7,15 +7,15 @@ import pytest
 
 import blendify_core as bf
 from blendify_core import testing
-from blendify_core.lights import equirect_uv
+from blendify_core.ir.lights import equirect_uv
 
 pytestmark = pytest.mark.cycles
 
 
 def alpha_centroids(rgba: np.ndarray, pixels: np.ndarray, window: int = 6) -> np.ndarray:
     """Alpha-weighted centroids (OpenCV pixel coordinates) in a window around each expected pixel."""
-    from blendify_core.compare import alpha_centroids as centroids
-    from blendify_core.result import RenderResult
+    from blendify_core.evaluate.compare import alpha_centroids as centroids
+    from blendify_core.pipeline.result import RenderResult
 
     return centroids(RenderResult(rgba=rgba), pixels, window)
 
@@ -135,7 +135,7 @@ def test_vertex_colors_reach_the_albedo(cycles):
 
 
 def test_environment_map_matches_the_ir_mapping(cycles):
-    """Cycles' equirectangular lookup == blendify_core.lights.equirect_uv (rotation included)."""
+    """Cycles' equirectangular lookup == blendify_core.ir.lights.equirect_uv (rotation included)."""
     h, w = 64, 128
     img = np.zeros((h, w, 3), np.float32)
     img[..., 0] = ((np.arange(w) + 0.5) / w)[None, :]

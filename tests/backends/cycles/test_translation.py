@@ -12,8 +12,8 @@ from blendify_blender import CyclesBackend
 import blendify_core as bf
 from blendify_core import testing
 from blendify_core.errors import InvalidSceneError, RenderError
-from blendify_core.features import ALL_FEATURES
-from blendify_core.settings import resolve_settings
+from blendify_core.pipeline.capabilities import ALL_FEATURES
+from blendify_core.pipeline.settings import resolve_settings
 
 pytestmark = pytest.mark.cycles
 
@@ -255,7 +255,7 @@ def test_lights_and_world(cycles, bpy):
     bgs = [n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeBackground"]
     assert len(bgs) == 1
     assert bgs[0].inputs["Strength"].default_value == pytest.approx(0.7)
-    lin = bf.lights.BackgroundLight(0.7, (0.5, 0.5, 0.5)).linear_color
+    lin = bf.ir.lights.BackgroundLight(0.7, (0.5, 0.5, 0.5)).linear_color
     assert tuple(bgs[0].inputs["Color"].default_value)[:3] == pytest.approx(tuple(lin), abs=1e-6)
     scene.lights.remove_background_light() if hasattr(scene.lights, "remove_background_light") else None
     scene.lights.background = None

@@ -9,8 +9,8 @@ from blendify_mitsuba import MitsubaBackend
 
 import blendify_core as bf
 from blendify_core import testing
-from blendify_core.colors import UniformColors, VertexColors
-from blendify_core.materials import DiffuseMaterial, PrincipledBSDFMaterial
+from blendify_core.ir.colors import UniformColors, VertexColors
+from blendify_core.ir.materials import DiffuseMaterial, PrincipledBSDFMaterial
 
 _status = MitsubaBackend.probe()
 if not _status.available:  # pragma: no cover - depends on the machine
@@ -70,7 +70,7 @@ def test_camera_self_test_non_square_pixels(scalar_backend, fy):
 def test_row_resampling_is_exact_for_smooth_images():
     from blendify_mitsuba._aniso import plan_square_pixels, resample_rows
 
-    from blendify_core.cameras import PerspectiveCamera
+    from blendify_core.ir.cameras import PerspectiveCamera
 
     cam = PerspectiveCamera((40, 30), K=[[50.0, 0, 19.5], [0, 37.0, 14.5], [0, 0, 1]])
     plan = plan_square_pixels(cam, 64)
@@ -202,8 +202,8 @@ def test_texture_orientation(scalar_backend, faces_uv):
 
 def test_srgb_textures_interpolate_encoded_values_like_cycles(scalar_backend):
     """Cycles interpolates 8-bit sRGB texels before decoding them; so does the backend (upsampling)."""
-    from blendify_core.colors import TextureColors, VertexUV
-    from blendify_core.colorspace import srgb_to_linear
+    from blendify_core.ir.colors import TextureColors, VertexUV
+    from blendify_core.ir.colorspace import srgb_to_linear
 
     tex = (np.indices((8, 8)).sum(axis=0) % 2 * 200 + 30).astype(np.uint8)
     scene = bf.Scene()
@@ -230,7 +230,7 @@ def test_srgb_textures_interpolate_encoded_values_like_cycles(scalar_backend):
 def test_file_texture(scalar_backend, tmp_path, color_space, expected):
     from PIL import Image
 
-    from blendify_core.colors import FileTextureColors, VertexUV
+    from blendify_core.ir.colors import FileTextureColors, VertexUV
 
     tex = np.array([[[255, 0, 0], [0, 128, 0]], [[0, 0, 255], [128, 128, 128]]], dtype=np.uint8)
     path = tmp_path / "tex.png"
@@ -400,7 +400,7 @@ def test_primitives_and_pointclouds_render(scalar_backend):
 
 
 def test_wireframe_tubes_along_the_edges(scalar_backend):
-    from blendify_core.materials import PrincipledBSDFWireframeMaterial
+    from blendify_core.ir.materials import PrincipledBSDFWireframeMaterial
 
     scene = bf.Scene()
     v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float) * 0.8
@@ -481,4 +481,4 @@ def test_unsupported_features_are_clear_errors(scalar_backend, feature, build):
         _render(scalar_backend, scene, samples=1)
     # and the translator itself refuses too (when called without the core's capability check)
     with pytest.raises(bf.UnsupportedFeatureError):
-        scalar_backend.translate(scene, bf.settings.resolve_settings(samples=1))
+        scalar_backend.translate(scene, bf.pipeline.settings.resolve_settings(samples=1))

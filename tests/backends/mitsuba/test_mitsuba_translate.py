@@ -13,15 +13,15 @@ from blendify_mitsuba import MitsubaBackend
 
 import blendify_core as bf
 from blendify_core import testing
-from blendify_core.colors import UniformColors, VertexColors
-from blendify_core.features import ALL_FEATURES
-from blendify_core.materials import (
+from blendify_core.ir.colors import UniformColors, VertexColors
+from blendify_core.ir.materials import (
     DiffuseMaterial,
     GlossyBSDFMaterial,
     MetalMaterial,
     PrincipledBSDFMaterial,
 )
-from blendify_core.settings import resolve_settings
+from blendify_core.pipeline.capabilities import ALL_FEATURES
+from blendify_core.pipeline.settings import resolve_settings
 
 _status = MitsubaBackend.probe()
 if not _status.available:  # pragma: no cover - depends on the machine
@@ -141,11 +141,11 @@ def test_point_light_with_radius_is_a_sphere_emitter(mi_scalar):
 
 
 def test_environment_map_follows_equirect_uv(mi_scalar):
-    """The envmap emitter must look up the texel that blendify_core.lights.equirect_uv names."""
+    """The envmap emitter must look up the texel that blendify_core.ir.lights.equirect_uv names."""
     mi = mi_scalar
     from blendify_mitsuba._translate import environment_dict
 
-    from blendify_core.lights import equirect_uv
+    from blendify_core.ir.lights import equirect_uv
 
     h, w = 64, 128
     jj, ii = np.meshgrid((np.arange(w) + 0.5) / w, 1.0 - (np.arange(h) + 0.5) / h)

@@ -16,9 +16,9 @@ from blendify_core import (
     render,
     testing,
 )
-from blendify_core.backend import Backend
 from blendify_core.errors import UnsupportedFeatureError
-from blendify_core.features import Capability
+from blendify_core.pipeline.backend import Backend
+from blendify_core.pipeline.capabilities import Capability
 
 pytestmark = pytest.mark.pyrender
 ALL = ("rgb", "depth", "normal", "albedo", "instance")

@@ -21,9 +21,9 @@ from blendify_core import (
     testing,
 )
 from blendify_core.errors import InvalidSceneError
-from blendify_core.features import ALL_FEATURES
-from blendify_core.materials import PlasticWireframeMaterial
-from blendify_core.settings import resolve_settings
+from blendify_core.ir.materials import PlasticWireframeMaterial
+from blendify_core.pipeline.capabilities import ALL_FEATURES
+from blendify_core.pipeline.settings import resolve_settings
 
 pytestmark = pytest.mark.pyrender
 PLATFORM = resolve_platform(None)

@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from ._output import atomic_write
-from ._validate import as_path
-from .colorspace import linear_to_srgb
-from .errors import InvalidSceneError
+from blendify_core._output import atomic_write
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.colorspace import linear_to_srgb
+from blendify_core.ir.validate import as_path
 
 __all__ = ["RenderResult", "atomic_write"]
 

@@ -10,10 +10,16 @@ from typing import Any
 
 import numpy as np
 
-from .colors import UniformColors, VertexColors
-from .geometry import torus
-from .materials import DiffuseMaterial, MetalMaterial, PlasticMaterial, PlasticWireframeMaterial, PrincipledBSDFMaterial
-from .scene import Scene
+from blendify_core.ir.colors import UniformColors, VertexColors
+from blendify_core.ir.geometry import torus
+from blendify_core.ir.materials import (
+    DiffuseMaterial,
+    MetalMaterial,
+    PlasticMaterial,
+    PlasticWireframeMaterial,
+    PrincipledBSDFMaterial,
+)
+from blendify_core.ir.scene import Scene
 
 __all__ = ["donut_scene", "run_demo"]
 
@@ -146,8 +152,8 @@ def run_demo(
     """Render the demo panels and write a labelled contact sheet; returns its path."""
     from PIL import Image
 
-    from . import render
-    from .result import atomic_write, depth_to_image
+    from blendify_core import render
+    from blendify_core.pipeline.result import atomic_write, depth_to_image
 
     panels: list[np.ndarray] = []
     res = (size, size)
@@ -160,7 +166,7 @@ def run_demo(
     log(f"demo: rendering with backend {used!r} ({quality}); {seconds:.1f} s for colour+depth+albedo")
     panels.append(_label(_over_white(main), f"colour ({used})"))
     panels.append(_label(np.dstack([depth_to_image(main.depth)] * 3), "depth"))
-    from .colorspace import linear_to_srgb8
+    from blendify_core.ir.colorspace import linear_to_srgb8
 
     panels.append(_label(linear_to_srgb8(main.albedo), "albedo"))
     for panel, label in (

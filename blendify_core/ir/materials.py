@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_choice, as_float, reject_unknown, strict_arguments
-from .colors import COLOR_SPACES, NormalMap, TextureMap, _to_linear
-from .errors import InvalidSceneError
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.colors import COLOR_SPACES, NormalMap, TextureMap, _to_linear
+from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, reject_unknown, strict_arguments
 
 __all__ = [
     "Material",
@@ -464,7 +464,7 @@ def check_material(name: str, value: Any) -> Material:
 
 
 def material_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray], base_dir: str | None) -> Material:
-    from .colors import NormalMap, TextureMap
+    from blendify_core.ir.colors import NormalMap, TextureMap
 
     cls = _MATERIAL_CLASSES.get(d.get("kind", ""))
     if cls is None:

@@ -10,7 +10,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from .errors import InvalidSceneError
+from blendify_core.errors import InvalidSceneError
 
 
 def _describe(value: Any) -> str:

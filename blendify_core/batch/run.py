@@ -26,8 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .errors import BlendifyError, InvalidSceneError
-from .settings import RenderSettings, resolve_settings
+from blendify_core.errors import BlendifyError, InvalidSceneError
+from blendify_core.pipeline.settings import RenderSettings, resolve_settings
 
 __all__ = ["RenderJob", "JobStatus", "BatchReport", "render_many", "DEFAULT_RECYCLE_AFTER", "MANIFEST_NAME"]
 
@@ -65,7 +65,7 @@ class RenderJob:
 
     ``output``: ``.png`` / ``.exr`` (one file per requested output: ``out.png``, ``out.depth.png``, ...)
     or ``.npz`` (every output in one file). ``backend``: a backend name, or None for the best available
-    one. ``render_kwargs`` are exactly those of :func:`blendify_core.render` (``quality``, ``samples``,
+    one. ``render_kwargs`` are exactly those of :func:`blendify_core.pipeline.render` (``quality``, ``samples``,
     ``seed``, ``outputs``, ``threads``, ... and backend options); they are validated here. Backend options
     must be JSON values because they travel to the workers and into the manifest. ``allow_outside``
     applies to scene files whose textures live outside the file's folder.
@@ -80,7 +80,7 @@ class RenderJob:
         allow_outside: bool = False,
         **render_kwargs: Any,
     ) -> None:
-        from .scene import Scene
+        from blendify_core.ir.scene import Scene
 
         if isinstance(scene_or_path, Scene):
             self.scene: Scene | None = scene_or_path
@@ -129,7 +129,7 @@ class RenderJob:
 
     def files(self) -> list[str]:
         """Every file this job writes."""
-        from ._worker import output_files
+        from blendify_core.batch.worker import output_files
 
         return output_files(self.output, self.settings.outputs)
 
@@ -378,7 +378,7 @@ class _Manifest:
             self._fh.flush()
             os.fsync(self._fh.fileno())
             return
-        from .result import atomic_write
+        from blendify_core.pipeline.result import atomic_write
 
         doc = {"format": "blendify-batch-manifest", "version": 1, "jobs": self.records}
 
@@ -551,7 +551,7 @@ class _Run:
 
 def _registrations() -> dict[str, str]:
     """Backends registered at run time in this process, as "module:Class" strings a worker can import."""
-    from . import backend as backend_mod
+    from blendify_core.pipeline import backend as backend_mod
 
     out = {}
     for name, target in backend_mod._registered.items():
@@ -600,7 +600,7 @@ def _check_backends_importable(jobs: list[RenderJob]) -> None:
     """Fail before any work when a job's backend is registered in a way worker processes cannot import:
     a class defined in ``__main__`` or inside a function, or a "module:Class" path naming the script
     being run (workers are fresh interpreters that never run ``__main__``)."""
-    from . import backend as backend_mod
+    from blendify_core.pipeline import backend as backend_mod
 
     main = sys.modules.get("__main__")
     for i, job in enumerate(jobs):
@@ -677,7 +677,7 @@ class _PoolWorker:
         import subprocess
         from multiprocessing import Pipe, spawn
 
-        from . import _worker
+        from blendify_core.batch import worker as _worker
 
         parent, child = Pipe(duplex=True)
         handle = child.fileno()
@@ -777,7 +777,7 @@ def _run_local(
     from multiprocessing import spawn as mp_spawn
     from multiprocessing.connection import wait
 
-    from . import _worker
+    from blendify_core.batch import worker as _worker
 
     if _worker.in_pool_worker():
         raise BlendifyError(
@@ -942,7 +942,7 @@ def _run_ray(
         raise BlendifyError(
             "executor='ray' needs Ray: pip install 'blendify-core[ray]' (or pip install 'ray>=2.40')"
         ) from None
-    from . import _worker
+    from blendify_core.batch import worker as _worker
 
     started_here = False
     if not ray.is_initialized():
@@ -998,7 +998,7 @@ def _run_ray(
 
 
 def _run_futures(run: _Run, pending: list[int], executor: Any, workers: int | None) -> int:
-    from . import _worker
+    from blendify_core.batch import worker as _worker
 
     slots = workers or int(getattr(executor, "_max_workers", 0) or 0) or _cpu_count()
     queue = list(reversed(pending))
@@ -1180,7 +1180,7 @@ def render_many(
             try:
                 scene = job.scene
                 if scene is None:
-                    from .scene import Scene
+                    from blendify_core.ir.scene import Scene
 
                     scene = Scene.load(job.scene_path, allow_outside=job.allow_outside)  # type: ignore[arg-type]
                 run.fingerprints[i] = scene.fingerprint()

@@ -35,7 +35,7 @@ from multiprocessing import connection
 conn = (connection.PipeConnection if sys.platform == "win32" else connection.Connection)(int(sys.argv[1]))
 sys.path[:] = conn.recv()
 try:
-    from blendify_core._worker import pool_main
+    from blendify_core.batch.worker import pool_main
 except Exception as exc:
     conn.send(("error", f"{type(exc).__name__}: {exc}"))
     raise
@@ -94,7 +94,7 @@ def _save(result: Any, output: str, outputs: tuple[str, ...]) -> list[str]:
 
 
 def _load_scene(payload: dict[str, Any]) -> Any:
-    from .scene import Scene
+    from blendify_core.ir.scene import Scene
 
     data = payload.get("scene_bytes")
     if data is None:
@@ -114,7 +114,7 @@ def _load_scene(payload: dict[str, Any]) -> Any:
 def _register(registrations: dict[str, str] | None) -> None:
     if not registrations:
         return
-    from . import backend as backend_mod
+    from blendify_core.pipeline import backend as backend_mod
 
     for name, target in registrations.items():
         if name not in backend_mod._entry_points():
@@ -138,7 +138,7 @@ def _drop_blender_script_paths() -> None:
 
 
 def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None) -> dict[str, Any]:
-    """Render one job described by ``payload`` (built by ``blendify_core.batch``) and write its outputs.
+    """Render one job described by ``payload`` (built by ``blendify_core.batch.run``) and write its outputs.
 
     Never raises for a failed render: returns ``{"status": "failed", "reason": ...}``. A render that ends
     after ``payload["timeout"]`` seconds is reported as a timeout and its outputs are NOT written, so an
@@ -149,8 +149,8 @@ def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None)
     try:
         _drop_blender_script_paths()
         _register(payload.get("registrations"))
-        from .backend import shared_backend
-        from .render import choose_backend, render
+        from blendify_core.pipeline.backend import shared_backend
+        from blendify_core.pipeline.render import choose_backend, render
 
         scene = _load_scene(payload)
         settings = dict(payload.get("settings") or {})
@@ -229,7 +229,7 @@ def pool_main(conn: Any) -> None:
             except (BrokenPipeError, OSError):
                 break
     finally:
-        from .backend import close_backends
+        from blendify_core.pipeline.backend import close_backends
 
         try:
             close_backends()

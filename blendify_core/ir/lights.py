@@ -14,10 +14,20 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_bool, as_choice, as_float, check_tag, frozen, raw_array, strict_arguments
-from .colors import COLOR_SPACES, _check_image, _to_linear, load_image
-from .errors import InvalidSceneError
-from .transforms import Positionable, ValidatedParam
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.colors import COLOR_SPACES, _check_image, _to_linear, load_image
+from blendify_core.ir.transforms import Positionable, ValidatedParam
+from blendify_core.ir.validate import (
+    _describe,
+    as_array,
+    as_bool,
+    as_choice,
+    as_float,
+    check_tag,
+    frozen,
+    raw_array,
+    strict_arguments,
+)
 
 
 def _non_negative(obj: Any, name: str, value: Any) -> float:
@@ -41,7 +51,7 @@ __all__ = [
 
 
 def _quaternion(name: str, value: Any) -> np.ndarray:
-    from .transforms import quaternion_from_rotation
+    from blendify_core.ir.transforms import quaternion_from_rotation
 
     return quaternion_from_rotation("quaternionWXYZ", value, name=name)
 
@@ -332,7 +342,7 @@ class EnvironmentMap:
         rotation: Any = None,
         color_space: str | None = None,
     ):
-        from .transforms import quaternion_from_rotation
+        from blendify_core.ir.transforms import quaternion_from_rotation
 
         self.path: str | None = None
         self._image: np.ndarray | None = None
@@ -363,7 +373,7 @@ class EnvironmentMap:
             img = np.repeat(img, 3, axis=2)
         rgb = img[..., :3]
         if rgb.dtype == np.uint8:
-            from .colorspace import srgb8_to_linear
+            from blendify_core.ir.colorspace import srgb8_to_linear
 
             return srgb8_to_linear(rgb) if self.color_space == "srgb" else rgb.astype(np.float32) / 255.0
         out = rgb.astype(np.float32)
@@ -371,7 +381,7 @@ class EnvironmentMap:
 
     @property
     def rotation_matrix(self) -> np.ndarray:
-        from .transforms import quaternion_to_matrix
+        from blendify_core.ir.transforms import quaternion_to_matrix
 
         return quaternion_to_matrix(self.quaternion)
 

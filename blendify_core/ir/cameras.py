@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_float, as_int, raw_array
-from .errors import InvalidSceneError
-from .transforms import Positionable, ValidatedParam, matrix_to_quaternion
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.transforms import Positionable, ValidatedParam, matrix_to_quaternion
+from blendify_core.ir.validate import _describe, as_array, as_float, as_int, raw_array
 
 __all__ = ["Camera", "PerspectiveCamera", "OrthographicCamera", "CV_FROM_BLENDER"]
 
@@ -388,7 +388,7 @@ def camera_from_opencv(
     far: float = 100.0,
 ) -> PerspectiveCamera:
     """A perspective camera from OpenCV intrinsics and extrinsics (``x_cam = R @ x_world + t``)."""
-    from .transforms import _orthonormalise
+    from blendify_core.ir.transforms import _orthonormalise
 
     r = _orthonormalise("R", as_array("R", R, shape=(3, 3)))
     tv = as_array("t", t, shape=(3,))

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .colors import FileTextureColors, TextureColors, VertexColors
-from .lights import AreaLight, PointLight, SpotLight, SunLight
-from .renderables import (
+from blendify_core.ir.colors import FileTextureColors, TextureColors, VertexColors
+from blendify_core.ir.lights import AreaLight, PointLight, SpotLight, SunLight
+from blendify_core.ir.renderables import (
     CircleMesh,
     CubeMesh,
     CurveBezier,
@@ -93,7 +93,7 @@ class Capability:
 
     def __post_init__(self) -> None:
         if self.level not in ("exact", "approximate", "unsupported"):
-            from .errors import InvalidSceneError
+            from blendify_core.errors import InvalidSceneError
 
             raise InvalidSceneError(f"Capability.level: expected exact/approximate/unsupported, got {self.level!r}")
 

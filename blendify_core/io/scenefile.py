@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from ._memo import digest_memo
-from ._validate import as_path
-from .errors import InvalidSceneError
+from blendify_core._memo import digest_memo
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.validate import as_path
 
 FORMAT = "blendify-core-scene"
 VERSION = 1
@@ -57,7 +57,7 @@ def _walk_paths(obj: Any, fn: Any) -> Any:
 
 
 def save_scene(scene: Any, path: str | os.PathLike[str], relative_paths: bool = True) -> None:
-    from ._output import AtomicOutput
+    from blendify_core._output import AtomicOutput
 
     p = as_path("path", path)
     if p.suffix.lower() != ".npz":
@@ -125,7 +125,7 @@ def load_scene(path: str | os.PathLike[str], allow_outside: bool = False) -> Any
 
 
 def _colors_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
-    from . import colors as c
+    from blendify_core.ir import colors as c
 
     def uv(u: dict[str, Any] | None) -> Any:
         if u is None:
@@ -166,12 +166,12 @@ def _polygons(arrays: dict[str, np.ndarray], d: dict[str, Any]) -> Any:
 
 
 def _build(h: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
-    from . import renderables as rmod
-    from .cameras import camera_from_dict
-    from .colors import FacesUV, VertexUV
-    from .lights import light_from_dict
-    from .materials import material_from_dict
-    from .scene import Scene
+    from blendify_core.ir import renderables as rmod
+    from blendify_core.ir.cameras import camera_from_dict
+    from blendify_core.ir.colors import FacesUV, VertexUV
+    from blendify_core.ir.lights import light_from_dict
+    from blendify_core.ir.materials import material_from_dict
+    from blendify_core.ir.scene import Scene
 
     scene = Scene()
     if h["camera"] is not None:

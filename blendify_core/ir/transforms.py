@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import as_array, as_float, frozen
-from .errors import InvalidSceneError
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.validate import as_array, as_float, frozen
 
 __all__ = [
     "ROTATION_MODES",

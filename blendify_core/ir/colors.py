@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe, as_array, as_choice, as_float, frozen, raw_array
-from .colorspace import srgb8_to_linear, srgb_to_linear
-from .errors import InvalidSceneError
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.colorspace import srgb8_to_linear, srgb_to_linear
+from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, frozen, raw_array
 
 __all__ = [
     "Colors",

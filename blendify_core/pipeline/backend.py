@@ -18,10 +18,10 @@ from dataclasses import dataclass
 from importlib import metadata
 from typing import Any, ClassVar
 
-from .errors import BackendUnavailableError, InvalidSceneError
-from .features import ALL_FEATURES, Capability
-from .result import RenderResult
-from .settings import RenderSettings
+from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings
 
 __all__ = [
     "Backend",
@@ -61,7 +61,7 @@ class Backend(abc.ABC):
     #: quality modes this backend serves well, best first (used by the automatic choice)
     qualities: ClassVar[tuple[str, ...]] = ("preview", "draft", "final")
     #: True for Monte Carlo renderers: ``target_error`` renders independent passes until the estimated
-    #: error is low enough (see ``blendify_core.render.render_to_target``)
+    #: error is low enough (see ``blendify_core.pipeline.render.render_to_target``)
     path_tracer: ClassVar[bool] = False
     #: the smallest image the engine renders; the core pads smaller cameras and crops the result
     min_resolution: ClassVar[tuple[int, int]] = (1, 1)
@@ -99,7 +99,7 @@ class Backend(abc.ABC):
 
     @classmethod
     def capabilities(cls) -> dict[str, Capability]:
-        """Feature name -> Capability for every name in ``blendify_core.features.ALL_FEATURES``."""
+        """Feature name -> Capability for every name in ``blendify_core.pipeline.capabilities.ALL_FEATURES``."""
         return {name: Capability("unsupported", "not declared") for name in ALL_FEATURES}
 
     # -- work ---------------------------------------------------------------------------------------

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cameras import PerspectiveCamera
+from blendify_core.ir.cameras import PerspectiveCamera
 
 __all__ = ["undistort_points", "distort_points", "margin_camera", "remap_result"]
 
@@ -48,7 +48,7 @@ def _source_coords(cam: PerspectiveCamera) -> np.ndarray:
     # the fixed-point inversion diverges (NaN) or settles on a wrong point where the model folds over
     err_px = float(np.max(np.abs(back - xy_d)) * max(cam.fx, cam.fy)) if np.all(np.isfinite(back)) else np.inf
     if not err_px < 0.01:
-        from .errors import InvalidSceneError
+        from blendify_core.errors import InvalidSceneError
 
         raise InvalidSceneError(
             "distortion: the OpenCV model with these coefficients cannot be inverted over the whole image "
@@ -68,7 +68,7 @@ def margin_camera(cam: PerspectiveCamera) -> tuple[PerspectiveCamera, np.ndarray
     vmin, vmax = float(v.min()) - pad, float(v.max()) + pad
     limit_w, limit_h = MAX_GROWTH * cam.width, MAX_GROWTH * cam.height
     if umax - umin > limit_w or vmax - vmin > limit_h:
-        from .errors import InvalidSceneError
+        from blendify_core.errors import InvalidSceneError
 
         raise InvalidSceneError(
             "distortion: these coefficients bend rays so far that the undistorted image would be more than "

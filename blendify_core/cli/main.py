@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from . import __version__
+from blendify_core import __version__
 
 __all__ = ["main"]
 
@@ -24,7 +24,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _info(args: argparse.Namespace) -> int:
-    from .backend import available_backends, get_backend_class
+    from blendify_core.pipeline.backend import available_backends, get_backend_class
 
     print(f"blendify-core {__version__} (Python {platform.python_version()}, {platform.system()} {platform.machine()})")
     import numpy
@@ -48,9 +48,9 @@ def _outputs(text: str) -> tuple[str, ...]:
 
 
 def _render(args: argparse.Namespace) -> int:
-    from . import render
-    from .errors import InvalidSceneError
-    from .scene import Scene
+    from blendify_core import render
+    from blendify_core.errors import InvalidSceneError
+    from blendify_core.ir.scene import Scene
 
     # check where the image goes before rendering, not after a long render
     target = Path(args.output)
@@ -67,7 +67,7 @@ def _render(args: argparse.Namespace) -> int:
         seed=args.seed,
         outputs=_outputs(args.outputs),
     )
-    from ._worker import _save
+    from blendify_core.batch.worker import _save
 
     # the same files as a batch job: OUT = rgb (or the first output), OUT.<name>.<ext> for the others
     out = Path(args.output)
@@ -78,7 +78,7 @@ def _render(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from .demo import run_demo
+    from blendify_core.cli.demo import run_demo
 
     run_demo(args.output, backend=args.backend, quality=args.quality, size=args.size, samples=args.samples)
     return 0
@@ -86,7 +86,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 def _crosscheck(args: argparse.Namespace) -> int:
     try:
-        from .compare import crosscheck_main  # type: ignore[attr-defined]
+        from blendify_core.evaluate.compare import crosscheck_main  # type: ignore[attr-defined]
     except ImportError:
         print("blendify crosscheck: not available in this version", file=sys.stderr)
         return 1
@@ -94,7 +94,7 @@ def _crosscheck(args: argparse.Namespace) -> int:
 
 
 def _batch(args: argparse.Namespace) -> int:
-    from .batch import read_jobs, render_many
+    from blendify_core.batch.run import read_jobs, render_many
 
     jobs = read_jobs(args.jobs)
     report = render_many(
@@ -138,7 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-s", "--samples", type=int, default=None)
     p.set_defaults(func=_demo)
 
-    from .batch import DEFAULT_RECYCLE_AFTER
+    from blendify_core.batch.run import DEFAULT_RECYCLE_AFTER
 
     p = sub.add_parser(
         "batch",
@@ -165,17 +165,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``blendify`` command; returns the process exit code."""
-    from .errors import BlendifyError
+    from blendify_core.errors import BlendifyError
 
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "crosscheck":  # its own parser: options may come before the scene path
         try:
-            from .compare import crosscheck_main
+            from blendify_core.evaluate.compare import crosscheck_main
         except ImportError:
             print("blendify crosscheck: not available in this version", file=sys.stderr)
             return 1
-        from .errors import BlendifyError
+        from blendify_core.errors import BlendifyError
 
         try:
             return int(crosscheck_main(argv[1:]) or 0)

@@ -6,7 +6,7 @@ image per output. ``crosscheck(scene)`` renders one scene with every available b
 settings (box filter, no denoiser, no clamping, fixed seed) and compares every pair at the tier that fits
 the pair (path tracer vs path tracer, rasteriser vs path tracer) and the scene (delta lights or not,
 Lambertian materials or not): :func:`choose_tier`. Statistical (noise-aware) comparison of path-traced
-images lives in :mod:`blendify_core.stats`.
+images lives in :mod:`blendify_core.evaluate.stats`.
 
 Metrics (``report.metrics[output][metric]``):
 
@@ -55,9 +55,9 @@ from typing import Any
 
 import numpy as np
 
-from .colorspace import linear_to_srgb
-from .errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
-from .result import RenderResult, depth_to_image, instance_to_image
+from blendify_core.errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
+from blendify_core.ir.colorspace import linear_to_srgb
+from blendify_core.pipeline.result import RenderResult, depth_to_image, instance_to_image
 
 __all__ = [
     "TIERS",
@@ -580,7 +580,7 @@ class CompareReport:
         cannot be written raises :class:`~blendify_core.errors.OutputError` naming it."""
         from PIL import Image
 
-        from ._output import atomic_write, ensure_folder
+        from blendify_core._output import atomic_write, ensure_folder
 
         out = ensure_folder(folder, arg="folder")
         for name, img in self.diff_images.items():
@@ -645,7 +645,7 @@ def is_path_tracer(backend: str | None) -> bool:
         return False
     if backend in PATH_TRACERS:
         return True
-    from .backend import get_backend_class
+    from blendify_core.pipeline.backend import get_backend_class
 
     try:
         return bool(getattr(get_backend_class(backend), "path_tracer", False))
@@ -693,14 +693,14 @@ _NON_DIFFUSE = (
 
 
 def _delta_lights(scene: Any) -> bool:
-    from .features import scene_features
+    from blendify_core.pipeline.capabilities import scene_features
 
     used = scene_features(scene, ("rgb",))
     return not any(f in used for f in _NON_DELTA)
 
 
 def _non_lambertian(scene: Any) -> bool:
-    from .features import scene_features
+    from blendify_core.pipeline.capabilities import scene_features
 
     used = scene_features(scene, ("rgb",))
     return any(f in used for f in _NON_DIFFUSE)
@@ -1021,7 +1021,7 @@ class CrosscheckReport:
         written)."""
         from PIL import Image
 
-        from ._output import atomic_write, ensure_folder
+        from blendify_core._output import atomic_write, ensure_folder
 
         out = ensure_folder(folder, arg="folder")
         sheet = self.contact_sheet()
@@ -1034,7 +1034,7 @@ class CrosscheckReport:
 
 def _write_text(path: Path, text: str, arg: str = "folder") -> None:
     """A report file, atomically (UTF-8)."""
-    from ._output import atomic_write
+    from blendify_core._output import atomic_write
 
     def write(tmp: str) -> None:
         with open(tmp, "w", encoding="utf-8") as f:
@@ -1086,9 +1086,9 @@ def crosscheck(
     statistical test (:meth:`ReferenceEstimate.compare`) in ``report.ztests``, which must pass too: are
     the two engines' expected images equal, given their noise?
     """
-    from .backend import available_backends
-    from .render import render
-    from .scene import Scene
+    from blendify_core.ir.scene import Scene
+    from blendify_core.pipeline.backend import available_backends
+    from blendify_core.pipeline.render import render
 
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
@@ -1101,7 +1101,7 @@ def crosscheck(
         raise InvalidSceneError(
             f"crosscheck: {sorted(forbidden)} are fixed by crosscheck (box filter, no denoiser/clamping/adaptive)"
         )
-    from .settings import _outputs
+    from blendify_core.pipeline.settings import _outputs
 
     outputs = _outputs(outputs if isinstance(outputs, str) else tuple(outputs))  # bad names: error up front
     backend_options = dict(backend_options or {})
@@ -1197,7 +1197,7 @@ def crosscheck(
 
 def _average_repeats(first: RenderResult, extra: list[Any], samples: int | None) -> Any:
     """Replace ``first.rgba`` by the mean of all repeats; return the ReferenceEstimate of the colour."""
-    from .stats import ReferenceEstimate
+    from blendify_core.evaluate.stats import ReferenceEstimate
 
     stack = [first.rgba] + [x for x in extra if x is not None]
     est = ReferenceEstimate.from_images([x[..., :3] for x in stack], int(samples or 1))
@@ -1211,7 +1211,7 @@ def crosscheck_main(argv: Sequence[str] | None = None) -> int:
     with every available backend, write the contact sheet and the markdown report into FOLDER. Returns
     0 when every pair passed, 1 when one failed (or fewer than two backends could render), 2 on bad
     usage."""
-    from .scene import Scene
+    from blendify_core.ir.scene import Scene
 
     p = argparse.ArgumentParser(
         prog="blendify crosscheck",

@@ -10,12 +10,12 @@ from typing import Any
 
 import numpy as np
 
-from .backend import Backend, available_backends, shared_backend
-from .effects import analyse_effects
-from .errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
-from .features import scene_features
-from .result import RenderResult
-from .settings import RenderSettings, resolve_settings
+from blendify_core.errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
+from blendify_core.pipeline.backend import Backend, available_backends, shared_backend
+from blendify_core.pipeline.capabilities import scene_features
+from blendify_core.pipeline.effects import analyse_effects
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings, resolve_settings
 
 __all__ = ["render", "check_capabilities", "choose_backend"]
 
@@ -132,7 +132,7 @@ def render(
     field (``denoise``, ``max_bounces``, ``time_limit``, ``target_error``, ``pixel_filter``, ...) override
     the quality preset; all others are backend options (e.g. ``platform="egl"``, ``variant="scalar_rgb"``).
     """
-    from .scene import Scene
+    from blendify_core.ir.scene import Scene
 
     t_start = time.perf_counter()
     if not isinstance(scene, Scene):
@@ -187,7 +187,7 @@ def render(
     out_cam = cam._scaled(cam.resolution_percentage / 100.0) if cam.resolution_percentage != 100 else cam
     render_cam, src = out_cam, None
     if getattr(out_cam, "distortion", None) is not None:
-        from .distortion import margin_camera
+        from blendify_core.pipeline.distortion import margin_camera
 
         render_cam, src = margin_camera(out_cam)  # type: ignore[arg-type]
     crop = None
@@ -197,7 +197,7 @@ def render(
         crop = (render_cam.height, render_cam.width)
         render_cam = _padded_camera(render_cam, max(render_cam.width, min_w), max(render_cam.height, min_h))
     view = scene if render_cam is cam else scene.with_camera(render_cam)
-    from .recentre import needs_recentring, recentred_view
+    from blendify_core.pipeline.recentre import needs_recentring, recentred_view
 
     origin = None
     if needs_recentring(view, bounds):
@@ -224,7 +224,7 @@ def render(
                 setattr(result, attr, np.ascontiguousarray(data[: crop[0], : crop[1]]))
 
     if src is not None:
-        from .distortion import remap_result
+        from blendify_core.pipeline.distortion import remap_result
 
         t0 = time.perf_counter()
         remap_result(result, src, out_cam, render_cam)  # type: ignore[arg-type]
@@ -248,7 +248,7 @@ def render(
     meta["scene_fingerprint"] = scene.fingerprint()
     if not result.instance_tags:
         result.instance_tags = [r.tag for r in scene.renderables]
-    from .compare import PATH_TRACERS
+    from blendify_core.evaluate.compare import PATH_TRACERS
 
     _error_meta(meta, settings, bool(getattr(inst, "path_tracer", False)) or inst.name in PATH_TRACERS)
     _normalise_timings(meta.setdefault("timings", {}), time.perf_counter() - t_call)
@@ -405,7 +405,7 @@ PRECISION_RATIO = 1e12
 
 def _precision_check(scene: Any, bounds: Any) -> str | None:
     """A warning when coordinates are so large relative to the scene's size that float64 itself loses it."""
-    from .recentre import _scene_scale
+    from blendify_core.pipeline.recentre import _scene_scale
 
     if bounds is None:
         return None

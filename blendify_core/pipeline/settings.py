@@ -6,8 +6,8 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from ._validate import as_bool, as_choice, as_float, as_int
-from .errors import InvalidSceneError
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.validate import as_bool, as_choice, as_float, as_int
 
 __all__ = ["RenderSettings", "QUALITIES", "OUTPUTS", "resolve_settings"]
 

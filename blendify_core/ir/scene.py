@@ -8,11 +8,11 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import strict_arguments
-from .cameras import Camera, OrthographicCamera, PerspectiveCamera, camera_from_opencv
-from .errors import InvalidSceneError
-from .lights import LightsCollection
-from .renderables import RenderablesCollection
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.cameras import Camera, OrthographicCamera, PerspectiveCamera, camera_from_opencv
+from blendify_core.ir.lights import LightsCollection
+from blendify_core.ir.renderables import RenderablesCollection
+from blendify_core.ir.validate import strict_arguments
 
 __all__ = ["Scene"]
 
@@ -142,7 +142,7 @@ class Scene:
     def save(self, path: str | os.PathLike[str], relative_paths: bool = True) -> None:
         """Write the scene to one portable ``.npz`` file (JSON header + arrays, no pickle), atomically.
         Texture files are referenced by path (relative to the scene file when ``relative_paths``)."""
-        from .scenefile import save_scene
+        from blendify_core.io.scenefile import save_scene
 
         save_scene(self, path, relative_paths=relative_paths)
 
@@ -150,26 +150,26 @@ class Scene:
     def load(cls, path: str | os.PathLike[str], allow_outside: bool = False) -> Scene:
         """Read a scene file. Relative texture paths resolve against the file's folder and may not leave
         it unless ``allow_outside=True``."""
-        from .scenefile import load_scene
+        from blendify_core.io.scenefile import load_scene
 
         return load_scene(path, allow_outside=allow_outside)
 
     def fingerprint(self) -> str:
         """A stable content hash (hex SHA-256) of everything that affects the picture."""
-        from .scenefile import fingerprint
+        from blendify_core.io.scenefile import fingerprint
 
         return fingerprint(self)
 
     # -- Blender-only helpers (need the Cycles backend) ------------------------------------------
     def export_blend(self, path: str | os.PathLike[str], **kwargs: Any) -> None:
         """Write a .blend file that renders this scene in Blender (needs the ``cycles`` backend)."""
-        from .backend import get_backend_class
+        from blendify_core.pipeline.backend import get_backend_class
 
         get_backend_class("cycles").export_blend(self, path, **kwargs)  # type: ignore[attr-defined]
 
     def attach_blend(self, path: str | os.PathLike[str], with_camera: bool = False, **kwargs: Any) -> Any:
         """Import a .blend file's meshes, materials, lights (and camera) into this scene (needs ``cycles``)."""
-        from .backend import get_backend_class
+        from blendify_core.pipeline.backend import get_backend_class
 
         return get_backend_class("cycles").attach_blend(self, path, with_camera=with_camera, **kwargs)  # type: ignore[attr-defined]
 

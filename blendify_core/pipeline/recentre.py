@@ -44,14 +44,14 @@ def _scene_scale(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> tuple[float, floa
 
 
 def _magnitude_and_size(v: np.ndarray) -> tuple[float, float]:
-    from .renderables import _column_bounds
+    from blendify_core.ir.renderables import _column_bounds
 
     lo, hi = _column_bounds(v)
     return float(max(np.abs(lo).max(), np.abs(hi).max())), float(np.linalg.norm(hi - lo))
 
 
 def _vertex_magnitude(r: Any) -> tuple[float, float]:
-    from ._memo import magnitude_memo
+    from blendify_core._memo import magnitude_memo
 
     for attr in ("_vertices", "keypoints"):
         v = getattr(r, attr, None)
@@ -119,8 +119,8 @@ def _shift_object(obj: Any, origin: np.ndarray, key: Any) -> Any:
 
 def recentred_view(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> tuple[Any, np.ndarray]:
     """A view of ``scene`` translated by ``-origin`` (float64) and the origin used."""
-    from .lights import LightsCollection
-    from .renderables import RenderablesCollection
+    from blendify_core.ir.lights import LightsCollection
+    from blendify_core.ir.renderables import RenderablesCollection
 
     magnitude, size = _scene_scale(scene, bounds)
     grid = 2.0 ** np.ceil(np.log2(max(size, 1e-300)))

@@ -12,8 +12,22 @@ from typing import Any
 
 import numpy as np
 
-from ._memo import bounds_memo
-from ._validate import (
+from blendify_core._memo import bounds_memo
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.colors import (
+    Colors,
+    FacesUV,
+    FileTextureColors,
+    TextureColors,
+    UniformColors,
+    UVMap,
+    VertexColors,
+    VertexUV,
+)
+from blendify_core.ir.geometry import TriMesh, triangulate_polygons, tube_along_polyline, uv_sphere, vertex_normals
+from blendify_core.ir.materials import Material, check_material
+from blendify_core.ir.transforms import Positionable, ValidatedParam
+from blendify_core.ir.validate import (
     _describe,
     as_array,
     as_bool,
@@ -25,20 +39,6 @@ from ._validate import (
     raw_array,
     strict_arguments,
 )
-from .colors import (
-    Colors,
-    FacesUV,
-    FileTextureColors,
-    TextureColors,
-    UniformColors,
-    UVMap,
-    VertexColors,
-    VertexUV,
-)
-from .errors import InvalidSceneError
-from .geometry import TriMesh, triangulate_polygons, tube_along_polyline, uv_sphere, vertex_normals
-from .materials import Material, check_material
-from .transforms import Positionable, ValidatedParam
 
 __all__ = [
     "Renderable",
@@ -421,7 +421,7 @@ class Mesh(Renderable):
         arrays[prefix + "face_corner"] = self._face_corner
         if self._faces_material_poly is not None:
             arrays[prefix + "faces_material"] = self._faces_material_poly
-        from .colors import uv_to_dict
+        from blendify_core.ir.colors import uv_to_dict
 
         d.update(
             vertices=prefix + "vertices",
@@ -524,7 +524,7 @@ class PointCloud(Renderable):
 
     def to_mesh(self, subdivisions: int = 1) -> TriMesh:
         """Merged icospheres (one per point): the shared tessellation for engines without spheres."""
-        from .geometry import icosphere
+        from blendify_core.ir.geometry import icosphere
 
         base = icosphere(subdivisions)
         r = self.radii()
@@ -1228,7 +1228,7 @@ class RenderablesCollection:
         """Add a ``trimesh.Trimesh``, ``trimesh.Scene``, ``trimesh.PointCloud`` or a mesh file (OBJ, PLY,
         GLB/glTF, STL, OFF), keeping vertex colours, UVs, textures and material groups. Returns the new
         renderable (or a list for a multi-object scene)."""
-        from .trimesh_io import add_trimesh
+        from blendify_core.ir.from_trimesh import add_trimesh
 
         return add_trimesh(self, mesh_or_path, material=material, colors=colors, **kwargs)
 

@@ -9,10 +9,10 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import _describe
-from .colors import Colors, TextureColors, UniformColors, VertexColors, VertexUV
-from .errors import InvalidSceneError
-from .materials import Material, PrincipledBSDFMaterial
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.colors import Colors, TextureColors, UniformColors, VertexColors, VertexUV
+from blendify_core.ir.materials import Material, PrincipledBSDFMaterial
+from blendify_core.ir.validate import _describe
 
 __all__ = ["add_trimesh", "load_trimesh"]
 

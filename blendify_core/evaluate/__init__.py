@@ -1,0 +1,1 @@
+"""Evaluation: comparing results (:mod:`.compare`), tolerance tiers, statistics and cross-checks."""
