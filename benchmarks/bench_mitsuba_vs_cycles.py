@@ -54,7 +54,7 @@ def _time_mitsuba(scene, variant: str, settings, repeats: int) -> dict:
 
 
 def _time_cycles(scene, settings, repeats: int) -> dict:
-    from blendify_core.pipeline.backend import get_backend
+    from blendify_core.registry import get_backend
 
     try:
         backend = get_backend("cycles")

@@ -31,8 +31,9 @@ from test_xb_canonical import KNOWN  # noqa: E402
 from xb_canonical import CANONICAL  # noqa: E402
 
 import blendify_core as bf  # noqa: E402
-from blendify_core.evaluate.compare import TIER_NOTES, TIERS, alpha_centroids  # noqa: E402
+from blendify_core.evaluate.metrics import alpha_centroids  # noqa: E402
 from blendify_core.evaluate.stats import ReferenceEstimate  # noqa: E402
+from blendify_core.evaluate.tiers import TIER_NOTES, TIERS  # noqa: E402
 from blendify_core.testing import marker_scene, plane_scene  # noqa: E402
 
 BACKENDS = ("cycles", "mitsuba", "pyrender")
@@ -326,11 +327,11 @@ def main(argv: list[str] | None = None) -> int:
     ]
     notes = [f"- `{t}`: {why}" for t, why in TIER_NOTES.items()]
     doc += [
-        "## Tolerance tiers (`blendify_core.evaluate.compare.TIERS`)",
+        "## Tolerance tiers (`blendify_core.evaluate.tiers.TIERS`)",
         "",
         "CONV = `docs/conventions.md`, section *Measurements behind the tolerance tiers* (sections 5, 6, 11, 13, "
         "made with the same engine versions); "
-        "'measured' = this report. The per-number comments are next to `TIERS` in `blendify_core/compare.py`.",
+        "'measured' = this report. The per-number comments are next to `TIERS` in `blendify_core/evaluate/tiers.py`.",
         "",
         *notes,
         "",

@@ -14,7 +14,9 @@ from blendify_core.errors import (
     RenderError,
     UnsupportedFeatureError,
 )
-from blendify_core.evaluate.compare import CompareReport, CrosscheckReport, compare, crosscheck
+from blendify_core.evaluate.compare import compare
+from blendify_core.evaluate.crosscheck import crosscheck
+from blendify_core.evaluate.report import CompareReport, CrosscheckReport
 from blendify_core.ir.cameras import Camera, OrthographicCamera, PerspectiveCamera
 from blendify_core.ir.colors import (
     FacesUV,
@@ -57,10 +59,13 @@ from blendify_core.ir.renderables import (
     SphereNURBS,
 )
 from blendify_core.ir.scene import Scene
-from blendify_core.pipeline.backend import (
-    Backend,
+from blendify_core.pipeline.backend import Backend, Capability
+from blendify_core.pipeline.effects import Effects, analyse_effects
+from blendify_core.pipeline.render import render
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings, resolve_settings
+from blendify_core.registry import (
     BackendStatus,
-    Capability,
     available_backends,
     backend_names,
     close_backends,
@@ -68,10 +73,6 @@ from blendify_core.pipeline.backend import (
     get_backend_class,
     register_backend,
 )
-from blendify_core.pipeline.effects import Effects, analyse_effects
-from blendify_core.pipeline.render import render
-from blendify_core.pipeline.result import RenderResult
-from blendify_core.pipeline.settings import RenderSettings, resolve_settings
 from blendify_core.utils.animation import render_frames as render_frames
 
 __version__ = "0.1.0"

@@ -65,3 +65,15 @@ class OutputError(BlendifyError, OSError):
 class MissingFolderError(OutputError, InvalidSceneError):
     """The folder a file should be written into does not exist. An :class:`OutputError` (so an ``OSError``)
     like every failed write, and also an :class:`InvalidSceneError`, as a bad path argument always was."""
+
+
+def describe(value: object) -> str:
+    """A short description of a bad value for error messages: its type and (shortened) repr, or an
+    array's shape and dtype."""
+    shape, dtype = getattr(value, "shape", None), getattr(value, "dtype", None)
+    if shape is not None and dtype is not None and type(value).__module__.startswith("numpy"):
+        return f"an array of shape {shape} and dtype {dtype}"
+    text = repr(value)
+    if len(text) > 80:
+        text = text[:77] + "..."
+    return f"{type(value).__name__} {text}"

@@ -10,8 +10,16 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core.ir.colors import FacesUV, TextureColors, UniformColors, VertexColors, VertexUV
-from blendify_core.ir.materials import DiffuseMaterial, MetalMaterial, PlasticMaterial, PrincipledBSDFMaterial
+from blendify_core.ir.colors import FacesUV, NormalMap, TextureColors, TextureMap, UniformColors, VertexColors, VertexUV
+from blendify_core.ir.geometry import torus, uv_sphere, vertex_normals
+from blendify_core.ir.materials import (
+    DiffuseMaterial,
+    GlossyBSDFMaterial,
+    MetalMaterial,
+    PlasticMaterial,
+    PlasticWireframeMaterial,
+    PrincipledBSDFMaterial,
+)
 from blendify_core.ir.scene import Scene
 
 __all__ = [
@@ -195,8 +203,6 @@ def bunny_scene(
     faces = np.asarray(tm.faces)[:, [0, 2, 1]]
     scene = Scene()
     if vertex_colors:
-        from blendify_core.ir.geometry import vertex_normals
-
         n = vertex_normals(v, faces)
         colors: Any = VertexColors(np.clip(np.abs(n) * 0.8 + 0.1, 0, 1))
     else:
@@ -282,9 +288,6 @@ def primitives_scene(resolution: tuple[int, int] = (128, 96)) -> Scene:
 def every_feature_scene(resolution: tuple[int, int] = (96, 72)) -> Scene:
     """One scene using (nearly) every IR feature: meshes with uniform/vertex/texture colours and per-face
     materials, a point cloud, all primitives, wireframe, emission, alpha, all light types."""
-    from blendify_core.ir.colors import NormalMap, TextureMap
-    from blendify_core.ir.materials import GlossyBSDFMaterial, PlasticWireframeMaterial
-
     scene = primitives_scene(resolution)
     r = scene.renderables
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1]], dtype=float)
@@ -553,8 +556,6 @@ HARD_CASE_REFERENCE = {
 def _hc_world_vertices(offset: Any) -> Scene:
     """A torus mesh whose vertices are given in world coordinates around ``offset`` (identity pose), as
     scans and simulation output usually are."""
-    from blendify_core.ir.geometry import torus
-
     off = np.asarray(offset, dtype=np.float64)
     t = torus(0.6, 0.25, 48, 24)
     scene = _hc_base(offset=off)
@@ -605,8 +606,6 @@ def _hc_empty() -> Scene:
 
 
 def _hc_big_mesh() -> Scene:
-    from blendify_core.ir.geometry import uv_sphere
-
     m = uv_sphere(1.0, 1000, 1000)
     return _hc_mesh(m.vertices, m.faces)
 
@@ -702,8 +701,6 @@ def _hc_light_at_camera() -> Scene:
 
 
 def _hc_vertex_colors() -> Scene:
-    from blendify_core.ir.geometry import uv_sphere
-
     scene = _hc_base()
     scene.renderables.clear()
     m = uv_sphere(0.8, 16, 8)

@@ -378,7 +378,7 @@ class _Manifest:
             self._fh.flush()
             os.fsync(self._fh.fileno())
             return
-        from blendify_core.pipeline.result import atomic_write
+        from blendify_core.io.output import atomic_write
 
         doc = {"format": "blendify-batch-manifest", "version": 1, "jobs": self.records}
 
@@ -551,7 +551,7 @@ class _Run:
 
 def _registrations() -> dict[str, str]:
     """Backends registered at run time in this process, as "module:Class" strings a worker can import."""
-    from blendify_core.pipeline import backend as backend_mod
+    from blendify_core import registry as backend_mod
 
     out = {}
     for name, target in backend_mod._registered.items():

@@ -114,7 +114,7 @@ def _load_scene(payload: dict[str, Any]) -> Any:
 def _register(registrations: dict[str, str] | None) -> None:
     if not registrations:
         return
-    from blendify_core.pipeline import backend as backend_mod
+    from blendify_core import registry as backend_mod
 
     for name, target in registrations.items():
         if name not in backend_mod._entry_points():
@@ -149,8 +149,8 @@ def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None)
     try:
         _drop_blender_script_paths()
         _register(payload.get("registrations"))
-        from blendify_core.pipeline.backend import shared_backend
         from blendify_core.pipeline.render import choose_backend, render
+        from blendify_core.registry import shared_backend
 
         scene = _load_scene(payload)
         settings = dict(payload.get("settings") or {})
@@ -229,7 +229,7 @@ def pool_main(conn: Any) -> None:
             except (BrokenPipeError, OSError):
                 break
     finally:
-        from blendify_core.pipeline.backend import close_backends
+        from blendify_core.registry import close_backends
 
         try:
             close_backends()

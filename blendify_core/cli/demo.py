@@ -153,7 +153,8 @@ def run_demo(
     from PIL import Image
 
     from blendify_core import render
-    from blendify_core.pipeline.result import atomic_write, depth_to_image
+    from blendify_core.io.output import atomic_write
+    from blendify_core.pipeline.result import depth_to_image
 
     panels: list[np.ndarray] = []
     res = (size, size)

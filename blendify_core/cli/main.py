@@ -24,7 +24,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _info(args: argparse.Namespace) -> int:
-    from blendify_core.pipeline.backend import available_backends, get_backend_class
+    from blendify_core.registry import available_backends, get_backend_class
 
     print(f"blendify-core {__version__} (Python {platform.python_version()}, {platform.system()} {platform.machine()})")
     import numpy
@@ -86,7 +86,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 def _crosscheck(args: argparse.Namespace) -> int:
     try:
-        from blendify_core.evaluate.compare import crosscheck_main  # type: ignore[attr-defined]
+        from blendify_core.evaluate.crosscheck import crosscheck_main
     except ImportError:
         print("blendify crosscheck: not available in this version", file=sys.stderr)
         return 1
@@ -171,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "crosscheck":  # its own parser: options may come before the scene path
         try:
-            from blendify_core.evaluate.compare import crosscheck_main
+            from blendify_core.evaluate.crosscheck import crosscheck_main
         except ImportError:
             print("blendify crosscheck: not available in this version", file=sys.stderr)
             return 1

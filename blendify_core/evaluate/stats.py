@@ -47,6 +47,9 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.scene import Scene
+from blendify_core.pipeline.render import render as bf_render
+from blendify_core.pipeline.result import RenderResult
 
 __all__ = ["ZTestResult", "ReferenceEstimate", "z_test", "estimate_reference", "sidak_alpha"]
 
@@ -326,15 +329,10 @@ def estimate_reference(
     samples=samples, seed=seed0 + i, denoise=False, adaptive=False, **render_kwargs)``. ``output``
     picks the array of a RenderResult ("rgb" = premultiplied linear RGB, or "rgba", "albedo", ...).
     """
-    from blendify_core.ir.scene import Scene
-    from blendify_core.pipeline.result import RenderResult
-
     if not isinstance(k, (int, np.integer)) or k < 2:
         raise InvalidSceneError(f"k: expected an integer >= 2 independent renders, got {k!r}")
     if isinstance(render, Scene):
         scene = render
-        from blendify_core.pipeline.render import render as bf_render
-
         kw = {"denoise": False, "adaptive": False, "pixel_filter": "box", **render_kwargs}
         outputs = kw.pop("outputs", ("rgb",))
 

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
-from blendify_core.ir.transforms import Positionable, ValidatedParam, matrix_to_quaternion
+from blendify_core.ir.transforms import Positionable, ValidatedParam, _orthonormalise, matrix_to_quaternion
 from blendify_core.ir.validate import _describe, as_array, as_float, as_int, raw_array
 
 __all__ = ["Camera", "PerspectiveCamera", "OrthographicCamera", "CV_FROM_BLENDER"]
@@ -388,8 +388,6 @@ def camera_from_opencv(
     far: float = 100.0,
 ) -> PerspectiveCamera:
     """A perspective camera from OpenCV intrinsics and extrinsics (``x_cam = R @ x_world + t``)."""
-    from blendify_core.ir.transforms import _orthonormalise
-
     r = _orthonormalise("R", as_array("R", R, shape=(3, 3)))
     tv = as_array("t", t, shape=(3,))
     rb = r.T @ CV_FROM_BLENDER

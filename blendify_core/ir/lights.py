@@ -16,7 +16,8 @@ import numpy as np
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colors import COLOR_SPACES, _check_image, _to_linear, load_image
-from blendify_core.ir.transforms import Positionable, ValidatedParam
+from blendify_core.ir.colorspace import srgb8_to_linear
+from blendify_core.ir.transforms import Positionable, ValidatedParam, quaternion_from_rotation, quaternion_to_matrix
 from blendify_core.ir.validate import (
     _describe,
     as_array,
@@ -51,8 +52,6 @@ __all__ = [
 
 
 def _quaternion(name: str, value: Any) -> np.ndarray:
-    from blendify_core.ir.transforms import quaternion_from_rotation
-
     return quaternion_from_rotation("quaternionWXYZ", value, name=name)
 
 
@@ -342,8 +341,6 @@ class EnvironmentMap:
         rotation: Any = None,
         color_space: str | None = None,
     ):
-        from blendify_core.ir.transforms import quaternion_from_rotation
-
         self.path: str | None = None
         self._image: np.ndarray | None = None
         if isinstance(image_or_path, (str, os.PathLike)):
@@ -373,16 +370,12 @@ class EnvironmentMap:
             img = np.repeat(img, 3, axis=2)
         rgb = img[..., :3]
         if rgb.dtype == np.uint8:
-            from blendify_core.ir.colorspace import srgb8_to_linear
-
             return srgb8_to_linear(rgb) if self.color_space == "srgb" else rgb.astype(np.float32) / 255.0
         out = rgb.astype(np.float32)
         return _to_linear(out, self.color_space).astype(np.float32) if self.color_space == "srgb" else out
 
     @property
     def rotation_matrix(self) -> np.ndarray:
-        from blendify_core.ir.transforms import quaternion_to_matrix
-
         return quaternion_to_matrix(self.quaternion)
 
     def to_dict(self, arrays: dict[str, np.ndarray]) -> dict[str, Any]:

@@ -464,8 +464,6 @@ def check_material(name: str, value: Any) -> Material:
 
 
 def material_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray], base_dir: str | None) -> Material:
-    from blendify_core.ir.colors import NormalMap, TextureMap
-
     cls = _MATERIAL_CLASSES.get(d.get("kind", ""))
     if cls is None:
         raise InvalidSceneError(f"scene file: unknown material kind {d.get('kind')!r}")

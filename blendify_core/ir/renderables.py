@@ -23,8 +23,17 @@ from blendify_core.ir.colors import (
     UVMap,
     VertexColors,
     VertexUV,
+    uv_to_dict,
 )
-from blendify_core.ir.geometry import TriMesh, triangulate_polygons, tube_along_polyline, uv_sphere, vertex_normals
+from blendify_core.ir.from_trimesh import add_trimesh
+from blendify_core.ir.geometry import (
+    TriMesh,
+    icosphere,
+    triangulate_polygons,
+    tube_along_polyline,
+    uv_sphere,
+    vertex_normals,
+)
 from blendify_core.ir.materials import Material, check_material
 from blendify_core.ir.transforms import Positionable, ValidatedParam
 from blendify_core.ir.validate import (
@@ -421,8 +430,6 @@ class Mesh(Renderable):
         arrays[prefix + "face_corner"] = self._face_corner
         if self._faces_material_poly is not None:
             arrays[prefix + "faces_material"] = self._faces_material_poly
-        from blendify_core.ir.colors import uv_to_dict
-
         d.update(
             vertices=prefix + "vertices",
             faces=prefix + "faces",
@@ -524,8 +531,6 @@ class PointCloud(Renderable):
 
     def to_mesh(self, subdivisions: int = 1) -> TriMesh:
         """Merged icospheres (one per point): the shared tessellation for engines without spheres."""
-        from blendify_core.ir.geometry import icosphere
-
         base = icosphere(subdivisions)
         r = self.radii()
         n, nv = len(self._vertices), len(base.vertices)
@@ -1228,8 +1233,6 @@ class RenderablesCollection:
         """Add a ``trimesh.Trimesh``, ``trimesh.Scene``, ``trimesh.PointCloud`` or a mesh file (OBJ, PLY,
         GLB/glTF, STL, OFF), keeping vertex colours, UVs, textures and material groups. Returns the new
         renderable (or a list for a multi-object scene)."""
-        from blendify_core.ir.from_trimesh import add_trimesh
-
         return add_trimesh(self, mesh_or_path, material=material, colors=colors, **kwargs)
 
     # -- collection protocol -------------------------------------------------------------------

@@ -9,10 +9,13 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.attachments import Attachment
 from blendify_core.ir.cameras import Camera, OrthographicCamera, PerspectiveCamera, camera_from_opencv
 from blendify_core.ir.lights import LightsCollection
 from blendify_core.ir.renderables import RenderablesCollection
+from blendify_core.ir.serialize import fingerprint, load_scene, save_scene
 from blendify_core.ir.validate import strict_arguments
+from blendify_core.registry import backend_for_format
 
 __all__ = ["Scene"]
 
@@ -24,7 +27,8 @@ class Scene:
         self.renderables = RenderablesCollection()
         self.lights = LightsCollection()
         self._camera: Camera | None = None
-        self.attached_blends: list[str] = []
+        #: files attached for a backend that understands their format (``attach_blend`` adds .blend files)
+        self.attachments: list[Attachment] = []
 
     # -- camera ------------------------------------------------------------------------------------
     @property
@@ -142,36 +146,31 @@ class Scene:
     def save(self, path: str | os.PathLike[str], relative_paths: bool = True) -> None:
         """Write the scene to one portable ``.npz`` file (JSON header + arrays, no pickle), atomically.
         Texture files are referenced by path (relative to the scene file when ``relative_paths``)."""
-        from blendify_core.io.scenefile import save_scene
-
         save_scene(self, path, relative_paths=relative_paths)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str], allow_outside: bool = False) -> Scene:
         """Read a scene file. Relative texture paths resolve against the file's folder and may not leave
         it unless ``allow_outside=True``."""
-        from blendify_core.io.scenefile import load_scene
-
-        return load_scene(path, allow_outside=allow_outside)
+        return load_scene(cls(), path, allow_outside=allow_outside)  # type: ignore[no-any-return]
 
     def fingerprint(self) -> str:
         """A stable content hash (hex SHA-256) of everything that affects the picture."""
-        from blendify_core.io.scenefile import fingerprint
-
         return fingerprint(self)
 
-    # -- Blender-only helpers (need the Cycles backend) ------------------------------------------
+    # -- files of a backend's own format (found through the registry; .blend: the Cycles backend) ------
+    @property
+    def attached_blends(self) -> tuple[str, ...]:
+        """Paths of the attached .blend files (read-only: the ``"blend"`` entries of :attr:`attachments`)."""
+        return tuple(a.path for a in self.attachments if a.format == "blend")
+
     def export_blend(self, path: str | os.PathLike[str], **kwargs: Any) -> None:
         """Write a .blend file that renders this scene in Blender (needs the ``cycles`` backend)."""
-        from blendify_core.pipeline.backend import get_backend_class
-
-        get_backend_class("cycles").export_blend(self, path, **kwargs)  # type: ignore[attr-defined]
+        backend_for_format("blend").export_file(self, "blend", path, **kwargs)
 
     def attach_blend(self, path: str | os.PathLike[str], with_camera: bool = False, **kwargs: Any) -> Any:
         """Import a .blend file's meshes, materials, lights (and camera) into this scene (needs ``cycles``)."""
-        from blendify_core.pipeline.backend import get_backend_class
-
-        return get_backend_class("cycles").attach_blend(self, path, with_camera=with_camera, **kwargs)  # type: ignore[attr-defined]
+        return backend_for_format("blend").attach_file(self, "blend", path, with_camera=with_camera, **kwargs)
 
     # -- summaries -------------------------------------------------------------------------------
     def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:

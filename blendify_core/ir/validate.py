@@ -11,15 +11,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
-
-
-def _describe(value: Any) -> str:
-    if isinstance(value, np.ndarray):
-        return f"an array of shape {value.shape} and dtype {value.dtype}"
-    text = repr(value)
-    if len(text) > 80:
-        text = text[:77] + "..."
-    return f"{type(value).__name__} {text}"
+from blendify_core.errors import describe as _describe
 
 
 def raw_array(name: str, value: Any) -> np.ndarray:
@@ -180,16 +172,6 @@ def check_tag(name: str, value: Any) -> str:
             f"{name}: expected a non-empty string without surrounding spaces, got {_describe(value)}"
         )
     return value
-
-
-def as_path(name: str, value: Any) -> Any:
-    """Check a file path argument (str or os.PathLike) and return it as a ``pathlib.Path``."""
-    import os
-    from pathlib import Path
-
-    if not isinstance(value, (str, os.PathLike)) or (isinstance(value, str) and not value):
-        raise InvalidSceneError(f"{name}: expected a file path (str or os.PathLike), got {_describe(value)}")
-    return Path(value)
 
 
 def reject_unknown(where: str, kwargs: dict[str, Any], allowed: Iterable[str] = ()) -> None:

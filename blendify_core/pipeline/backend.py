@@ -1,51 +1,25 @@
-"""The backend protocol and the name-keyed, lazily importing backend registry.
+"""The backend protocol: translate the IR to a native scene, render it to a RenderResult.
 
-Backends register through the entry-point group ``blendify.backends``
-(``cycles = "blendify_blender:CyclesBackend"``), so a third party can add one without touching this
-repository; :func:`register_backend` adds one at run time (tests use it for fakes). Nothing is imported
-when the registry is read: a backend module is imported on first use, and its engine only when a
-backend instance needs it.
+Backends are found by name through :mod:`blendify_core.registry`.
 """
 
 from __future__ import annotations
 
 import abc
-import importlib
 import logging
-import threading
 import time
-from dataclasses import dataclass
 from importlib import metadata
 from typing import Any, ClassVar
 
-from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.errors import BackendUnavailableError, InvalidSceneError, UnsupportedFeatureError
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
+from blendify_core.registry import BackendStatus
 
-__all__ = [
-    "Backend",
-    "BackendStatus",
-    "Capability",
-    "available_backends",
-    "backend_names",
-    "get_backend",
-    "get_backend_class",
-    "register_backend",
-    "ENTRY_POINT_GROUP",
-]
+__all__ = ["Backend", "Capability"]
 
 log = logging.getLogger("blendify_core")
-ENTRY_POINT_GROUP = "blendify.backends"
-
-
-@dataclass(frozen=True)
-class BackendStatus:
-    """Whether a backend can be used here, and if not, why."""
-
-    available: bool
-    reason: str | None = None
-    version: str | None = None
 
 
 class Backend(abc.ABC):
@@ -65,6 +39,11 @@ class Backend(abc.ABC):
     path_tracer: ClassVar[bool] = False
     #: the smallest image the engine renders; the core pads smaller cameras and crops the result
     min_resolution: ClassVar[tuple[int, int]] = (1, 1)
+    #: file formats (suffix without the dot) this backend can export a scene to and attach to a scene
+    #: (:meth:`export_file`, :meth:`attach_file`); found by :func:`blendify_core.registry.backend_for_format`
+    file_formats: ClassVar[tuple[str, ...]] = ()
+    #: marks backend classes for the registry (which cannot import this module)
+    _is_blendify_backend: ClassVar[bool] = True
 
     def __init__(self, **options: Any) -> None:
         if options:
@@ -125,6 +104,20 @@ class Backend(abc.ABC):
         timings.setdefault("render", t2 - t1)
         return result
 
+    @classmethod
+    def export_file(cls, scene: Any, file_format: str, path: Any, **kwargs: Any) -> Any:
+        """Write ``scene`` as a ``file_format`` file (only for formats in :attr:`file_formats`)."""
+        raise UnsupportedFeatureError(
+            f"backend {cls.name!r} cannot export .{file_format} files", feature=f"file.{file_format}", backend=cls.name
+        )
+
+    @classmethod
+    def attach_file(cls, scene: Any, file_format: str, path: Any, **kwargs: Any) -> Any:
+        """Import a ``file_format`` file into ``scene`` (only for formats in :attr:`file_formats`)."""
+        raise UnsupportedFeatureError(
+            f"backend {cls.name!r} cannot attach .{file_format} files", feature=f"file.{file_format}", backend=cls.name
+        )
+
     def close(self) -> None:
         """Release engine resources (contexts, datablocks). Idempotent."""
         self._closed = True
@@ -134,105 +127,3 @@ class Backend(abc.ABC):
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-# ---------------------------------------------------------------------------------------------------
-# registry
-# ---------------------------------------------------------------------------------------------------
-
-_registered: dict[str, Any] = {}  # name -> class or "module:Class"
-_lock = threading.Lock()
-
-
-def register_backend(name: str, target: type[Backend] | str) -> None:
-    """Register a backend class (or a "module:Class" path) under ``name`` at run time."""
-    if not isinstance(name, str) or not name:
-        raise InvalidSceneError(f"name: expected a non-empty backend name, got {name!r}")
-    _registered[name] = target
-
-
-def unregister_backend(name: str) -> None:
-    _registered.pop(name, None)
-
-
-def _entry_points() -> dict[str, Any]:
-    found: dict[str, Any] = {}
-    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
-        found.setdefault(ep.name, ep.value)
-    found.update(_registered)
-    return found
-
-
-def backend_names() -> list[str]:
-    """Names of every registered backend (available or not), without importing any of them."""
-    return sorted(_entry_points())
-
-
-def get_backend_class(name: str) -> type[Backend]:
-    """Import and return the class of backend ``name`` (raises BackendUnavailableError with the reason)."""
-    points = _entry_points()
-    if name not in points:
-        raise InvalidSceneError(f"backend: unknown backend {name!r}; registered backends: {sorted(points)}")
-    target = points[name]
-    if isinstance(target, type):
-        return target
-    module_name, _, attr = str(target).partition(":")
-    try:
-        module = importlib.import_module(module_name)
-        cls = getattr(module, attr)
-    except Exception as exc:  # an import error of a third-party backend must not take the registry down
-        raise BackendUnavailableError(
-            f"backend {name!r}: cannot import {target} ({type(exc).__name__}: {exc})"
-        ) from exc
-    if not (isinstance(cls, type) and issubclass(cls, Backend)):
-        raise BackendUnavailableError(f"backend {name!r}: {target} is not a blendify_core.Backend subclass")
-    return cls
-
-
-def available_backends() -> dict[str, BackendStatus]:
-    """Every registered backend with its status: available, why not, engine version."""
-    out: dict[str, BackendStatus] = {}
-    for name in backend_names():
-        try:
-            cls = get_backend_class(name)
-            out[name] = cls.probe()
-        except BackendUnavailableError as exc:
-            out[name] = BackendStatus(False, str(exc), None)
-    return out
-
-
-def get_backend(name: str, **options: Any) -> Backend:
-    """A new instance of backend ``name`` with ``options`` (close it when done, or use ``with``)."""
-    cls = get_backend_class(name)
-    status = cls.probe()
-    if not status.available:
-        raise BackendUnavailableError(f"backend {name!r} is not available: {status.reason}")
-    return cls(**options)
-
-
-_shared: dict[tuple[str, tuple[tuple[str, Any], ...]], Backend] = {}
-
-
-def shared_backend(name: str, **options: Any) -> Backend:
-    """The process-wide default instance of ``name`` with ``options`` (reused across ``bf.render`` calls
-    so contexts and translated scenes stay warm)."""
-    try:
-        key: Any = (name, tuple(sorted(options.items())))
-        hash(key)
-    except TypeError:  # unhashable option values (lists, dicts): key them by their repr
-        key = (name, repr(sorted(options.items(), key=lambda kv: kv[0])))
-    with _lock:
-        inst = _shared.get(key)
-        if inst is None or inst._closed:
-            inst = get_backend(name, **options)
-            _shared[key] = inst
-        return inst
-
-
-def close_backends() -> None:
-    """Close every shared backend instance created by ``bf.render``."""
-    with _lock:
-        items = list(_shared.values())
-        _shared.clear()
-    for inst in items:
-        inst.close()

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colors import FileTextureColors, TextureColors, VertexColors
 from blendify_core.ir.lights import AreaLight, PointLight, SpotLight, SunLight
 from blendify_core.ir.renderables import (
@@ -93,8 +94,6 @@ class Capability:
 
     def __post_init__(self) -> None:
         if self.level not in ("exact", "approximate", "unsupported"):
-            from blendify_core.errors import InvalidSceneError
-
             raise InvalidSceneError(f"Capability.level: expected exact/approximate/unsupported, got {self.level!r}")
 
 

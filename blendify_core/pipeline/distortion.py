@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.cameras import PerspectiveCamera
 
 __all__ = ["undistort_points", "distort_points", "margin_camera", "remap_result"]
@@ -48,8 +49,6 @@ def _source_coords(cam: PerspectiveCamera) -> np.ndarray:
     # the fixed-point inversion diverges (NaN) or settles on a wrong point where the model folds over
     err_px = float(np.max(np.abs(back - xy_d)) * max(cam.fx, cam.fy)) if np.all(np.isfinite(back)) else np.inf
     if not err_px < 0.01:
-        from blendify_core.errors import InvalidSceneError
-
         raise InvalidSceneError(
             "distortion: the OpenCV model with these coefficients cannot be inverted over the whole image "
             f"(it folds over or diverges; residual {err_px:.3g} px); check the signs and units of (k1, k2, p1, p2, k3)"
@@ -68,8 +67,6 @@ def margin_camera(cam: PerspectiveCamera) -> tuple[PerspectiveCamera, np.ndarray
     vmin, vmax = float(v.min()) - pad, float(v.max()) + pad
     limit_w, limit_h = MAX_GROWTH * cam.width, MAX_GROWTH * cam.height
     if umax - umin > limit_w or vmax - vmin > limit_h:
-        from blendify_core.errors import InvalidSceneError
-
         raise InvalidSceneError(
             "distortion: these coefficients bend rays so far that the undistorted image would be more than "
             f"{MAX_GROWTH:g}x the output size; check the signs and units of (k1, k2, p1, p2, k3)"

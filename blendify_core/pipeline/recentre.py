@@ -18,6 +18,10 @@ from typing import Any
 
 import numpy as np
 
+from blendify_core._memo import magnitude_memo
+from blendify_core.ir.lights import LightsCollection
+from blendify_core.ir.renderables import RenderablesCollection, _column_bounds
+
 __all__ = ["needs_recentring", "recentred_view"]
 
 #: re-centre when coordinates exceed this many times the scene's size
@@ -44,15 +48,11 @@ def _scene_scale(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> tuple[float, floa
 
 
 def _magnitude_and_size(v: np.ndarray) -> tuple[float, float]:
-    from blendify_core.ir.renderables import _column_bounds
-
     lo, hi = _column_bounds(v)
     return float(max(np.abs(lo).max(), np.abs(hi).max())), float(np.linalg.norm(hi - lo))
 
 
 def _vertex_magnitude(r: Any) -> tuple[float, float]:
-    from blendify_core._memo import magnitude_memo
-
     for attr in ("_vertices", "keypoints"):
         v = getattr(r, attr, None)
         if v is not None and len(v):
@@ -119,9 +119,6 @@ def _shift_object(obj: Any, origin: np.ndarray, key: Any) -> Any:
 
 def recentred_view(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> tuple[Any, np.ndarray]:
     """A view of ``scene`` translated by ``-origin`` (float64) and the origin used."""
-    from blendify_core.ir.lights import LightsCollection
-    from blendify_core.ir.renderables import RenderablesCollection
-
     magnitude, size = _scene_scale(scene, bounds)
     grid = 2.0 ** np.ceil(np.log2(max(size, 1e-300)))
     origin = _snap(scene.camera.translation, grid)

@@ -11,11 +11,15 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
-from blendify_core.pipeline.backend import Backend, available_backends, shared_backend
+from blendify_core.ir.scene import Scene
+from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import scene_features
+from blendify_core.pipeline.distortion import margin_camera, remap_result
 from blendify_core.pipeline.effects import analyse_effects
+from blendify_core.pipeline.recentre import _scene_scale, needs_recentring, recentred_view
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings, resolve_settings
+from blendify_core.registry import available_backends, shared_backend
 
 __all__ = ["render", "check_capabilities", "choose_backend"]
 
@@ -132,8 +136,6 @@ def render(
     field (``denoise``, ``max_bounces``, ``time_limit``, ``target_error``, ``pixel_filter``, ...) override
     the quality preset; all others are backend options (e.g. ``platform="egl"``, ``variant="scalar_rgb"``).
     """
-    from blendify_core.ir.scene import Scene
-
     t_start = time.perf_counter()
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
@@ -187,8 +189,6 @@ def render(
     out_cam = cam._scaled(cam.resolution_percentage / 100.0) if cam.resolution_percentage != 100 else cam
     render_cam, src = out_cam, None
     if getattr(out_cam, "distortion", None) is not None:
-        from blendify_core.pipeline.distortion import margin_camera
-
         render_cam, src = margin_camera(out_cam)  # type: ignore[arg-type]
     crop = None
     min_w, min_h = getattr(inst, "min_resolution", (1, 1))
@@ -197,8 +197,6 @@ def render(
         crop = (render_cam.height, render_cam.width)
         render_cam = _padded_camera(render_cam, max(render_cam.width, min_w), max(render_cam.height, min_h))
     view = scene if render_cam is cam else scene.with_camera(render_cam)
-    from blendify_core.pipeline.recentre import needs_recentring, recentred_view
-
     origin = None
     if needs_recentring(view, bounds):
         view, origin = recentred_view(view, bounds)
@@ -224,8 +222,6 @@ def render(
                 setattr(result, attr, np.ascontiguousarray(data[: crop[0], : crop[1]]))
 
     if src is not None:
-        from blendify_core.pipeline.distortion import remap_result
-
         t0 = time.perf_counter()
         remap_result(result, src, out_cam, render_cam)  # type: ignore[arg-type]
         result.meta.setdefault("timings", {})["distortion"] = time.perf_counter() - t0
@@ -248,9 +244,8 @@ def render(
     meta["scene_fingerprint"] = scene.fingerprint()
     if not result.instance_tags:
         result.instance_tags = [r.tag for r in scene.renderables]
-    from blendify_core.evaluate.compare import PATH_TRACERS
-
-    _error_meta(meta, settings, bool(getattr(inst, "path_tracer", False)) or inst.name in PATH_TRACERS)
+    meta["path_tracer"] = bool(inst.path_tracer)
+    _error_meta(meta, settings, meta["path_tracer"])
     _normalise_timings(meta.setdefault("timings", {}), time.perf_counter() - t_call)
     meta["timings"]["total"] = time.perf_counter() - t_start
     return result
@@ -405,8 +400,6 @@ PRECISION_RATIO = 1e12
 
 def _precision_check(scene: Any, bounds: Any) -> str | None:
     """A warning when coordinates are so large relative to the scene's size that float64 itself loses it."""
-    from blendify_core.pipeline.recentre import _scene_scale
-
     if bounds is None:
         return None
     magnitude, size = _scene_scale(scene, bounds)

@@ -10,12 +10,12 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core._output import atomic_write
 from blendify_core.errors import InvalidSceneError
+from blendify_core.io.output import atomic_write
+from blendify_core.io.paths import as_path
 from blendify_core.ir.colorspace import linear_to_srgb
-from blendify_core.ir.validate import as_path
 
-__all__ = ["RenderResult", "atomic_write"]
+__all__ = ["RenderResult"]
 
 
 def _jsonable(value: Any) -> Any:

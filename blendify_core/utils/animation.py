@@ -14,7 +14,17 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.io.output import AtomicOutput, ensure_folder, output_error
+from blendify_core.ir.scene import Scene
 from blendify_core.ir.validate import _describe, as_float
+from blendify_core.pipeline.backend import Backend
+from blendify_core.pipeline.render import choose_backend
+from blendify_core.pipeline.render import render as bf_render
+from blendify_core.pipeline.result import _jsonable as core_jsonable
+from blendify_core.pipeline.result import atomic_write
+from blendify_core.registry import get_backend_class
+from blendify_core.utils.image import _color3, blend_with_background, to_display_uint8
+from blendify_core.utils.trajectory import Pose, Trajectory, apply_pose
 
 __all__ = ["render_frames", "FramesReport", "MANIFEST_NAME", "write_video"]
 
@@ -44,8 +54,6 @@ class FramesReport:
 
 
 def _jsonable(value: Any) -> Any:
-    from blendify_core.pipeline.result import _jsonable as core_jsonable
-
     return core_jsonable(value)
 
 
@@ -73,8 +81,6 @@ def _read_manifest(path: Path) -> dict[str, dict[str, Any]]:
 
 def _rewrite_manifest(path: Path, entries: dict[str, dict[str, Any]]) -> None:
     """Replace the manifest by one line per frame (atomically): keeps it compact across resumed runs."""
-    from blendify_core._output import atomic_write
-
     text = "".join(json.dumps(entries[k], sort_keys=True) + "\n" for k in sorted(entries))
 
     def writer(tmp: str) -> None:
@@ -86,8 +92,6 @@ def _rewrite_manifest(path: Path, entries: dict[str, dict[str, Any]]) -> None:
 
 def _append_manifest(path: Path, entry: dict[str, Any]) -> None:
     """Append one finished frame (O(1) per frame, durable before the next frame starts)."""
-    from blendify_core._output import output_error
-
     try:
         with open(path, "a") as f:  # a plain open: a new manifest gets the usual mode (0o666 & ~umask)
             f.write(json.dumps(entry, sort_keys=True) + "\n")
@@ -106,8 +110,6 @@ def _even_rgb(frame: np.ndarray) -> np.ndarray:
 
 
 def _video_frame(result_or_png: Any, background: np.ndarray) -> np.ndarray:
-    from blendify_core.utils.image import blend_with_background
-
     if isinstance(result_or_png, (str, Path)):
         from PIL import Image
 
@@ -121,7 +123,7 @@ def _video_frame(result_or_png: Any, background: np.ndarray) -> np.ndarray:
 
 class _VideoWriter:
     """Writes frames to a temporary file next to ``path`` (the mode of a plain ``open``, see
-    :mod:`blendify_core._output`); :meth:`finish` renames it into place, :meth:`abort` removes it."""
+    :mod:`blendify_core.io.output`); :meth:`finish` renames it into place, :meth:`abort` removes it."""
 
     def __init__(self, path: Path, fps: float, quality: float | None, codec: str) -> None:
         try:
@@ -132,8 +134,6 @@ class _VideoWriter:
                 "video_path: writing an MP4 needs the 'video' extra: pip install 'blendify-core[video]' "
                 "(imageio and imageio-ffmpeg)"
             ) from None
-        from blendify_core._output import AtomicOutput
-
         # checks the folder, the name and the permissions before any frame is rendered
         self._out = AtomicOutput(path, arg="video_path", suffix=path.suffix or ".mp4")
         self.tmp = self._out.tmp
@@ -159,8 +159,6 @@ class _VideoWriter:
         self._writer.append_data(frame)
 
     def finish(self) -> Path:
-        from blendify_core._output import output_error
-
         try:
             self._writer.close()
         except BaseException as exc:
@@ -188,8 +186,6 @@ def write_video(
 ) -> Path:
     """Encode PNG paths, uint8 images or RenderResults into an MP4 (H.264, yuv420p), atomically.
     Transparent pixels are composited over ``background`` (sRGB); odd sizes are padded to even."""
-    from blendify_core.utils.image import _color3, blend_with_background, to_display_uint8
-
     bg = _color3("background", background)
     fps = as_float("fps", fps, min_value=0.0, exclusive_min=True)
     if len(frames) == 0:
@@ -211,8 +207,6 @@ def write_video(
 def _frame_plan(
     trajectory_or_callback: Any, fps: float, n_frames: int | None, interpolation: str, smoothness: float
 ) -> tuple[list[Any] | None, Callable[[Any, int], Any] | None, int]:
-    from blendify_core.utils.trajectory import Pose, Trajectory
-
     if isinstance(trajectory_or_callback, Trajectory):
         poses = trajectory_or_callback.refine(1.0 / fps, interpolation=interpolation, smoothness=smoothness)
         if n_frames is not None:
@@ -287,10 +281,6 @@ def render_frames(
     Remaining keyword arguments go to :func:`blendify_core.pipeline.render` (``samples``, ``outputs``, ``seed``,
     backend options...).
     """
-    from blendify_core.ir.scene import Scene
-    from blendify_core.pipeline.render import choose_backend
-    from blendify_core.pipeline.render import render as bf_render
-
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {_describe(scene)}")
     fps = as_float("fps", fps, min_value=0.0, exclusive_min=True)
@@ -305,13 +295,9 @@ def render_frames(
         )
     if poses is not None and scene.camera is None:
         raise InvalidSceneError("scene.camera: a trajectory moves the scene camera; set a camera first")
-    from blendify_core.utils.image import _color3
-
     bg = _color3("background", background)
 
     # resolve the backend once (a name stays a name so bf.render reuses its shared instance)
-    from blendify_core.pipeline.backend import Backend
-
     if backend is None:
         backend_name, _notes = choose_backend(quality)
         backend_arg: Any = backend_name
@@ -327,8 +313,6 @@ def render_frames(
     outputs = tuple("rgb" if o == "rgba" else o for o in outputs)
     if video_path is not None and "rgb" not in outputs:
         raise InvalidSceneError("video_path: a video needs the 'rgb' output; add 'rgb' to outputs")
-    from blendify_core.pipeline.backend import get_backend_class
-
     engine_version = backend.engine_version() if isinstance(backend, Backend) else None
     if engine_version is None and not isinstance(backend, Backend):
         engine_version = get_backend_class(backend_name).engine_version()
@@ -345,8 +329,6 @@ def render_frames(
     manifest: dict[str, dict[str, Any]] = {}
     manifest_path: Path | None = None
     if frames_dir is not None:
-        from blendify_core._output import ensure_folder
-
         fdir = ensure_folder(frames_dir, arg="frames_dir")
         manifest_path = fdir / MANIFEST_NAME
         if resume:
@@ -356,8 +338,6 @@ def render_frames(
     keep = keep_results or (fdir is None and video_path is None)
 
     report = FramesReport(backend=backend_name)
-    from blendify_core.utils.trajectory import apply_pose
-
     cam = scene.camera
     saved_pose = None if cam is None else (cam.quaternion.copy(), cam.translation.copy())
     writer = _VideoWriter(Path(video_path), fps, video_quality, "libx264") if video_path is not None else None

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.cameras import Camera, PerspectiveCamera
 from blendify_core.ir.validate import _describe, as_array
 
 __all__ = ["approximate_colors_from_camera"]
@@ -51,8 +52,6 @@ def approximate_colors_from_camera(
     or one (3|4,) colour, float in [0, 1] or uint8. Values are passed through unchanged (no colour-space
     conversion), so pass sRGB colours to an sRGB VertexColors.
     """
-    from blendify_core.ir.cameras import Camera, PerspectiveCamera
-
     n = as_array("normals", normals, dtype=np.float64, ndim=2)
     if n.shape[1] != 3:
         raise InvalidSceneError(f"normals: expected shape (N, 3), got {_describe(n)}")

@@ -15,14 +15,13 @@ import numpy as np
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colorspace import linear_to_srgb, srgb8_to_linear, srgb_to_linear
 from blendify_core.ir.validate import _describe
+from blendify_core.pipeline.result import RenderResult
 
 __all__ = ["blend_with_background", "crop_to_content", "contact_sheet", "to_display_uint8"]
 
 
 def _as_image(name: str, image: Any) -> np.ndarray:
     """An (H, W, C) array (C in 1, 2, 3, 4) of uint8 or float from an array or a RenderResult."""
-    from blendify_core.pipeline.result import RenderResult
-
     if isinstance(image, RenderResult):
         if image.rgba is None:
             raise InvalidSceneError(f"{name}: this RenderResult has no 'rgb' output")

@@ -17,7 +17,11 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.ir.colors import FacesUV, TextureColors
+from blendify_core.ir.materials import DiffuseMaterial
 from blendify_core.ir.validate import _describe, as_array, as_float
+from blendify_core.utils._implicit import cluster_simplify, marching_tetrahedra, signed_distance_grid
+from blendify_core.utils.normals import _points, estimate_normals
 
 __all__ = [
     "MeshifyResult",
@@ -52,8 +56,6 @@ class MeshifyResult:
 
     def colors(self) -> Any:
         """The mesh's colour source: :class:`TextureColors` with a :class:`FacesUV` map."""
-        from blendify_core.ir.colors import FacesUV, TextureColors
-
         return TextureColors(self.texture, FacesUV(self.faces_uv), color_space=self.color_space)
 
     def add_to(self, scene: Any, material: Any = None, **kwargs: Any) -> Any:
@@ -76,8 +78,6 @@ class MeshifyResult:
 
 def add_meshified(scene: Any, result: MeshifyResult, material: Any = None, **kwargs: Any) -> Any:
     """Add a :class:`MeshifyResult` to ``scene`` as a textured mesh (kwargs: tag, translation, ...)."""
-    from blendify_core.ir.materials import DiffuseMaterial
-
     if not isinstance(result, MeshifyResult):
         raise InvalidSceneError(f"result: expected a MeshifyResult from meshify_pointcloud, got {_describe(result)}")
     material = DiffuseMaterial() if material is None else material
@@ -294,8 +294,6 @@ def meshify_pointcloud(
     pair of triangles; with a given size, cells are as large as fit, any remainder stays unused);
     ``knn``: input points blended per texel.
     """
-    from blendify_core.utils.normals import _points, estimate_normals
-
     t_all = time.perf_counter()
     timings: dict[str, float] = {}
     p = _points("points", points)
@@ -339,8 +337,6 @@ def meshify_pointcloud(
     if not spacing > 0:
         raise InvalidSceneError("points: the median point spacing is 0 (all points coincide?)")
     if method == "implicit":
-        from blendify_core.utils._implicit import marching_tetrahedra, signed_distance_grid
-
         extent = float(np.ptp(p, axis=0).max())
         if voxel_size is None:
             voxel = max(1.5 * spacing, extent / 256.0)
@@ -407,8 +403,6 @@ def meshify_pointcloud(
             faces = np.asarray(mesh.triangles, dtype=np.int64).copy()
             info["simplification"] = "quadric (Open3D)"
         else:
-            from blendify_core.utils._implicit import cluster_simplify
-
             verts, faces = cluster_simplify(verts, faces, int(target_faces))
             info["simplification"] = "vertex clustering (no Open3D)"
     timings["simplify"] = time.perf_counter() - t0

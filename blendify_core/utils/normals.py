@@ -11,6 +11,8 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.geometry import face_normals
+from blendify_core.ir.renderables import Renderable
 from blendify_core.ir.validate import _describe, as_array
 
 __all__ = ["estimate_normals", "normals_from_mesh", "orient_normals"]
@@ -353,8 +355,6 @@ def closest_points_on_mesh(
 def _angle_weighted_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """Vertex normals weighted by the corner angles (Thuermer & Wuethrich 1998): independent of how
     polygons were split into triangles, unlike area weighting. Zero where undefined."""
-    from blendify_core.ir.geometry import face_normals
-
     fn = face_normals(v, f)
     acc = np.zeros_like(v)
     for c in range(3):
@@ -391,9 +391,6 @@ def normals_from_mesh(
     the L1 norm, so its results were not unit length). Degenerate cases fall back to the face normal,
     then +Z; never NaN.
     """
-    from blendify_core.ir.geometry import face_normals
-    from blendify_core.ir.renderables import Renderable
-
     p = _points("points", points)
     if isinstance(mesh_vertices, Renderable):
         if mesh_faces is not None:

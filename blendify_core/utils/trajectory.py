@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
-from blendify_core.ir.transforms import quaternion_from_rotation
+from blendify_core.ir.transforms import Positionable, quaternion_from_rotation
 from blendify_core.ir.validate import _describe, as_array, as_float
 
 __all__ = ["Pose", "Trajectory", "apply_pose"]
@@ -47,8 +47,6 @@ class Pose:
 
 def apply_pose(camera: Any, pose: Pose | dict[str, Any]) -> None:
     """Move a camera (or any blendify positionable object) to ``pose``."""
-    from blendify_core.ir.transforms import Positionable
-
     if not isinstance(camera, Positionable):
         raise InvalidSceneError(f"camera: expected a blendify camera or positionable object, got {_describe(camera)}")
     camera.set_position(rotation_mode="quaternionWXYZ", rotation=pose["quaternion"], translation=pose["position"])

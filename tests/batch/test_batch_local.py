@@ -21,7 +21,7 @@ from PIL import Image
 import blendify_core as bf
 from blendify_core.batch.run import MANIFEST_NAME, _Manifest, read_jobs
 from blendify_core.errors import BlendifyError, InvalidSceneError
-from blendify_core.pipeline.backend import register_backend, unregister_backend
+from blendify_core.registry import register_backend, unregister_backend
 
 HERE = Path(__file__).resolve().parent
 
@@ -147,7 +147,7 @@ def test_interrupted_run_resumes_without_losing_or_duplicating_outputs(tmp_path)
     jobs_file.write_text("\n".join(lines) + "\n")
     code = (
         f"import sys; sys.path.insert(0, {str(HERE)!r})\n"
-        "from blendify_core.pipeline.backend import register_backend\n"
+        "from blendify_core.registry import register_backend\n"
         f"register_backend({FAKE!r}, {TARGET!r})\n"
         "from blendify_core.cli.main import main\n"
         "if __name__ == '__main__':\n"
@@ -214,7 +214,7 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_manifest(tmp_path):
     script = tmp_path / "run.py"
     script.write_text(
         f"import sys; sys.path.insert(0, {str(HERE)!r})\n"
-        "from blendify_core.pipeline.backend import register_backend\n"
+        "from blendify_core.registry import register_backend\n"
         f"register_backend({FAKE!r}, {TARGET!r})\n"
         "from blendify_core.cli.main import main\n"
         "if __name__ == '__main__':\n"

@@ -8,14 +8,14 @@ import pytest
 from core_fake_backend import FakeBackend, close_fake_instances
 
 import blendify_core as bf
-from blendify_core.pipeline.backend import register_backend, unregister_backend
+from blendify_core.registry import register_backend, unregister_backend
 
 
 @pytest.fixture
 def fake_backend():
     """Register FakeBackend as "fake" (and as "cycles"/"pyrender"/"mitsuba" look-alikes on demand);
     everything is unregistered and the shared instances are closed afterwards."""
-    from blendify_core.pipeline import backend as backend_mod
+    from blendify_core import registry as backend_mod
 
     register_backend("fake", FakeBackend)
     saved_overrides, saved_available = dict(FakeBackend.overrides), FakeBackend.available

@@ -18,9 +18,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 import blendify_core as bf
-from blendify_core.pipeline.backend import Backend, BackendStatus
+from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.result import RenderResult
+from blendify_core.registry import BackendStatus
 
 
 class FakeBackend(Backend):
@@ -126,7 +127,7 @@ class FakeBackend(Backend):
 
 def close_fake_instances() -> None:
     """Close the shared instances of fake backends only (real backends' warm instances stay)."""
-    from blendify_core.pipeline import backend as backend_mod
+    from blendify_core import registry as backend_mod
 
     with backend_mod._lock:
         keys = [k for k, inst in backend_mod._shared.items() if isinstance(inst, FakeBackend)]

@@ -10,10 +10,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import blendify_core as bf
-from blendify_core.evaluate.compare import TIERS, alpha_centroids, choose_tier, crosscheck_main, heat_map
+from blendify_core.evaluate.crosscheck import crosscheck_main
+from blendify_core.evaluate.metrics import alpha_centroids, heat_map
 from blendify_core.evaluate.stats import ReferenceEstimate, estimate_reference, sidak_alpha, z_test
-from blendify_core.pipeline.backend import Backend, register_backend, unregister_backend
+from blendify_core.evaluate.tiers import TIERS, choose_tier
+from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.registry import register_backend, unregister_backend
 from blendify_core.testing import depth_plane_scene, plane_scene, primitives_scene
 
 
@@ -205,7 +208,7 @@ def test_outputs_selection_and_errors():
 
 
 def test_every_tier_documented():
-    from blendify_core.evaluate.compare import TIER_NOTES
+    from blendify_core.evaluate.tiers import TIER_NOTES
 
     assert set(TIER_NOTES) == set(TIERS)
 

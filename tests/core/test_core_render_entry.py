@@ -12,11 +12,11 @@ import pytest
 from core_fake_backend import FakeBackend, close_fake_instances
 
 import blendify_core as bf
+from blendify_core import registry as backend_mod
 from blendify_core.errors import BackendUnavailableError, RenderError, UnsupportedFeatureError
-from blendify_core.pipeline import backend as backend_mod
-from blendify_core.pipeline.backend import register_backend, unregister_backend
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.distortion import distort_points, undistort_points
+from blendify_core.registry import register_backend, unregister_backend
 
 # ---------------------------------------------------------------------------------------------------
 # backend choice

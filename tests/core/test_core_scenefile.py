@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 import blendify_core as bf
 from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.attachments import Attachment
 from blendify_core.ir.colors import TextureMap
 from blendify_core.testing import every_feature_scene
 
@@ -801,13 +802,14 @@ def test_attached_blend_files_are_saved_and_fingerprinted(tmp_path):
     blend.write_bytes(b"BLENDER-v500 fake content")
     s = every_feature_scene()
     before = s.fingerprint()
-    s.attached_blends.append(str(blend.resolve()))
+    s.attachments.append(Attachment("blend", str(blend.resolve())))
     with_blend = s.fingerprint()
     assert with_blend != before
     s.save(tmp_path / "s.npz")
     assert list(_all_paths(_header(tmp_path / "s.npz")))[-1] == "room.blend"  # relative to the scene file
     loaded = bf.Scene.load(tmp_path / "s.npz")
-    assert loaded.attached_blends == [str(blend.resolve())]
+    assert loaded.attached_blends == (str(blend.resolve()),)
+    assert loaded.attachments == [Attachment("blend", str(blend.resolve()))]
     assert loaded.fingerprint() == with_blend
     blend.write_bytes(b"BLENDER-v500 other content!")
     assert s.fingerprint() != with_blend  # the .blend's content counts

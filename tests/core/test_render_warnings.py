@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.pipeline.backend import Backend, register_backend, shared_backend, unregister_backend
+from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.result import RenderResult
+from blendify_core.registry import register_backend, shared_backend, unregister_backend
 from blendify_core.testing import _hc_base
 
 

@@ -10,7 +10,7 @@ from xb_canonical import CANONICAL
 from xb_util import PAIRS, require
 
 import blendify_core as bf
-from blendify_core.evaluate.compare import choose_tier
+from blendify_core.evaluate.tiers import choose_tier
 
 OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
 

@@ -7,7 +7,7 @@ import pytest
 from xb_util import BACKENDS, backend_status
 
 import blendify_core as bf
-from blendify_core.evaluate.compare import crosscheck_main
+from blendify_core.evaluate.crosscheck import crosscheck_main
 from blendify_core.testing import plane_scene
 
 

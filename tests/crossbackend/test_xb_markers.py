@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.evaluate.compare import alpha_centroids
+from blendify_core.evaluate.metrics import alpha_centroids
 from blendify_core.testing import marker_scene
 
 # 64x48 images, markers of ~3 px radius (bigger markers grow the perspective bias, CONVENTIONS §13)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.evaluate.compare import choose_tier
+from blendify_core.evaluate.tiers import choose_tier
 from blendify_core.testing import depth_plane_scene, expected_plane_depth, plane_scene
 
 LIGHTS = ("point", "sun", "spot", "area", "area_disk", "background")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.evaluate.compare import choose_tier
+from blendify_core.evaluate.tiers import choose_tier
 from blendify_core.testing import textured_quad_scene
 
 # linear radiance of each quadrant: albedo x background radiance 1 (Lambertian under a uniform sky)

@@ -23,7 +23,7 @@ import pytest
 
 import blendify_core as bf
 from blendify_core import testing as T
-from blendify_core.pipeline.backend import shared_backend
+from blendify_core.registry import shared_backend
 
 HERE = Path(__file__).resolve().parent
 ARTIFACTS = HERE.parents[1] / "artifacts" / "golden"

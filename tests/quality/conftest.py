@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from blendify_core.pipeline.backend import available_backends
+from blendify_core.registry import available_backends
 
 
 def _need(name: str) -> str:

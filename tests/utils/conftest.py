@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.pipeline.backend import Backend, register_backend, unregister_backend
+from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.result import RenderResult
+from blendify_core.registry import register_backend, unregister_backend
 
 
 class PoseColourBackend(Backend):

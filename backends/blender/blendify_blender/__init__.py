@@ -48,10 +48,11 @@ import time
 from typing import Any
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
-from blendify_core.pipeline.backend import Backend, BackendStatus
+from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
+from blendify_core.registry import BackendStatus
 
 __all__ = ["CyclesBackend"]
 
@@ -93,6 +94,7 @@ class CyclesBackend(Backend):
     path_tracer = True
     #: Blender renders at least 4x4 pixels; the core renders smaller images padded and crops them
     min_resolution = (4, 4)
+    file_formats = ("blend",)
 
     def __init__(
         self,
@@ -136,6 +138,18 @@ class CyclesBackend(Backend):
         return {name: _NOTES.get(name, Capability("exact")) for name in ALL_FEATURES}
 
     # -- .blend helpers (part B lives in blendfile.py) --------------------------------------------
+    @classmethod
+    def export_file(cls, scene: Any, file_format: str, path: Any, **kwargs: Any) -> Any:
+        if file_format != "blend":
+            return super().export_file(scene, file_format, path, **kwargs)
+        return cls.export_blend(scene, path, **kwargs)
+
+    @classmethod
+    def attach_file(cls, scene: Any, file_format: str, path: Any, **kwargs: Any) -> Any:
+        if file_format != "blend":
+            return super().attach_file(scene, file_format, path, **kwargs)
+        return cls.attach_blend(scene, path, **kwargs)
+
     @classmethod
     def export_blend(cls, scene: Any, path: Any, **kwargs: Any) -> Any:
         """Write a .blend file that renders ``scene`` in Blender (see :mod:`blendify_blender.blendfile`)."""

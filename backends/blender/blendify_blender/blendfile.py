@@ -80,6 +80,7 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError, RenderError
+from blendify_core.ir.attachments import Attachment
 
 __all__ = [
     "AttachedBlend",
@@ -1677,7 +1678,7 @@ def _commit(
         raise
     if with_camera and camera is None:
         parser.note("no usable camera in the file; scene.camera unchanged")
-    scene.attached_blends.append(str(p))
+    scene.attachments.append(Attachment("blend", str(p)))
     result = AttachedBlend(added_r)
     result.path = str(p)
     result.scene_name = scene_label

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
+from blendify_core.ir.attachments import Attachment
 from blendify_core.pipeline.result import RenderResult, _jsonable
 from blendify_core.pipeline.settings import RenderSettings
 
@@ -146,7 +147,7 @@ class WorkerClient:
                 "scene": scene_path,
                 "settings": _jsonable(settings.to_dict()),
                 "out": out_path,
-                "attached_blends": list(getattr(scene, "attached_blends", [])),  # not in scene files
+                "attached_blends": list(scene.attached_blends),  # not in scene files
             }
             proc = self._proc
             if proc.stdin is None or proc.stdout is None:  # started without pipes: cannot talk to it
@@ -217,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         reply: dict[str, Any]
         try:
             scene = Scene.load(req["scene"], allow_outside=True)
-            scene.attached_blends = list(req.get("attached_blends", []))
+            scene.attachments = [Attachment("blend", p) for p in req.get("attached_blends", [])]
             result = backend.render_scene(scene, _settings_from_dict(req["settings"]))
             _save_result(result, req["out"])
             reply = {"ok": True}

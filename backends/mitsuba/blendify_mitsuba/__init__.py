@@ -21,10 +21,11 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
-from blendify_core.pipeline.backend import Backend, BackendStatus
+from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
+from blendify_core.registry import BackendStatus
 
 __all__ = ["MitsubaBackend", "MitsubaNative", "DEFAULT_MAX_ANALYTIC_SPHERES"]
 

@@ -41,10 +41,11 @@ import threading
 from typing import Any
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
-from blendify_core.pipeline.backend import Backend, BackendStatus
+from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import Capability
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
+from blendify_core.registry import BackendStatus
 
 from ._capabilities import capability_table
 

@@ -173,7 +173,7 @@ def test_attach_never_runs_embedded_python(evil_blend: tuple[Path, Path, Path]):
     assert not m_driver.exists(), "a Python driver expression ran"
     assert [r.tag for r in added] == ["Tri"]
     np.testing.assert_allclose(world_corners(added[0])[0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]], atol=1e-7)
-    assert scene.attached_blends == [str(path.resolve())]
+    assert scene.attached_blends == (str(path.resolve()),)
     assert datablock_ids() == before  # nothing left in the bpy session
     with pytest.raises(InvalidSceneError, match="no camera"):
         attach_blend(Scene(), path, with_camera=True)
@@ -295,7 +295,7 @@ def test_attach_bad_paths(tmp_path: Path):
         attach_blend(scene, 42)  # type: ignore[arg-type]
     with pytest.raises(InvalidSceneError, match="with_camera"):
         attach_blend(scene, not_blend, with_camera="yes")  # type: ignore[arg-type]
-    assert len(scene.renderables) == 0 and scene.attached_blends == []
+    assert len(scene.renderables) == 0 and scene.attached_blends == ()
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -1,0 +1,226 @@
+"""``bf.crosscheck``: render one scene with every available backend at comparable settings (box filter, no
+denoiser, no clamping, fixed seed) and compare every pair at the tier that fits the pair and the scene.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from blendify_core.errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
+from blendify_core.evaluate.compare import compare
+from blendify_core.evaluate.report import CompareReport, CrosscheckReport
+from blendify_core.evaluate.stats import ReferenceEstimate
+from blendify_core.evaluate.tiers import TIERS, _delta_lights, choose_tier, is_path_tracer
+from blendify_core.ir.scene import Scene
+from blendify_core.pipeline.render import render
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import _outputs
+from blendify_core.registry import available_backends
+
+__all__ = ["crosscheck", "crosscheck_main"]
+
+
+def crosscheck(
+    scene: Any,
+    backends: Sequence[str] = ("cycles", "mitsuba", "pyrender"),
+    outputs: Sequence[str] = ("rgb", "depth", "normal", "albedo", "instance"),
+    samples: int | None = 256,
+    tier: str | Mapping[str, Mapping[str, float]] | None = None,
+    seed: int = 0,
+    backend_options: Mapping[str, Mapping[str, Any]] | None = None,
+    scene_name: str = "scene",
+    repeats: int = 1,
+    **settings: Any,
+) -> CrosscheckReport:
+    """Render ``scene`` with each of ``backends`` and compare every pair.
+
+    Comparable settings are forced: box pixel filter, no denoiser, no clamping, no adaptive sampling,
+    seed ``seed``, ``samples`` samples per pixel; ``settings`` may override other RenderSettings fields
+    (e.g. ``max_bounces``). ``backend_options``: per-backend options (``{"mitsuba": {"variant": ...}}``).
+    ``tier``: None = per pair by :func:`choose_tier` (path tracer pair on delta lights and diffuse
+    materials -> "pathtracer_delta", other path tracer pairs -> "pathtracer", with a rasteriser ->
+    "raster"), or a tier name / dict for every pair. Unavailable backends are skipped with their reason;
+    outputs a backend does not support are dropped for that backend (noted in ``report.notes``); a
+    backend whose render raises is reported in ``report.errors`` (and the report does not pass).
+    Pairs (a, b) follow the order of ``backends``; the later backend is the reference b.
+
+    ``repeats`` (>= 2): each path tracer renders the scene ``repeats`` times with seeds ``seed``,
+    ``seed + 1``, ...; its colour becomes the mean of the renders (geometry from the first), its mean and
+    variance estimate go to ``report.estimates``, and every path-tracer pair also gets a two-sample
+    statistical test (:meth:`ReferenceEstimate.compare`) in ``report.ztests``, which must pass too: are
+    the two engines' expected images equal, given their noise?
+    """
+    if not isinstance(scene, Scene):
+        raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
+    if isinstance(backends, str):
+        backends = (backends,)
+    if not backends or len(set(backends)) != len(backends):
+        raise InvalidSceneError(f"backends: expected a non-empty sequence of distinct names, got {backends!r}")
+    forbidden = {"pixel_filter", "denoise", "clamp_direct", "clamp_indirect", "adaptive"} & set(settings)
+    if forbidden:
+        raise InvalidSceneError(
+            f"crosscheck: {sorted(forbidden)} are fixed by crosscheck (box filter, no denoiser/clamping/adaptive)"
+        )
+    outputs = _outputs(outputs if isinstance(outputs, str) else tuple(outputs))  # bad names: error up front
+    backend_options = dict(backend_options or {})
+    status = available_backends()
+    results: dict[str, RenderResult] = {}
+    skipped: dict[str, str] = {}
+    errors: dict[str, str] = {}
+    notes: list[str] = []
+    if not isinstance(repeats, (int, np.integer)) or repeats < 1:
+        raise InvalidSceneError(f"repeats: expected a positive integer, got {repeats!r}")
+    fixed = dict(pixel_filter="box", denoise=False, clamp_direct=0.0, clamp_indirect=0.0, adaptive=False)
+    estimates: dict[str, Any] = {}
+    for name in backends:
+        st = status.get(name)
+        if st is None:
+            skipped[name] = f"not registered (registered: {sorted(status)})"
+            continue
+        if not st.available:
+            skipped[name] = st.reason or "unavailable"
+            continue
+        outs = list(outputs)
+        while True:
+            try:
+                results[name] = render(
+                    scene,
+                    backend=name,
+                    samples=samples,
+                    seed=seed,
+                    outputs=tuple(outs),
+                    **fixed,
+                    **settings,
+                    **dict(backend_options.get(name, {})),
+                )
+                if repeats > 1 and is_path_tracer(name) and results[name].rgba is not None:
+                    extra = [
+                        render(
+                            scene,
+                            backend=name,
+                            samples=samples,
+                            seed=seed + i,
+                            outputs=("rgb",),
+                            **fixed,
+                            **settings,
+                            **dict(backend_options.get(name, {})),
+                        ).rgba
+                        for i in range(1, repeats)
+                    ]
+                    estimates[name] = _average_repeats(results[name], extra, samples)
+                break
+            except UnsupportedFeatureError as exc:
+                feat = getattr(exc, "feature", None) or ""
+                if feat.startswith("output.") and feat[7:] in outs and len(outs) > 1:
+                    outs.remove(feat[7:])
+                    notes.append(f"{name}: output {feat[7:]!r} unsupported, not compared ({exc})")
+                    continue
+                skipped[name] = f"unsupported: {exc}"
+                break
+            except BackendUnavailableError as exc:
+                skipped[name] = str(exc)
+                break
+            except (RenderError, InvalidSceneError) as exc:
+                errors[name] = f"{type(exc).__name__}: {exc}"
+                break
+    pairs: dict[tuple[str, str], CompareReport] = {}
+    names = list(results)
+    n_pt = sum(is_path_tracer(n) for n in names)
+    if n_pt >= 1 and samples is not None and samples * max(repeats, 1) < 128 and not _delta_lights(scene):
+        notes.append(
+            f"samples={samples}: the colour tiers for area/sky light were measured at 256 spp; at fewer samples "
+            "Monte-Carlo noise alone may fail them (use more samples, or repeats=k for the statistical test)"
+        )
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            a, b = names[i], names[j]
+            t = tier if tier is not None else choose_tier(a, b, scene)
+            pairs[(a, b)] = compare(results[a], results[b], tier=t, names=(a, b))
+    ztests = {(a, b): estimates[a].compare(estimates[b]) for (a, b) in pairs if a in estimates and b in estimates}
+    used_settings = {"samples": samples, "seed": seed, **fixed, **settings}
+    if repeats > 1:
+        used_settings["repeats"] = repeats
+    return CrosscheckReport(
+        results=results,
+        pairs=pairs,
+        skipped=skipped,
+        errors=errors,
+        notes=notes,
+        settings=used_settings,
+        scene_name=scene_name,
+        estimates=estimates,
+        ztests=ztests,
+    )
+
+
+def _average_repeats(first: RenderResult, extra: list[Any], samples: int | None) -> Any:
+    """Replace ``first.rgba`` by the mean of all repeats; return the ReferenceEstimate of the colour."""
+    stack = [first.rgba] + [x for x in extra if x is not None]
+    est = ReferenceEstimate.from_images([x[..., :3] for x in stack], int(samples or 1))
+    first.rgba = np.mean(np.stack(stack), axis=0).astype(np.float32)
+    first.meta["repeats"] = len(stack)
+    return est
+
+
+def crosscheck_main(argv: Sequence[str] | None = None) -> int:
+    """``blendify crosscheck SCENE [-o FOLDER] [--backends ...] [--samples N] ...``: render a scene file
+    with every available backend, write the contact sheet and the markdown report into FOLDER. Returns
+    0 when every pair passed, 1 when one failed (or fewer than two backends could render), 2 on bad
+    usage."""
+    p = argparse.ArgumentParser(
+        prog="blendify crosscheck",
+        description="Render a scene file with several backends and compare them pairwise.",
+    )
+    p.add_argument("scene", help="scene file written by Scene.save (.npz)")
+    p.add_argument("-o", "--output", default="crosscheck_out", help="folder for the sheet and report")
+    p.add_argument("--backends", default="cycles,mitsuba,pyrender", help="comma-separated backend names")
+    p.add_argument("--outputs", default="rgb,depth,normal,albedo,instance", help="comma-separated outputs")
+    p.add_argument("--samples", type=int, default=256, help="samples per pixel (default 256)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--tier", default=None, help=f"tier for every pair (default: per pair); one of {sorted(TIERS)}")
+    p.add_argument("--max-bounces", type=int, default=None)
+    p.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help="render each path tracer N times (seeds seed..seed+N-1) and add a statistical test per pair",
+    )
+    try:
+        args = p.parse_args(list(argv) if argv is not None else None)
+    except SystemExit as exc:  # argparse exits on --help / errors; turn that into a return code
+        return int(exc.code or 0)
+    try:
+        scene = Scene.load(args.scene)
+        extra = {} if args.max_bounces is None else {"max_bounces": args.max_bounces}
+        t0 = time.perf_counter()
+        report = crosscheck(
+            scene,
+            backends=tuple(b.strip() for b in args.backends.split(",") if b.strip()),
+            outputs=tuple(o.strip() for o in args.outputs.split(",") if o.strip()),
+            samples=args.samples,
+            seed=args.seed,
+            tier=args.tier,
+            scene_name=Path(args.scene).name,
+            repeats=args.repeats,
+            **extra,
+        )
+        folder = report.save(args.output)
+    except (InvalidSceneError, FileNotFoundError, BackendUnavailableError) as exc:
+        sys.stderr.write(f"blendify crosscheck: {exc}\n")
+        return 2
+    sys.stdout.write(f"{report!r}\n")
+    if not report.pairs:
+        sys.stderr.write(
+            "blendify crosscheck: fewer than two backends rendered the scene, nothing was compared "
+            f"(skipped: {report.skipped or 'none'}; errors: {report.errors or 'none'})\n"
+        )
+    elapsed = time.perf_counter() - t0
+    sys.stdout.write(f"wrote {folder / 'crosscheck.png'} and {folder / 'crosscheck.md'} ({elapsed:.1f} s)\n")
+    return 0 if report.passed and report.pairs else 1

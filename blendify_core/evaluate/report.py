@@ -1,0 +1,294 @@
+"""Reports of comparisons: :class:`CompareReport` (one pair) and :class:`CrosscheckReport` (every pair of
+backends), with summaries, contact sheets and saving.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from blendify_core.io.output import atomic_write, ensure_folder
+from blendify_core.ir.colorspace import linear_to_srgb
+from blendify_core.pipeline.result import RenderResult, depth_to_image, instance_to_image
+
+__all__ = ["CompareReport", "CrosscheckReport"]
+
+
+# ---------------------------------------------------------------------------------------------------
+# the report
+# ---------------------------------------------------------------------------------------------------
+def _fmt(v: float) -> str:
+    if isinstance(v, float) and math.isnan(v):
+        return "nan"
+    if isinstance(v, float) and math.isinf(v):
+        return "inf"
+    if float(v).is_integer() and abs(v) < 1e9:
+        return str(int(v))
+    return f"{v:.4g}"
+
+
+@dataclass
+class CompareReport:
+    """Result of :func:`compare` (``b`` is the reference).
+
+    ``metrics``: output -> metric -> float; ``tier``: the tier's name; ``thresholds``: output -> metric ->
+    threshold actually applied; ``passed``; ``failures``: readable strings; ``checks``: every applied
+    check as (output, metric, value, op, threshold, ok); ``diff_images``: output -> (H, W, 3) uint8 heat
+    map; ``legends``: output -> what the colours mean; ``names``: labels of a and b.
+    """
+
+    metrics: dict[str, dict[str, float]]
+    tier: str
+    thresholds: dict[str, dict[str, float]]
+    passed: bool
+    failures: list[str]
+    checks: list[tuple[str, str, float, str, float, bool]]
+    diff_images: dict[str, np.ndarray] = field(repr=False)
+    legends: dict[str, str] = field(default_factory=dict, repr=False)
+    names: tuple[str, str] = ("a", "b")
+    notes: list[str] = field(default_factory=list)
+    #: the compared results (a, b), kept so :meth:`save` can write them next to the diff maps
+    results: tuple[RenderResult, RenderResult] | None = field(default=None, repr=False, compare=False)
+
+    def summary(self) -> str:
+        """Markdown: verdict, failures, and a table of every metric with its threshold."""
+        a, b = self.names
+        lines = [
+            f"### {a} vs {b} (reference): {'PASS' if self.passed else 'FAIL'} at tier `{self.tier}`",
+            "",
+        ]
+        for f in self.failures:
+            lines.append(f"- FAIL: {f}")
+        for n in self.notes:
+            lines.append(f"- note: {n}")
+        if self.failures or self.notes:
+            lines.append("")
+        lines += ["| output | metric | value | threshold |", "|---|---|---|---|"]
+        limits = {(o, k): (op, t, ok) for o, k, _, op, t, ok in self.checks}
+        for out, ms in self.metrics.items():
+            for k, v in ms.items():
+                lim = limits.get((out, k))
+                th = "" if lim is None else f"{lim[0]} {_fmt(lim[1])}{'' if lim[2] else ' **FAIL**'}"
+                lines.append(f"| {out} | {k} | {_fmt(v)} | {th} |")
+        return "\n".join(lines) + "\n"
+
+    def save(self, folder: str | os.PathLike[str]) -> Path:
+        """Write ``diff_<output>.png`` for every output, the compared images (``a_<output>.png`` and
+        ``b_<output>.png``, 8-bit previews), ``report.md`` and ``metrics.json`` into ``folder`` (created if
+        needed); returns the folder. Each file is written atomically with the usual file mode; a file that
+        cannot be written raises :class:`~blendify_core.errors.OutputError` naming it."""
+        from PIL import Image
+
+        out = ensure_folder(folder, arg="folder")
+        for name, img in self.diff_images.items():
+            atomic_write(
+                out / f"diff_{name}.png",
+                lambda tmp, img=img: Image.fromarray(img).save(tmp, format="PNG"),
+                arg="folder",
+            )
+        if self.results is not None:
+            for label, r in zip(("a", "b"), self.results):
+                for o in self.diff_images:
+                    if (
+                        o in ("rgb", "depth", "normal", "albedo", "instance")
+                        and getattr(r, "rgba" if o == "rgb" else o) is not None
+                    ):
+                        r.save(out / f"{label}_{o}.png", output=o)
+        legend = "\n".join(f"- `diff_{k}.png`: {v}" for k, v in self.legends.items())
+        _write_text(out / "report.md", self.summary() + "\nDiff images:\n\n" + legend + "\n")
+        _write_text(
+            out / "metrics.json",
+            json.dumps(
+                {"tier": self.tier, "passed": self.passed, "failures": self.failures, "metrics": _json(self.metrics)},
+                indent=1,
+            ),
+        )
+        return out
+
+    def __repr__(self) -> str:
+        head = f"CompareReport({self.names[0]} vs {self.names[1]}: {'PASS' if self.passed else 'FAIL'}"
+        key = []
+        for out, metric in (
+            ("rgb", "mean_rel_error"),
+            ("depth", "rel_diff_q99"),
+            ("mask", "iou"),
+            ("normal", "angle_q99_deg"),
+            ("instance", "agreement"),
+            ("albedo", "mean_rel_error"),
+        ):
+            if metric in self.metrics.get(out, {}) and not math.isnan(self.metrics[out][metric]):
+                key.append(f"{out}.{metric}={_fmt(self.metrics[out][metric])}")
+        text = f"{head} at tier {self.tier!r}; " + ", ".join(key)
+        if self.failures:
+            text += "; failures: " + "; ".join(self.failures)
+        return text + ")"
+
+
+def _json(metrics: Mapping[str, Mapping[str, float]]) -> dict[str, dict[str, Any]]:
+    return {
+        o: {k: (v if isinstance(v, float) and math.isfinite(v) else str(v)) for k, v in ms.items()}
+        for o, ms in metrics.items()
+    }
+
+
+# ---------------------------------------------------------------------------------------------------
+# crosscheck
+# ---------------------------------------------------------------------------------------------------
+@dataclass
+class CrosscheckReport:
+    """Result of :func:`crosscheck`: ``results`` backend -> RenderResult, ``pairs`` (a, b) ->
+    CompareReport (b is the reference), ``skipped`` backend -> reason, ``errors`` backend -> message of
+    a failed render, ``notes`` free-form remarks (outputs dropped because a backend lacks them, ...)."""
+
+    results: dict[str, RenderResult]
+    pairs: dict[tuple[str, str], CompareReport]
+    skipped: dict[str, str]
+    errors: dict[str, str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    settings: dict[str, Any] = field(default_factory=dict)
+    scene_name: str = "scene"
+    #: backend -> ReferenceEstimate of its colour (``crosscheck(repeats=k)``, path tracers only)
+    estimates: dict[str, Any] = field(default_factory=dict, repr=False)
+    #: (a, b) -> ZTestResult of the two-sample test between two path tracers' estimates
+    ztests: dict[tuple[str, str], Any] = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        """Every pair passed its tier (and its statistical test, with ``repeats``), no available backend
+        failed to render, and at least one pair was compared (nothing compared proves nothing)."""
+        return (
+            not self.errors
+            and bool(self.pairs)
+            and all(r.passed for r in self.pairs.values())
+            and all(z.passed for z in self.ztests.values())
+        )
+
+    def summary(self) -> str:
+        """Markdown report: settings, per-backend timings, skipped backends, pair verdicts and metrics."""
+        lines = [f"## Crosscheck of {self.scene_name}: {'PASS' if self.passed else 'FAIL'}", ""]
+        if self.settings:
+            lines.append("Settings: " + ", ".join(f"`{k}={v}`" for k, v in self.settings.items()))
+            lines.append("")
+        lines += ["| backend | status | render time (s) |", "|---|---|---|"]
+        for name, r in self.results.items():
+            t = r.meta.get("timings", {}) if isinstance(r.meta, dict) else {}
+            total = sum(v for v in t.values() if isinstance(v, (int, float)))
+            lines.append(f"| {name} | rendered | {total:.2f} |")
+        for name, why in self.skipped.items():
+            lines.append(f"| {name} | skipped: {why} | |")
+        for name, why in self.errors.items():
+            lines.append(f"| {name} | ERROR: {why} | |")
+        lines.append("")
+        for n in self.notes:
+            lines.append(f"- {n}")
+        if self.notes:
+            lines.append("")
+        for (a, b), z in self.ztests.items():
+            verdict = "consistent" if z.passed else "DIFFERENT"
+            lines.append(
+                f"- statistical test {a} vs {b} ({self.settings.get('repeats')} renders each): **{verdict}**; "
+                f"{z.n_reject} pixel-channels and {z.n_tile_reject}/{z.n_tiles} tiles reject, "
+                f"global p = {z.global_p:.3g}" + (f" ({'; '.join(z.reasons)})" if z.reasons else "")
+            )
+        if self.ztests:
+            lines.append("")
+        for rep in self.pairs.values():
+            lines.append(rep.summary())
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        pairs = ", ".join(f"{a}/{b}: {'PASS' if r.passed else 'FAIL'}" for (a, b), r in self.pairs.items())
+        skipped = ", ".join(self.skipped) or "none"
+        return f"CrosscheckReport({self.scene_name}: {pairs or 'no pairs'}; skipped: {skipped})"
+
+    def contact_sheet(self, tile: int = 160) -> np.ndarray:
+        """(H, W, 3) uint8 labelled sheet: one row per backend (colour over a checkerboard, depth, normal,
+        albedo, instance ids) and one row per pair (the heat maps of every compared output, each tile
+        marked ok/FAIL against the pair's tier). Tiles are scaled (nearest) to ``tile`` px wide."""
+        from PIL import Image, ImageDraw
+
+        rows: list[tuple[str, list[tuple[str, np.ndarray]]]] = []
+        for name, r in self.results.items():
+            row = []
+            if r.rgba is not None:
+                row.append(("rgb", _over_checker(r)))
+            if r.depth is not None:
+                row.append(("depth", np.repeat(depth_to_image(r.depth)[..., None], 3, axis=-1)))
+            if r.normal is not None:
+                row.append(("normal", np.round(np.clip(r.normal * 0.5 + 0.5, 0, 1) * 255).astype(np.uint8)))
+            if r.albedo is not None:
+                row.append(("albedo", np.round(linear_to_srgb(r.albedo) * 255).astype(np.uint8)))
+            if r.instance is not None:
+                row.append(("instance", instance_to_image(r.instance)))
+            rows.append((name, row))
+        for (a, b), rep in self.pairs.items():
+            row = [
+                (f"{out} diff: {'ok' if _output_ok(rep, out) else 'FAIL'}", img) for out, img in rep.diff_images.items()
+            ]
+            verdict = "PASS" if rep.passed else "FAIL"
+            rows.append((f"{a}\nvs {b}\n{rep.tier}\n{verdict}", row))
+        if not any(row for _, row in rows):
+            return np.zeros((32, 32, 3), dtype=np.uint8)
+        h0, w0 = next(img for _, row in rows for _, img in row).shape[:2]
+        tw = max(int(tile), 16)
+        th = max(int(round(h0 * tw / max(w0, 1))), 1)
+        label_h, pad, head_w = 14, 4, 110
+        ncols = max(len(row) for _, row in rows)
+        width = head_w + ncols * (tw + pad) + pad
+        height = len(rows) * (th + label_h + pad) + pad
+        sheet = Image.new("RGB", (width, height), (255, 255, 255))
+        draw = ImageDraw.Draw(sheet)
+        for ri, (head, row) in enumerate(rows):
+            y = pad + ri * (th + label_h + pad)
+            colour = (180, 0, 0) if head.endswith("FAIL") else (0, 0, 0)
+            draw.multiline_text((pad, y + label_h), head, fill=colour, spacing=2)
+            for ci, (label, img) in enumerate(row):
+                x = head_w + ci * (tw + pad)
+                im = Image.fromarray(np.ascontiguousarray(img[..., :3])).resize((tw, th), Image.NEAREST)
+                sheet.paste(im, (x, y + label_h))
+                draw.text((x + 1, y + 1), label, fill=(180, 0, 0) if label.endswith("FAIL") else (0, 0, 0))
+        return np.asarray(sheet)
+
+    def save(self, folder: str | os.PathLike[str], name: str = "crosscheck") -> Path:
+        """Write ``<name>.png`` (contact sheet), ``<name>.md`` (report) and per-pair diff folders, each file
+        atomically with the usual file mode (:class:`~blendify_core.errors.OutputError` when one cannot be
+        written)."""
+        from PIL import Image
+
+        out = ensure_folder(folder, arg="folder")
+        sheet = self.contact_sheet()
+        atomic_write(out / f"{name}.png", lambda tmp: Image.fromarray(sheet).save(tmp, format="PNG"), arg="name")
+        _write_text(out / f"{name}.md", f"![contact sheet]({name}.png)\n\n" + self.summary(), arg="name")
+        for (a, b), rep in self.pairs.items():
+            rep.save(out / f"{a}_vs_{b}")
+        return out
+
+
+def _write_text(path: Path, text: str, arg: str = "folder") -> None:
+    """A report file, atomically (UTF-8)."""
+
+    def write(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+
+    atomic_write(path, write, arg=arg)
+
+
+def _output_ok(rep: CompareReport, out: str) -> bool:
+    return all(ok for o, _, _, _, _, ok in rep.checks if o == out)
+
+
+def _over_checker(r: RenderResult) -> np.ndarray:
+    """sRGB of a premultiplied render over a light checkerboard (so transparency is visible)."""
+    rgba = r.rgba.astype(np.float64)  # type: ignore[union-attr]
+    h, w = rgba.shape[:2]
+    cb = ((np.indices((h, w)) // 4).sum(axis=0) % 2) * 0.15 + 0.6
+    lin = rgba[..., :3] + (1 - rgba[..., 3:4]) * cb[..., None] ** 2.2
+    return np.round(linear_to_srgb(lin) * 255).astype(np.uint8)

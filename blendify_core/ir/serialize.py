@@ -1,0 +1,167 @@
+"""The IR as a JSON-able header plus named arrays (what scene files store and fingerprints hash).
+
+:func:`scene_to_header` and :func:`scene_from_header` are exact inverses for every IR feature;
+:mod:`blendify_core.io.scenefile` stores the pair in one ``.npz`` file.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from blendify_core.errors import InvalidSceneError
+from blendify_core.io.scenefile import content_digest, read_scene_file, write_scene_file
+from blendify_core.ir.attachments import Attachment
+from blendify_core.ir.cameras import camera_from_dict
+from blendify_core.ir.colors import FacesUV, FileTextureColors, TextureColors, UniformColors, VertexColors, VertexUV
+from blendify_core.ir.lights import light_from_dict
+from blendify_core.ir.materials import material_from_dict
+from blendify_core.ir.renderables import _PARAMETRIC, _PRIMITIVES
+
+__all__ = ["scene_to_header", "scene_from_header", "save_scene", "load_scene", "fingerprint"]
+
+
+def scene_to_header(scene: Any, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
+    """The JSON-able description of ``scene``; its arrays are added to ``arrays``."""
+    cam = scene.camera
+    return {
+        "camera": None if cam is None else cam.to_dict(),
+        "renderables": [r.to_dict(arrays, f"r{i}.") for i, r in enumerate(scene.renderables)],
+        "lights": [light.to_dict() for light in scene.lights],
+        "background": None if scene.lights.background is None else scene.lights.background.to_dict(),
+        "environment": None if scene.lights.environment is None else scene.lights.environment.to_dict(arrays),
+        # files attached for a backend (e.g. .blend for Cycles): part of the picture, so of the file and fingerprint
+        "attachments": [{"format": a.format, "path": str(a.path)} for a in scene.attachments],
+    }
+
+
+def save_scene(scene: Any, path: str | os.PathLike[str], relative_paths: bool = True) -> None:
+    """Write ``scene`` to a portable ``.npz`` scene file, atomically."""
+    def build() -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        arrays: dict[str, np.ndarray] = {}
+        return scene_to_header(scene, arrays), arrays
+
+    write_scene_file(path, build, relative_paths=relative_paths)
+
+
+def load_scene(scene: Any, path: str | os.PathLike[str], allow_outside: bool = False) -> Any:
+    """Fill the empty ``scene`` from a scene file; every failure is an InvalidSceneError naming the file."""
+    header, arrays = read_scene_file(path, allow_outside=allow_outside)
+    try:
+        return scene_from_header(scene, header, arrays)
+    except InvalidSceneError as exc:
+        raise InvalidSceneError(f"path: {str(path)!r} holds an invalid scene: {exc}") from None
+    except (KeyError, TypeError, IndexError, AttributeError, ValueError) as exc:
+        raise InvalidSceneError(f"path: {str(path)!r} is corrupt ({type(exc).__name__}: {exc})") from None
+
+
+def fingerprint(scene: Any) -> str:
+    """SHA-256 over the canonical header and every array's dtype, shape and bytes (file textures by
+    content), so the same scene hashes the same across processes and any change changes the hash."""
+    arrays: dict[str, np.ndarray] = {}
+    return content_digest(scene_to_header(scene, arrays), arrays)
+
+
+def _colors_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
+    def uv(u: dict[str, Any] | None) -> Any:
+        if u is None:
+            return None
+        return (VertexUV if u["kind"] == "vertex_uv" else FacesUV)(arrays[u["data"]])
+
+    kind = d["kind"]
+    if kind == "uniform":
+        return UniformColors(d["color"], color_space=d["color_space"])
+    if kind == "vertex":
+        return VertexColors(arrays[d["vertex_colors"]], color_space=d["color_space"])
+    if kind == "texture":
+        return TextureColors(
+            arrays[d["texture"]], uv(d["uv_map"]), color_space=d["color_space"], interpolation=d["interpolation"]
+        )
+    if kind == "file_texture":
+        return FileTextureColors(
+            d["texture_path"], uv(d["uv_map"]), color_space=d["color_space"], interpolation=d["interpolation"]
+        )
+    raise InvalidSceneError(f"unknown colour kind {kind!r}")
+
+
+def _polygons(arrays: dict[str, np.ndarray], d: dict[str, Any]) -> Any:
+    tris = arrays[d["faces"]]
+    poly = arrays[d["faces"].replace("faces", "face_polygon")]
+    corner = arrays[d["faces"].replace("faces", "face_corner")]
+    m, k = d["n_polygons"], d["polygon_size"]
+    if k is not None:
+        out = np.zeros((m, k), dtype=np.int64)
+        out[poly[:, None], corner] = tris
+        return out
+    sizes = np.zeros(m, dtype=np.int64)
+    np.maximum.at(sizes, poly, corner.max(axis=1) + 1)
+    polys = [np.zeros(s, dtype=np.int64) for s in sizes]
+    for t, pi, cr in zip(tris, poly, corner):
+        polys[pi][cr] = t
+    return polys
+
+
+def scene_from_header(scene: Any, h: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
+    """Fill the empty ``scene`` from a header and its arrays (as :func:`scene_to_header` wrote them)."""
+
+    if h["camera"] is not None:
+        scene.camera = camera_from_dict(h["camera"])
+    coll = scene.renderables
+    for d in h["renderables"]:
+        mats = [material_from_dict(m, arrays, None) for m in d["materials"]]
+        cols = [_colors_from_dict(c, arrays) for c in d["colors"]]
+        material: Any = mats[0] if len(mats) == 1 else mats
+        colors: Any = cols[0] if len(cols) == 1 else cols
+        pose = {"rotation": d["quaternion"], "translation": d["translation"], "tag": d["tag"]}
+        kind = d["kind"]
+        if kind == "mesh":
+            uvd = d["uv_map"]
+            uv = None if uvd is None else (VertexUV if uvd["kind"] == "vertex_uv" else FacesUV)(arrays[uvd["data"]])
+            fm = None if d["faces_material"] is None else arrays[d["faces_material"]]
+            obj: Any = coll.add_mesh(
+                arrays[d["vertices"]], _polygons(arrays, d), material, colors, fm, uv, d["smooth"], **pose
+            )
+        elif kind == "pointcloud":
+            size = arrays[d["point_size"]] if isinstance(d["point_size"], str) else d["point_size"]
+            obj = coll.add_pointcloud(
+                arrays[d["vertices"]],
+                material,
+                colors,
+                size,
+                d["base_primitive"],
+                d["particle_emission_strength"],
+                **pose,
+            )
+        elif kind in _PRIMITIVES:
+            params = dict(d["params"])
+            adder = getattr(coll, f"add_{kind}_mesh")
+            obj = adder(material=material, colors=colors, faces_material=d["faces_material"], **params, **pose)
+            if d.get("smooth"):
+                obj.set_smooth(True)
+        elif kind in _PARAMETRIC:
+            params = dict(d["params"])
+            if kind == "curve":
+                params["keypoints"] = arrays[params["keypoints"]]
+                obj = coll.add_curve_nurbs(material=material, colors=colors, **params, **pose)
+            else:
+                obj = getattr(coll, f"add_{kind}_nurbs")(material=material, colors=colors, **params, **pose)
+        else:
+            raise InvalidSceneError(f"unknown renderable kind {kind!r}")
+        obj.emit_shadows = d["emit_shadows"]
+    for d in h["lights"]:
+        light = light_from_dict(d)
+        scene.lights._add(light, d["tag"])
+    if h["background"] is not None:
+        scene.lights.set_background_light(**h["background"])
+    scene.attachments = [Attachment(d["format"], str(d["path"])) for d in h.get("attachments", [])] + [
+        Attachment("blend", str(d["path"])) for d in h.get("attached_blends", [])  # files of 0.1.0
+    ]
+    env = h["environment"]
+    if env is not None:
+        src = arrays[env["image"]] if env.get("image") else env["path"]
+        scene.lights.set_environment_map(
+            src, env["strength"], rotation=env["quaternion"], color_space=env["color_space"]
+        )
+    return scene
