@@ -10,4 +10,12 @@ from blendify_core.batch.run import (
     render_many,
 )
 
-__all__ = ["RenderJob", "JobStatus", "BatchReport", "render_many", "read_jobs", "DEFAULT_RECYCLE_AFTER", "MANIFEST_NAME"]
+__all__ = [
+    "RenderJob",
+    "JobStatus",
+    "BatchReport",
+    "render_many",
+    "read_jobs",
+    "DEFAULT_RECYCLE_AFTER",
+    "MANIFEST_NAME",
+]

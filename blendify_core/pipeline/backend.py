@@ -15,6 +15,7 @@ from blendify_core.errors import BackendUnavailableError, InvalidSceneError, Uns
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
+from blendify_core.pipeline.translator import Translator
 from blendify_core.registry import BackendStatus
 
 __all__ = ["Backend", "Capability"]
@@ -44,6 +45,9 @@ class Backend(abc.ABC):
     file_formats: ClassVar[tuple[str, ...]] = ()
     #: marks backend classes for the registry (which cannot import this module)
     _is_blendify_backend: ClassVar[bool] = True
+    #: the backend's translator (one handler per IR type); the core refuses an IR object whose exact type
+    #: has no handler there before calling the backend. None: the backend checks types itself.
+    translator_class: ClassVar[type[Translator] | None] = None
 
     def __init__(self, **options: Any) -> None:
         if options:

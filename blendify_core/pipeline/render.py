@@ -19,6 +19,7 @@ from blendify_core.pipeline.effects import analyse_effects
 from blendify_core.pipeline.recentre import _scene_scale, needs_recentring, recentred_view
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings, resolve_settings
+from blendify_core.pipeline.translator import check_handlers
 from blendify_core.registry import available_backends, shared_backend
 
 __all__ = ["render", "check_capabilities", "choose_backend"]
@@ -52,6 +53,8 @@ def choose_backend(quality: str) -> tuple[str, list[str]]:
 
 def check_capabilities(backend: Backend, scene: Any, settings: RenderSettings) -> list[str]:
     """Check the scene's features against the backend's capability table; return the approximations."""
+    if backend.translator_class is not None:
+        check_handlers(backend.translator_class, scene)
     caps = backend.capabilities()
     approximations = []
     for feature, where in scene_features(scene, settings.outputs).items():
