@@ -26,7 +26,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from blendify_core import registry as backend_mod
+from blendify_core.batch import worker as _worker
+from blendify_core.batch.worker import output_files
 from blendify_core.errors import BlendifyError, InvalidSceneError
+from blendify_core.io.output import atomic_write
+from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.settings import RenderSettings, resolve_settings
 
 __all__ = ["RenderJob", "JobStatus", "BatchReport", "render_many", "DEFAULT_RECYCLE_AFTER", "MANIFEST_NAME"]
@@ -80,8 +85,6 @@ class RenderJob:
         allow_outside: bool = False,
         **render_kwargs: Any,
     ) -> None:
-        from blendify_core.ir.scene import Scene
-
         if isinstance(scene_or_path, Scene):
             self.scene: Scene | None = scene_or_path
             self.scene_path: str | None = None
@@ -129,8 +132,6 @@ class RenderJob:
 
     def files(self) -> list[str]:
         """Every file this job writes."""
-        from blendify_core.batch.worker import output_files
-
         return output_files(self.output, self.settings.outputs)
 
     @classmethod
@@ -378,8 +379,6 @@ class _Manifest:
             self._fh.flush()
             os.fsync(self._fh.fileno())
             return
-        from blendify_core.io.output import atomic_write
-
         doc = {"format": "blendify-batch-manifest", "version": 1, "jobs": self.records}
 
         def write(tmp: str) -> None:
@@ -551,8 +550,6 @@ class _Run:
 
 def _registrations() -> dict[str, str]:
     """Backends registered at run time in this process, as "module:Class" strings a worker can import."""
-    from blendify_core import registry as backend_mod
-
     out = {}
     for name, target in backend_mod._registered.items():
         if isinstance(target, str):
@@ -600,8 +597,6 @@ def _check_backends_importable(jobs: list[RenderJob]) -> None:
     """Fail before any work when a job's backend is registered in a way worker processes cannot import:
     a class defined in ``__main__`` or inside a function, or a "module:Class" path naming the script
     being run (workers are fresh interpreters that never run ``__main__``)."""
-    from blendify_core.pipeline import backend as backend_mod
-
     main = sys.modules.get("__main__")
     for i, job in enumerate(jobs):
         if job.backend is None:
@@ -676,8 +671,6 @@ class _PoolWorker:
     def __init__(self) -> None:
         import subprocess
         from multiprocessing import Pipe, spawn
-
-        from blendify_core.batch import worker as _worker
 
         parent, child = Pipe(duplex=True)
         handle = child.fileno()
@@ -776,8 +769,6 @@ def _run_local(
     import subprocess
     from multiprocessing import spawn as mp_spawn
     from multiprocessing.connection import wait
-
-    from blendify_core.batch import worker as _worker
 
     if _worker.in_pool_worker():
         raise BlendifyError(
@@ -942,8 +933,6 @@ def _run_ray(
         raise BlendifyError(
             "executor='ray' needs Ray: pip install 'blendify-core[ray]' (or pip install 'ray>=2.40')"
         ) from None
-    from blendify_core.batch import worker as _worker
-
     started_here = False
     if not ray.is_initialized():
         ray.init(address=address, include_dashboard=False, log_to_driver=False)
@@ -998,8 +987,6 @@ def _run_ray(
 
 
 def _run_futures(run: _Run, pending: list[int], executor: Any, workers: int | None) -> int:
-    from blendify_core.batch import worker as _worker
-
     slots = workers or int(getattr(executor, "_max_workers", 0) or 0) or _cpu_count()
     queue = list(reversed(pending))
     in_flight: dict[Any, list[Any]] = {}  # future -> [index, first seen running (monotonic) or None]
@@ -1180,8 +1167,6 @@ def render_many(
             try:
                 scene = job.scene
                 if scene is None:
-                    from blendify_core.ir.scene import Scene
-
                     scene = Scene.load(job.scene_path, allow_outside=job.allow_outside)  # type: ignore[arg-type]
                 run.fingerprints[i] = scene.fingerprint()
             except Exception as exc:  # an unreadable scene fails its job, not the batch

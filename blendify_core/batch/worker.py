@@ -23,6 +23,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from blendify_core import registry as backend_mod
+from blendify_core.ir.scene import Scene
+from blendify_core.pipeline.render import choose_backend, render
+from blendify_core.registry import close_backends, shared_backend
+
 __all__ = ["run_job", "run_ray_job", "StartClock", "pool_main", "output_files", "rss_mb", "BOOTSTRAP", "in_pool_worker"]
 
 #: what a local pool worker runs (``python -c BOOTSTRAP FD LABEL``). Standard library only until the
@@ -94,8 +99,6 @@ def _save(result: Any, output: str, outputs: tuple[str, ...]) -> list[str]:
 
 
 def _load_scene(payload: dict[str, Any]) -> Any:
-    from blendify_core.ir.scene import Scene
-
     data = payload.get("scene_bytes")
     if data is None:
         return Scene.load(payload["scene_path"], allow_outside=bool(payload.get("allow_outside")))
@@ -114,8 +117,6 @@ def _load_scene(payload: dict[str, Any]) -> Any:
 def _register(registrations: dict[str, str] | None) -> None:
     if not registrations:
         return
-    from blendify_core import registry as backend_mod
-
     for name, target in registrations.items():
         if name not in backend_mod._entry_points():
             backend_mod.register_backend(name, target)
@@ -149,9 +150,6 @@ def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None)
     try:
         _drop_blender_script_paths()
         _register(payload.get("registrations"))
-        from blendify_core.pipeline.render import choose_backend, render
-        from blendify_core.registry import shared_backend
-
         scene = _load_scene(payload)
         settings = dict(payload.get("settings") or {})
         options = dict(payload.get("options") or {})
@@ -229,8 +227,6 @@ def pool_main(conn: Any) -> None:
             except (BrokenPipeError, OSError):
                 break
     finally:
-        from blendify_core.registry import close_backends
-
         try:
             close_backends()
         finally:

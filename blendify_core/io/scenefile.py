@@ -20,6 +20,7 @@ import numpy as np
 
 from blendify_core._memo import digest_memo
 from blendify_core.errors import InvalidSceneError
+from blendify_core.io.output import AtomicOutput
 from blendify_core.io.paths import as_path
 
 __all__ = ["FORMAT", "VERSION", "write_scene_file", "read_scene_file", "walk_paths", "content_digest"]

@@ -14,14 +14,13 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
-from blendify_core.io.output import AtomicOutput, ensure_folder, output_error
+from blendify_core.io.output import AtomicOutput, atomic_write, ensure_folder, output_error
 from blendify_core.ir.scene import Scene
 from blendify_core.ir.validate import _describe, as_float
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.render import choose_backend
 from blendify_core.pipeline.render import render as bf_render
 from blendify_core.pipeline.result import _jsonable as core_jsonable
-from blendify_core.pipeline.result import atomic_write
 from blendify_core.registry import get_backend_class
 from blendify_core.utils.image import _color3, blend_with_background, to_display_uint8
 from blendify_core.utils.trajectory import Pose, Trajectory, apply_pose

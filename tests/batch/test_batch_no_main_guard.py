@@ -15,13 +15,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from batch_fake_backend import FAKE, TARGET, FakeBackend, expected_red, tiny_scene
-from blendify_core.backend import register_backend, unregister_backend
 from PIL import Image
 
 import blendify_core as bf
 from blendify_core.batch import MANIFEST_NAME
 from blendify_core.batch import worker as _worker
 from blendify_core.errors import BlendifyError, InvalidSceneError
+from blendify_core.registry import register_backend, unregister_backend
 
 HERE = Path(__file__).resolve().parent
 N_JOBS = 6
@@ -149,7 +149,7 @@ def test_render_many_refuses_to_start_a_pool_inside_its_own_worker(tmp_path, mon
 
 
 def test_failed_jobs_do_not_look_like_success(tmp_path, capsys, caplog):
-    from blendify_core.cli import main
+    from blendify_core.cli.main import main
 
     register_backend(FAKE, TARGET)
     try:

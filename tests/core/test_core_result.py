@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from blendify_core.errors import InvalidSceneError
-from blendify_core.pipeline.result import RenderResult, atomic_write
+from blendify_core.io.output import atomic_write
+from blendify_core.pipeline.result import RenderResult
 
 META = {
     "backend": "fake",

@@ -17,12 +17,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from blendify_core.backend import Backend, register_backend, unregister_backend
-from blendify_core.features import ALL_FEATURES, Capability
 
 import blendify_core as bf
 from blendify_core.errors import MissingFolderError, OutputError
 from blendify_core.io.output import AtomicOutput, atomic_write, ensure_folder
+from blendify_core.pipeline.backend import Backend
+from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.registry import register_backend, unregister_backend
 from blendify_core.testing import depth_plane_scene
 
 
