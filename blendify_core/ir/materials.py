@@ -18,6 +18,7 @@ import numpy as np
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colors import COLOR_SPACES, NormalMap, TextureMap, _to_linear
+from blendify_core.ir.physics import material_lobes
 from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, reject_unknown, strict_arguments
 
 __all__ = [
@@ -200,19 +201,7 @@ class Material:
     @property
     def is_diffuse_only(self) -> bool:
         """True when the material is an exact Lambertian reflector (no specular, metal, transmission, ...)."""
-        v = self._values
-        if self.kind == "glossy":
-            return False
-        return (
-            v.get("specular_ior", 0.0) == 0.0
-            and v.get("metallic", 0.0) == 0.0
-            and v.get("metallic_map") is None
-            and v.get("transmission_weight", 0.0) == 0.0
-            and v.get("coat_weight", 0.0) == 0.0
-            and v.get("sheen_weight", 0.0) == 0.0
-            and v.get("subsurface_weight", 0.0) == 0.0
-            and v.get("diffuse_roughness", 0.0) == 0.0
-        )
+        return material_lobes(self).diffuse_only
 
     def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
         params: dict[str, Any] = {}

@@ -16,6 +16,7 @@ import numpy as np
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colors import FileTextureColors, TextureColors, VertexColors
 from blendify_core.ir.lights import AreaLight, PointLight, SpotLight, SunLight
+from blendify_core.ir.physics import material_lobes
 from blendify_core.ir.renderables import (
     CircleMesh,
     CubeMesh,
@@ -146,31 +147,28 @@ def scene_features(scene, outputs: tuple[str, ...] = ("rgb",)) -> dict[str, str]
             if getattr(c, "has_alpha", False):
                 add("material.alpha", where)
         for m in r.materials:
-            v = m.parameters()
+            lobes = material_lobes(m)
             if m.kind == "glossy":
                 add("material.glossy", where)
-            elif m.is_diffuse_only:
+            elif lobes.diffuse_only:
                 add("material.diffuse_only", where)
             else:
                 add("material.principled", where)
-            if v.get("metallic", 0) > 0 or v.get("metallic_map") is not None:
-                add("material.metallic", where)
-            for key, feat in (
-                ("transmission_weight", "material.transmission"),
-                ("coat_weight", "material.coat"),
-                ("sheen_weight", "material.sheen"),
-                ("subsurface_weight", "material.subsurface"),
+            for flag, feat in (
+                (lobes.metallic, "material.metallic"),
+                (lobes.transmission, "material.transmission"),
+                (lobes.coat, "material.coat"),
+                (lobes.sheen, "material.sheen"),
+                (lobes.subsurface, "material.subsurface"),
+                (lobes.emission, "material.emission"),
+                (lobes.alpha, "material.alpha"),
             ):
-                if v.get(key, 0) > 0:
+                if flag:
                     add(feat, where)
-            if m.is_emissive:
-                add("material.emission", where)
-            if v.get("alpha", 1.0) < 1.0:
-                add("material.alpha", where)
             if m.has_wireframe:
                 add("material.wireframe", where)
             for key in ("roughness_map", "metallic_map", "normal_map"):
-                if v.get(key) is not None:
+                if getattr(m, key, None) is not None:
                     add(f"material.{key}", where)
     for light in scene.lights:
         where = f"light {light.tag!r}"

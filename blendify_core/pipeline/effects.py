@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from blendify_core.ir.physics import material_lobes
 from blendify_core.ir.renderables import CircleMesh, CubeMesh, EllipsoidNURBS, PlaneMesh, PointCloud, SphereNURBS
 
 __all__ = ["Effects", "analyse_effects"]
@@ -42,20 +43,6 @@ class Effects:
     @classmethod
     def full(cls) -> Effects:
         return cls(reasons={f: "full simulation requested" for f in _FIELDS})
-
-
-def _is_specular(m: Any) -> tuple[bool, float]:
-    v = m.parameters()
-    if m.kind == "glossy":
-        return True, float(v["roughness"])
-    spec = (
-        v.get("specular_ior", 0) > 0
-        or v.get("metallic", 0) > 0
-        or v.get("metallic_map") is not None
-        or v.get("coat_weight", 0) > 0
-        or v.get("sheen_weight", 0) > 0
-    )
-    return spec, float(v.get("roughness", 1.0))
 
 
 def analyse_effects(scene: Any) -> Effects:
@@ -97,14 +84,14 @@ def analyse_effects(scene: Any) -> Effects:
     glossy_objs, transmissive, transparent, diffuse_objs = [], [], [], []
     for o in renderables:
         for m in o.materials:
-            v = m.parameters()
-            if _is_specular(m)[0]:
+            lobes = material_lobes(m)
+            if lobes.specular:
                 glossy_objs.append(o.tag)
-            if v.get("transmission_weight", 0) > 0:
+            if lobes.transmission:
                 transmissive.append(o.tag)
-            if v.get("alpha", 1.0) < 1.0:
+            if lobes.alpha:
                 transparent.append(o.tag)
-            if m.kind != "glossy" and v.get("metallic", 0) < 1.0 and v.get("transmission_weight", 0) < 1.0:
+            if lobes.diffuse:
                 diffuse_objs.append(o.tag)
         for c in o.colors_list:
             if getattr(c, "has_alpha", False):
