@@ -1,0 +1,122 @@
+"""The Mitsuba capability table: declared beside the translator's handlers, and identical to the table
+the backend had before the handlers existed (the frozen copy below: feature -> (level, note))."""
+
+from __future__ import annotations
+
+from blendify_mitsuba import MitsubaBackend
+
+from blendify_core.pipeline.capabilities import ALL_FEATURES
+
+#: MitsubaBackend.capabilities() as it was before issue 14 (one dictionary in __init__.py)
+FROZEN: dict[str, tuple[str, str]] = {
+    "mesh": ("exact", ""),
+    "mesh.vertex_colors": ("exact", "mesh attribute 'vertex_color' (linear, interpolated like Cycles)"),
+    "mesh.texture": (
+        "exact",
+        "in-memory bitmap, v -> 1 - v; 8-bit sRGB textures with linear interpolation are upsampled in "
+        "encoded space (Cycles interpolates before decoding), up to 1M texels",
+    ),
+    "mesh.file_texture": ("exact", "read by Mitsuba (8-bit PNG/JPEG, nearest or linear data) or through the IR"),
+    "mesh.faces_material": ("exact", "one Mitsuba mesh per material slot"),
+    "mesh.smooth": ("exact", "vertex normals"),
+    "pointcloud": (
+        "exact",
+        "analytic spheres up to max_analytic_spheres points, beyond that the IR's merged icosphere mesh",
+    ),
+    "pointcloud.vertex_colors": ("exact", ""),
+    "pointcloud.emission": ("approximate", "area emitter on the spheres, front (outer) side only"),
+    "primitive.cube": ("exact", "IR tessellation"),
+    "primitive.circle": ("exact", "IR tessellation"),
+    "primitive.cylinder": ("exact", "IR tessellation"),
+    "primitive.plane": ("exact", "IR tessellation"),
+    "primitive.sphere": ("exact", "analytic sphere"),
+    "primitive.ellipsoid": ("exact", "IR tessellation"),
+    "primitive.curve": ("exact", "IR tessellation (tube along the polyline)"),
+    "shadow_catcher": (
+        "approximate",
+        "emulated from two renders (with and without the other objects): where a pixel centre sees the "
+        "catcher, black with alpha = 1 - shadowed/unshadowed luminance; catcher edges against objects "
+        "keep the plane's colour; the catcher also reflects light onto objects",
+    ),
+    "object.no_shadow": ("unsupported", "Mitsuba has no per-object shadow visibility"),
+    "material.principled": (
+        "approximate",
+        "Mitsuba 'principled' (Disney diffuse with retro-reflection, Schlick Fresnel, no diffuse/specular"
+        " energy coupling; eta from IOR and Specular IOR Level, alpha = roughness^2). Measured on a red "
+        "sphere under a sun vs Cycles: red channel +6-7 %, dark channels (specular) +40-65 %; "
+        "roughplastic was not closer",
+    ),
+    "material.diffuse_only": ("exact", "Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
+    "material.metallic": ("approximate", "Mitsuba 'principled' metallic (measured 1.008 x Cycles on a sphere)"),
+    "material.glossy": ("approximate", "roughconductor with a perfect-mirror Fresnel tinted by the colour"),
+    "material.transmission": ("approximate", "principled spec_trans (one-sided, thin-surface differences)"),
+    "material.coat": ("approximate", "principled clearcoat (different lobe from Blender's coat)"),
+    "material.sheen": ("approximate", "principled sheen (different lobe)"),
+    "material.subsurface": ("unsupported", "Mitsuba has no subsurface scattering in the principled BSDF"),
+    "material.emission": (
+        "approximate",
+        "area emitter on the surface: emits from the front side only; with a background/environment light"
+        " the coverage alpha is composited from two extra one-bounce passes",
+    ),
+    "material.alpha": ("exact", "mask BSDF with the material x colour alpha"),
+    "material.wireframe": (
+        "approximate",
+        "triangle edges as square tubes of side wireframe_thickness (world units) with the surface's BSDF"
+        " in the wireframe colour: geometry instead of Blender's Wireframe shader (protrudes by half the "
+        "thickness, casts shadows, also draws the diagonals of triangulated quads)",
+    ),
+    "material.roughness_map": (
+        "approximate",
+        "raw bitmap driving principled roughness (the principled BSDF's differences)",
+    ),
+    "material.metallic_map": (
+        "approximate",
+        "raw bitmap driving principled metallic (the principled BSDF's differences)",
+    ),
+    "material.normal_map": (
+        "approximate",
+        "Mitsuba 'normalmap' (frame dp/du, n x dp/du; strength baked into the map); not compared with Cycles yet",
+    ),
+    "light.point": ("exact", "point, intensity = P / (4 pi)"),
+    "light.point.soft": (
+        "approximate",
+        "point lights: a sphere emitter of radiance P / (4 pi^2 r^2) (Blender's sphere light with soft "
+        "falloff off); spot lights: delta (radius ignored). The light's null surface also blocks other "
+        "lights' shadow rays",
+    ),
+    "light.sun": ("exact", "directional, irradiance = strength"),
+    "light.sun.soft": ("approximate", "delta directional light (angular diameter ignored: hard shadows)"),
+    "light.spot": ("exact", "spot, intensity = P / (4 pi), cutoff = spot_size / 2"),
+    "light.spot.blend": ("approximate", "Mitsuba's falloff is linear in angle, Blender's a smoothstep"),
+    "light.area": (
+        "exact",
+        "rectangle with radiance P / (pi A), one-sided, hidden from the camera (visible from its emitting"
+        " side only in scenes with emissive materials)",
+    ),
+    "light.area.disk": ("exact", "disk with radiance P / (pi A), one-sided, hidden from the camera as light.area"),
+    "light.no_shadow": ("unsupported", "Mitsuba lights always cast shadows"),
+    "light.background": ("exact", "constant emitter"),
+    "light.environment": ("exact", "envmap rotated to Blender's equirectangular mapping"),
+    "camera.perspective": ("exact", "perspective sensor with principal-point offsets"),
+    "camera.orthographic": ("exact", "orthographic sensor, principal point by translating the camera"),
+    "camera.anisotropic": (
+        "approximate",
+        "fx != fy: colour rendered by a square-pixel camera (columns supersampled k <= 4 times, rows at k"
+        " fx/fy per pixel, same samples per target pixel) and box-resampled with exact row overlaps (only"
+        " boundary rows split); depth/normal/albedo/instance exact (cast through the target pixel "
+        "centres)",
+    ),
+    "output.rgb": ("exact", ""),
+    "output.depth": ("exact", "planar z from pixel-centre ray casts"),
+    "output.normal": ("exact", "world shading normal (facing the camera) from pixel-centre ray casts"),
+    "output.albedo": ("exact", "the material colour input at the pixel centre"),
+    "output.instance": ("exact", "renderable index from pixel-centre ray casts"),
+}
+
+
+def test_capability_table_equals_the_frozen_copy():
+    caps = {name: (cap.level, cap.note) for name, cap in MitsubaBackend.capabilities().items()}
+    assert set(FROZEN) == set(ALL_FEATURES)
+    assert list(caps) == list(ALL_FEATURES)
+    for name in ALL_FEATURES:
+        assert caps[name] == FROZEN[name], name
