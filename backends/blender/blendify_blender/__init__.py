@@ -1,8 +1,15 @@
 """blendify-core backend ``cycles``: Blender Cycles through the ``bpy`` wheel.
 
-Importing this module does not import ``bpy``: the translator (:mod:`.translate`), the renderer
-(:mod:`.engine`), the worker (:mod:`.worker`) and the .blend helpers (:mod:`.blendfile`) are imported
-on first use.
+Importing this module does not import ``bpy`` (it is imported on first use). Where things live:
+
+- :mod:`.translate`: :class:`~blendify_blender.translate.CyclesTranslator`, one handler per IR type (a
+  sphere is translated by ``CyclesTranslator.sphere``), each declaring the capabilities it implements;
+  ``build_scene`` (used by the .blend export); :mod:`.materials`: the node trees its material handlers build;
+- :mod:`.capabilities`: the capability table (what the translator declares);
+- :mod:`.session`: the bpy session (lazy import, the lock, factory resets, output capture) and the
+  translated scene kept between renders, updated from the core's change detection;
+- :mod:`.render`: rendering a translated scene into a RenderResult (the passes);
+- :mod:`.worker`: ``isolate=True`` (a worker process); :mod:`.blendfile`: .blend export and attach.
 
 Options (``bf.render(scene, backend="cycles", verbose=True)`` or ``CyclesBackend(...)``):
 
@@ -13,7 +20,7 @@ Options (``bf.render(scene, backend="cycles", verbose=True)`` or ``CyclesBackend
 - ``worker_max_renders`` (100): with ``isolate``, restart the worker after this many renders.
 - ``device`` ("CPU"): "CPU" or "GPU" (GPU falls back to CPU with a logged reason when none is found).
 
-Translation (details in :mod:`.translate`, :mod:`.materials`, :mod:`.engine`; formulas from
+Translation (details in :mod:`.translate`, :mod:`.materials`, :mod:`.render`; formulas from
 ``shared/docs/CONVENTIONS.md``): meshes, colour attributes, UVs and texture pixels through bulk
 ``foreach_set``; point clouds as native Cycles points (vertex-only mesh + Geometry Nodes Mesh to Points +
 Set Material, radius and colour as attributes); cubes/circles/cylinders/planes/spheres/ellipsoids from
@@ -44,15 +51,21 @@ from __future__ import annotations
 
 import importlib.util
 import logging
-import time
 from typing import Any
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.backend import Backend
-from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.pipeline.capabilities import Capability
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
 from blendify_core.registry import BackendStatus
+
+from . import capabilities as _capabilities
+from .render import render_built
+from .session import BPY_LOCK, CyclesSession, TranslatedScene, bpy_module, defer_keyboard_interrupt, enable_gpu
+from .translate import CyclesTranslator
+from .worker import IsolatedScene, WorkerClient
 
 __all__ = ["CyclesBackend"]
 
@@ -71,19 +84,6 @@ def _fix_bpy_tags() -> None:
 
 _fix_bpy_tags()
 
-_NOTES: dict[str, Capability] = {
-    "primitive.sphere": Capability("exact", "the IR's shared tessellation (64x32 UV sphere, exact normals)"),
-    "primitive.ellipsoid": Capability("exact", "the IR's shared tessellation (64x32, exact normals)"),
-    "primitive.curve": Capability("exact", "Blender curve: POLY spline bevelled to the radius, filled caps"),
-    "pointcloud": Capability("exact", "native Cycles points (Geometry Nodes Mesh to Points)"),
-    "light.point.soft": Capability("exact", "sphere light, soft falloff off (matches a sphere emitter)"),
-    "light.spot.blend": Capability("exact", "Blender's own smoothstep cone edge"),
-    "camera.anisotropic": Capability("exact", "pixel aspect ratio"),
-    "output.albedo": Capability("exact", "material colour input through a shader AOV"),
-    "output.depth": Capability("exact", "Cycles Z pass (one sample per pixel, not anti-aliased)"),
-    "output.instance": Capability("exact", "object index pass (not anti-aliased)"),
-}
-
 
 class CyclesBackend(Backend):
     """The reference path tracer: Blender Cycles (CPU, or GPU when asked and present)."""
@@ -95,6 +95,7 @@ class CyclesBackend(Backend):
     #: Blender renders at least 4x4 pixels; the core renders smaller images padded and crops them
     min_resolution = (4, 4)
     file_formats = ("blend",)
+    translator_class = CyclesTranslator
 
     def __init__(
         self,
@@ -117,8 +118,8 @@ class CyclesBackend(Backend):
         self.isolate = isolate
         self.worker_max_renders = worker_max_renders
         self.device = device.upper()
-        self._translator: Any = None
-        self._worker: Any = None
+        self._session: CyclesSession | None = None
+        self._worker: WorkerClient | None = None
 
     # -- discovery ---------------------------------------------------------------------------------
     @classmethod
@@ -135,9 +136,9 @@ class CyclesBackend(Backend):
 
     @classmethod
     def capabilities(cls) -> dict[str, Capability]:
-        return {name: _NOTES.get(name, Capability("exact")) for name in ALL_FEATURES}
+        return _capabilities.capabilities()
 
-    # -- .blend helpers (part B lives in blendfile.py) --------------------------------------------
+    # -- .blend helpers (in blendfile/) ------------------------------------------------------
     @classmethod
     def export_file(cls, scene: Any, file_format: str, path: Any, **kwargs: Any) -> Any:
         if file_format != "blend":
@@ -152,87 +153,64 @@ class CyclesBackend(Backend):
 
     @classmethod
     def export_blend(cls, scene: Any, path: Any, **kwargs: Any) -> Any:
-        """Write a .blend file that renders ``scene`` in Blender (see :mod:`blendify_blender.blendfile`)."""
-        from . import blendfile
+        """Write a .blend file that renders ``scene`` in Blender (see :mod:`blendify_blender.blendfile.export`)."""
+        from .blendfile.export import export_blend
 
-        return blendfile.export_blend(scene, path, **kwargs)
+        return export_blend(scene, path, **kwargs)
 
     @classmethod
     def attach_blend(cls, scene: Any, path: Any, with_camera: bool = False, **kwargs: Any) -> Any:
         """Import a .blend file's content into ``scene`` (see :mod:`blendify_blender.blendfile`)."""
-        from . import blendfile
+        from .blendfile import attach_blend
 
-        return blendfile.attach_blend(scene, path, with_camera=with_camera, **kwargs)
+        return attach_blend(scene, path, with_camera=with_camera, **kwargs)
 
     # -- work --------------------------------------------------------------------------------------
-    def _ensure_translator(self) -> Any:
-        if self._translator is None:
-            from . import _runtime
-            from .translate import Translator
-
-            _runtime.bpy_module()
-            gpu = _enable_gpu if self.device == "GPU" else None
-            self._translator = Translator(device=self.device, gpu_setup=gpu)
-        return self._translator
+    def _ensure_session(self) -> CyclesSession:
+        if self._session is None:
+            bpy_module()
+            gpu = enable_gpu if self.device == "GPU" else None
+            self._session = CyclesSession(CyclesTranslator, device=self.device, gpu_setup=gpu)
+        return self._session
 
     def _check_open(self) -> None:
         if self._closed:
             raise BackendUnavailableError(f"{self.name}: this backend instance was closed")
 
-    def translate(self, scene: Any, settings: RenderSettings) -> Any:
-        """Translate (or update) the scene in the bpy session; returns the BuiltScene."""
-        self._check_open()
-        from . import _runtime
-
-        translator = self._ensure_translator()
-        with _runtime.BPY_LOCK:
-            with _runtime.capture_output("translate", self.verbose) as cap, _runtime.engine_errors("translating", cap):
-                return translator.sync(scene, settings)
-
-    def render(self, native: Any, settings: RenderSettings) -> RenderResult:
-        """Render a BuiltScene returned by :meth:`translate`."""
-        self._check_open()
-        from . import _runtime
-        from .engine import render_built
-
-        with _runtime.BPY_LOCK:
-            if native.generation != _runtime.generation():
-                raise InvalidSceneError("native: this translated scene was reset since; translate the scene again")
-            return render_built(native, settings, self.verbose)
-
-    def render_scene(self, scene: Any, settings: RenderSettings) -> RenderResult:
-        """Translate (incrementally) and render, holding the bpy lock for both; or hand the scene to the
-        worker subprocess when ``isolate=True``."""
+    def translate(self, scene: Scene, settings: RenderSettings) -> TranslatedScene | IsolatedScene:
+        """Translate (or update) the scene in the bpy session. With ``isolate=True`` nothing is translated
+        here: the scene is checked and handed to :meth:`render`, which sends it to the worker process."""
         self._check_open()
         if self.isolate:
-            if self._worker is None:
-                from .worker import WorkerClient
+            CyclesTranslator.check_scene(scene)
+            return IsolatedScene(scene)
+        session = self._ensure_session()
+        with defer_keyboard_interrupt():
+            return session.translate(scene, settings, self.verbose)
 
+    def render(self, native: TranslatedScene | IsolatedScene, settings: RenderSettings) -> RenderResult:
+        """Render what :meth:`translate` returned (translated again first when another translation ran in
+        between, e.g. in another thread: the lock is held from there to the end of the render)."""
+        self._check_open()
+        if isinstance(native, IsolatedScene):
+            if self._worker is None:
                 self._worker = WorkerClient(
                     max_renders=self.worker_max_renders, verbose=self.verbose, device=self.device
                 )
-            return self._worker.render(scene, settings)
-        from . import _runtime
-
-        t0 = time.perf_counter()
-        with _runtime.defer_keyboard_interrupt(), _runtime.BPY_LOCK:
-            built = self.translate(scene, settings)
-            t1 = time.perf_counter()
-            result = self.render(built, settings)
-        t2 = time.perf_counter()
-        timings = result.meta.setdefault("timings", {})
-        timings["translate"] = t1 - t0
-        timings["render"] = t2 - t1
-        result.meta["translation"] = dict(self._translator.last_stats)
-        return result
+            return self._worker.render(native.scene, settings)
+        if not isinstance(native, TranslatedScene):
+            raise InvalidSceneError(
+                f"native: expected what CyclesBackend.translate returned, got {type(native).__name__}"
+            )
+        session = self._ensure_session()
+        with defer_keyboard_interrupt(), BPY_LOCK:
+            built = session.current(native, self.verbose)
+            return render_built(built, settings, self.verbose)
 
     def clear(self) -> None:
         """Remove every datablock this backend created in the bpy session (keeps the backend usable)."""
-        if self._translator is not None:
-            from . import _runtime
-
-            with _runtime.BPY_LOCK:
-                self._translator.clear()
+        if self._session is not None:
+            self._session.clear()
 
     def close(self) -> None:
         if self._closed:
@@ -243,30 +221,5 @@ class CyclesBackend(Backend):
                 self._worker.close()
                 self._worker = None
         finally:
-            self._translator = None
+            self._session = None
             super().close()
-
-
-def _enable_gpu() -> str:
-    """Enable the first available GPU compute backend; '' (CPU fallback, logged) when there is none."""
-    from . import _runtime
-
-    bpy = _runtime.bpy_module()
-    try:
-        prefs = bpy.context.preferences.addons["cycles"].preferences
-    except Exception as exc:  # pragma: no cover - depends on the build
-        log.warning("cycles: GPU requested but the Cycles preferences are unavailable (%s); using the CPU", exc)
-        return ""
-    for kind in ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI"):
-        try:
-            prefs.compute_device_type = kind
-            prefs.get_devices()
-        except Exception:
-            continue
-        devices = [d for d in prefs.devices if d.type == kind]
-        if devices:
-            for d in prefs.devices:
-                d.use = d.type == kind
-            return kind
-    log.warning("cycles: GPU requested but no GPU compute device was found; rendering on the CPU")
-    return ""

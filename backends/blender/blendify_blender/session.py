@@ -1,9 +1,19 @@
-"""Process-level plumbing around ``bpy``: lazy import, the render lock, factory resets, Blender's stdout
-noise and error wrapping.
+"""The bpy session: everything of the Cycles backend that lives across renders.
 
 ``bpy`` is one process-global Blender session, so everything that touches it must hold :data:`BPY_LOCK`
-(a re-entrant lock: the translator and the .blend helpers call each other). :func:`factory_reset` bumps
-:data:`GENERATION`; cached translations compare it to know that their datablocks are gone.
+(a re-entrant lock: the translator and the .blend helpers call each other). This module holds
+
+- the plumbing around it: the lazy import (:func:`bpy_module`), :func:`factory_reset` (which bumps
+  :func:`generation`; cached translations compare it to know that their datablocks are gone), Blender's
+  stdout noise (:func:`capture_output`), error wrapping (:func:`engine_errors`), Ctrl-C deferral and the
+  GPU set-up (:func:`enable_gpu`);
+- the translated scene kept between renders (:class:`BuiltScene`: every datablock created for one IR
+  scene, by renderable) and :class:`CyclesSession`, which brings it in line with the IR scene using the
+  core's change detection (:class:`~blendify_core.pipeline.changes.ChangeTracker`): a different IR scene
+  (another renderables collection) resets bpy to factory settings; the same scene only gets what changed
+  (new/removed/rebuilt renderables, moved objects get a new matrix, lights and world when they changed);
+  the camera and the engine settings are applied every time (cheap). A camera or light change rebuilds
+  no mesh.
 """
 
 from __future__ import annotations
@@ -15,20 +25,35 @@ import signal
 import sys
 import tempfile
 import threading
+import weakref
 from collections.abc import Iterator
-from typing import Any
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from blendify_core.errors import BackendUnavailableError, BlendifyError, RenderError
+from blendify_core.pipeline.changes import ChangeTracker
+from blendify_core.pipeline.settings import RenderSettings
+from blendify_core.pipeline.translator import TranslationContext
+
+if TYPE_CHECKING:  # the translator imports this module; the session receives its class
+    from blendify_blender.translate import CyclesTranslator
 
 __all__ = [
     "BPY_LOCK",
+    "BuiltScene",
+    "CyclesSession",
+    "TranslatedScene",
     "bpy_module",
-    "factory_reset",
-    "generation",
     "capture_output",
-    "engine_errors",
     "datablock_counts",
     "defer_keyboard_interrupt",
+    "enable_gpu",
+    "engine_errors",
+    "factory_reset",
+    "generation",
+    "soft_reset",
 ]
 
 log = logging.getLogger("blendify_blender")
@@ -260,3 +285,265 @@ def defer_keyboard_interrupt() -> Iterator[None]:
                 old(signal.SIGINT, None)
             else:
                 raise KeyboardInterrupt
+
+
+def enable_gpu() -> str:
+    """Enable the first available GPU compute backend; '' (CPU fallback, logged) when there is none."""
+    bpy = bpy_module()
+    try:
+        prefs = bpy.context.preferences.addons["cycles"].preferences
+    except Exception as exc:  # pragma: no cover - depends on the build
+        log.warning("cycles: GPU requested but the Cycles preferences are unavailable (%s); using the CPU", exc)
+        return ""
+    for kind in ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI"):
+        try:
+            prefs.compute_device_type = kind
+            prefs.get_devices()
+        except Exception:
+            continue
+        devices = [d for d in prefs.devices if d.type == kind]
+        if devices:
+            for d in prefs.devices:
+                d.use = d.type == kind
+            return kind
+    log.warning("cycles: GPU requested but no GPU compute device was found; rendering on the CPU")
+    return ""
+
+
+# ---------------------------------------------------------------------------------------------------
+# the translated scene: datablock bookkeeping
+# ---------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Entry:
+    """The datablocks of one renderable (or of the lights / world / camera)."""
+
+    objects: list[Any] = field(default_factory=list)
+    data: list[tuple[str, Any]] = field(default_factory=list)  # (bpy.data collection name, ID)
+    offset: np.ndarray | None = None  # object-space centre folded into the object matrix
+    timings: dict[str, float] = field(default_factory=dict)  # seconds per build step (benchmarks)
+    ids: list[Any] = field(default_factory=list)  # any other datablocks (removed with batch_remove)
+
+    def add(self, collection: str, block: Any) -> Any:
+        self.data.append((collection, block))
+        return block
+
+    def remove(self) -> None:
+        bpy = bpy_module()
+        for obj in self.objects:
+            try:
+                bpy.data.objects.remove(obj, do_unlink=True)
+            except ReferenceError:
+                pass
+        for coll, block in reversed(self.data):
+            try:
+                getattr(bpy.data, coll).remove(block, do_unlink=True)
+            except (ReferenceError, RuntimeError):
+                pass
+        alive = []
+        for block in self.ids:
+            try:
+                _ = block.name
+                alive.append(block)
+            except ReferenceError:
+                pass
+        if alive:
+            bpy.data.batch_remove(alive)
+        self.objects.clear()
+        self.data.clear()
+        self.ids.clear()
+
+
+@dataclass
+class BuiltScene:
+    """The bpy scene built for one IR scene, with every datablock created for it."""
+
+    bscene: Any
+    entries: dict[int, _Entry] = field(default_factory=dict)  # renderable uid -> entry
+    lights: _Entry = field(default_factory=_Entry)
+    world: _Entry = field(default_factory=_Entry)
+    camera: _Entry = field(default_factory=_Entry)
+    compositor: _Entry = field(default_factory=_Entry)
+    attached: _Entry = field(default_factory=_Entry)
+    #: primitive meshes shared by every primitive of the same shape (materials linked per object)
+    shared: _Entry = field(default_factory=_Entry)
+    shared_meshes: dict[tuple[Any, ...], tuple[Any, np.ndarray | None]] = field(default_factory=dict)
+    #: materials with a uniform colour, shared by every object using the same (material, colour)
+    shared_materials: dict[tuple[Any, ...], tuple[Any, Any]] = field(default_factory=dict)
+    generation: int = -1
+    engine_settings: dict[str, Any] = field(default_factory=dict)
+    instance_tags: list[str] = field(default_factory=list)
+    #: what the last translation did (``result.meta["translation"]``)
+    stats: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def camera_object(self) -> Any:
+        return self.camera.objects[0] if self.camera.objects else None
+
+    def all_entries(self) -> list[_Entry]:
+        return [
+            *self.entries.values(),
+            self.lights,
+            self.world,
+            self.camera,
+            self.compositor,
+            self.attached,
+            self.shared,
+        ]
+
+    def remove(self) -> None:
+        """Delete every datablock this scene created (objects first)."""
+        for e in self.all_entries():
+            e.remove()
+        self.entries.clear()
+        self.shared_meshes.clear()
+        self.shared_materials.clear()
+
+
+# ---------------------------------------------------------------------------------------------------
+# the session: one cached translation, updated from the core's change detection
+# ---------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TranslatedScene:
+    """What :meth:`CyclesSession.translate` returns (the backend's native scene): the built bpy scene and
+    what it was translated from. Rendering it translates ``scene`` again when another translation ran in
+    between (another thread's, a .blend export's, a reset), so a render always shows its own scene."""
+
+    built: BuiltScene
+    scene: Any
+    settings: RenderSettings
+    token: int
+
+
+def _world_extra(scene: Any) -> tuple[Any, ...]:
+    """What the core's ``world_state`` does not follow (yet) and the world depends on: the environment map's
+    rotation and colour space, and the lights collection's revision (a new environment map may get the
+    ``id`` of the one it replaces)."""
+    env = scene.lights.environment
+    return (scene.lights.revision, None if env is None else (tuple(env.quaternion), env.color_space))
+
+
+class CyclesSession:
+    """Keeps one translated scene in the bpy session and updates it from the core's :class:`SceneChanges`.
+
+    A different IR scene (another renderables collection) resets bpy to factory settings and removes
+    everything; the same scene only gets what changed (see the module docstring). Call with
+    :data:`BPY_LOCK` held (the public methods take it)."""
+
+    def __init__(self, translator_class: type[CyclesTranslator], device: str = "CPU", gpu_setup: Any = None) -> None:
+        self.translator_class = translator_class
+        self.built: BuiltScene | None = None
+        self.tracker = ChangeTracker()
+        self._scene_ref: Any = None
+        self._world_extra: Any = None
+        self._token = 0
+        self.device = device
+        #: called after every factory reset when device == "GPU" (the reset forgets the preferences);
+        #: returns the compute device type enabled, or "" to fall back to the CPU
+        self.gpu_setup = gpu_setup
+        self.compute_device_type = ""
+        self.last_stats: dict[str, Any] = {}
+
+    # -- state -----------------------------------------------------------------------------------------
+    def _same_scene(self, scene: Any) -> bool:
+        if self.built is None or self._scene_ref is None or self.built.generation != generation():
+            return False
+        if self._scene_ref() is not scene.renderables:
+            return False
+        if not self._alive():
+            # someone else reset or replaced the bpy session: the cached datablocks are gone
+            self._forget()
+            return False
+        return True
+
+    def _alive(self) -> bool:
+        """Whether the cached datablocks still exist (cheap spot check)."""
+        built = self.built
+        if built is None:
+            return False
+        try:
+            if bpy_module().context.scene != built.bscene:
+                return False
+            for entry in [built.camera, *list(built.entries.values())[:1]]:
+                for obj in entry.objects:
+                    _ = obj.name
+        except ReferenceError:
+            return False
+        return True
+
+    def _forget(self) -> None:
+        self.built = None
+        self._scene_ref = None
+        self._world_extra = None
+        self.tracker.reset()
+        self._token += 1
+
+    def clear(self) -> None:
+        """Remove every datablock of the cached scene (the bpy session is left empty, not reset)."""
+        with BPY_LOCK:
+            if self.built is not None and self.built.generation == generation() and self._alive():
+                self.built.remove()
+                bpy = bpy_module()
+                for img in list(bpy.data.images):  # created by our renders ("Render Result", "Viewer Node")
+                    if img.type in ("RENDER_RESULT", "COMPOSITING"):
+                        bpy.data.images.remove(img)
+                try:
+                    bpy.data.orphans_purge(do_recursive=True)
+                except Exception:  # pragma: no cover - best effort
+                    pass
+            self._forget()
+
+    # -- translation -----------------------------------------------------------------------------------
+    def translate(self, scene: Any, settings: RenderSettings, verbose: bool = False) -> TranslatedScene:
+        """Bring the bpy scene in line with ``scene`` and ``settings``."""
+        with BPY_LOCK:
+            with capture_output("translate", verbose) as cap, engine_errors("translating", cap):
+                built = self.sync(scene, settings)
+            return TranslatedScene(built, scene, settings, self._token)
+
+    def current(self, native: TranslatedScene, verbose: bool = False) -> BuiltScene:
+        """The BuiltScene of ``native``, translated again if anything else was translated since. Hold
+        :data:`BPY_LOCK` from this call to the end of the render."""
+        if native.token != self._token or native.built is not self.built or native.built.generation != generation():
+            log.debug("cycles: the bpy scene changed since this scene was translated; translating it again")
+            native = self.translate(native.scene, native.settings, verbose)
+        return native.built
+
+    def sync(self, scene: Any, settings: RenderSettings) -> BuiltScene:
+        """Translate what changed since the last call (everything for a new scene); returns the BuiltScene."""
+        translator_class = self.translator_class
+        translator_class.check_scene(scene)
+        bpy = bpy_module()
+        new_scene = not self._same_scene(scene)
+        if new_scene:
+            self.clear()
+            factory_reset()
+            if self.device == "GPU" and self.gpu_setup is not None:
+                self.compute_device_type = self.gpu_setup()
+            self.built = BuiltScene(bscene=bpy.context.scene, generation=generation())
+            self._scene_ref = weakref.ref(scene.renderables)
+        built = self.built
+        if built is None:  # set just above for a new scene; an internal invariant
+            raise RenderError("cycles: the translated scene is missing (internal error)")
+        changes = self.tracker.update(scene)
+        world_extra = _world_extra(scene)
+        if world_extra != self._world_extra and not changes.world:
+            changes = replace(changes, world=True)
+        device = "GPU" if (self.device == "GPU" and self.compute_device_type) else "CPU"
+        translator = translator_class(built, settings, device=device, compute_device_type=self.compute_device_type)
+        ctx = TranslationContext()
+        try:
+            stats = translator.translate(scene, changes, ctx)
+        except BaseException:
+            # a half-updated scene (error or Ctrl-C) is never reused
+            self.clear()
+            raise
+        self._world_extra = world_extra
+        self._token += 1
+        stats["new_scene"] = new_scene
+        built.stats = stats
+        self.last_stats = stats
+        return built

@@ -1,15 +1,34 @@
-"""IR -> bpy translation for the Cycles backend.
+"""IR -> bpy translation for the Cycles backend: :class:`CyclesTranslator`, one handler per IR type.
 
-Public entry points (reused by :mod:`blendify_blender.blendfile` for .blend export):
+Where each IR type becomes bpy data (one ``@handles`` method each, its capabilities declared beside it):
 
-- ``build_scene(scene, settings=None, reset=True) -> BuiltScene``: build the whole bpy scene for a
-  blendify-core :class:`~blendify_core.Scene` in the current bpy session (after a factory reset unless
-  ``reset=False``): objects, meshes, point clouds, curves, materials, images, lights, world, camera and
-  every Cycles setting. Returns the :class:`BuiltScene` that lists every datablock it created
-  (``BuiltScene.remove()`` deletes them all). Call it while holding ``_runtime.BPY_LOCK``.
-- :class:`Translator`: the cached, incremental version used by the backend: re-rendering after a camera
-  or light change only updates those (meshes are rebuilt only when their geometry/appearance revision
-  changes; a moved object only gets a new matrix).
+- renderables: :meth:`~CyclesTranslator.mesh`, :meth:`~CyclesTranslator.pointcloud` (native Cycles points:
+  a vertex-only mesh + Geometry Nodes Mesh to Points), :meth:`~CyclesTranslator.primitive` (cube, circle,
+  cylinder), :meth:`~CyclesTranslator.plane`, :meth:`~CyclesTranslator.sphere`,
+  :meth:`~CyclesTranslator.ellipsoid` (the IR's shared tessellation, one mesh shared by identical
+  primitives), :meth:`~CyclesTranslator.curve` (a bevelled POLY spline);
+- materials (node trees built by :class:`~blendify_blender.materials.MaterialBuilder`):
+  :meth:`~CyclesTranslator.principled` (the Principled family), :meth:`~CyclesTranslator.wireframe`,
+  :meth:`~CyclesTranslator.glossy`;
+- colour sources: :meth:`~CyclesTranslator.uniform_colors`, :meth:`~CyclesTranslator.vertex_colors`,
+  :meth:`~CyclesTranslator.texture_colors`, :meth:`~CyclesTranslator.file_texture_colors` (each returns a
+  :class:`ColorFeed`: the nodes that give a material its base colour, plus per-vertex data);
+- lights (:meth:`~CyclesTranslator.point_light`, ``sun_light``, ``spot_light``, ``area_light``: Blender's
+  units are the IR's, soft falloff off, area ``normalize`` on, invisible to camera rays), the world
+  (``background_light``, ``environment_map``), cameras (``perspective_camera``: ``HORIZONTAL`` sensor fit,
+  lens from fx, principal point through the shift, fx != fy through the pixel aspect;
+  ``orthographic_camera``) and attached files (:meth:`~CyclesTranslator.attachment`: the unparsed content of
+  an attached .blend).
+
+:meth:`CyclesTranslator.translate` walks a scene with the core's
+:class:`~blendify_core.pipeline.changes.SceneChanges` (everything when ``changes.first``): new and changed
+renderables are built, moved ones get a new matrix, lights and world are rebuilt when they changed, the
+camera and every Cycles setting (:func:`apply_engine_settings`) are applied every time. The incremental
+state lives in :mod:`blendify_blender.session`.
+
+``build_scene(scene, settings=None, reset=True) -> BuiltScene`` builds the whole bpy scene for a
+blendify-core :class:`~blendify_core.Scene` in the current bpy session (after a factory reset unless
+``reset=False``); the .blend export uses it. ``BuiltScene.remove()`` deletes every datablock it created.
 
 Everything goes through the data API with bulk ``foreach_set`` of numpy arrays; no ``bpy.ops`` except
 the factory reset. Conventions (camera, lights, colour) follow ``shared/docs/CONVENTIONS.md``.
@@ -18,126 +37,63 @@ the factory reset. Conventions (camera, lights, colour) follow ``shared/docs/CON
 from __future__ import annotations
 
 import time
-import weakref
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
-from blendify_core.errors import InvalidSceneError, RenderError
+from blendify_blender.blendfile import append_blend_scenes
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.attachments import Attachment
+from blendify_core.ir.cameras import OrthographicCamera, PerspectiveCamera
 from blendify_core.ir.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
-from blendify_core.ir.lights import AreaLight, PointLight, SpotLight, SunLight
+from blendify_core.ir.lights import AreaLight, BackgroundLight, EnvironmentMap, PointLight, SpotLight, SunLight
+from blendify_core.ir.materials import (
+    DiffuseMaterial,
+    GlossyBSDFMaterial,
+    MetalMaterial,
+    MetalWireframeMaterial,
+    PlasticMaterial,
+    PlasticWireframeMaterial,
+    PrincipledBSDFMaterial,
+    PrincipledBSDFWireframeMaterial,
+)
 from blendify_core.ir.renderables import (
+    CircleMesh,
+    CubeMesh,
     CurveBezier,
+    CylinderMesh,
     EllipsoidNURBS,
     Mesh,
-    MeshPrimitive,
     PlaneMesh,
     PointCloud,
     SphereNURBS,
 )
+from blendify_core.ir.scene import Scene
+from blendify_core.pipeline.capabilities import Capability
+from blendify_core.pipeline.changes import SceneChanges
 from blendify_core.pipeline.effects import analyse_effects
-from blendify_core.pipeline.settings import RenderSettings
+from blendify_core.pipeline.settings import RenderSettings, resolve_settings
+from blendify_core.pipeline.translator import EXACT, TranslationContext, Translator, handles
 
-from . import _runtime
-from .materials import MaterialBuilder
+from .materials import ALBEDO_AOV, MaterialBuilder
+from .session import BPY_LOCK, BuiltScene, _Entry, bpy_module, capture_output, engine_errors, factory_reset, generation
 
-__all__ = ["build_scene", "BuiltScene", "Translator", "ALBEDO_AOV", "camera_parameters"]
+__all__ = ["ALBEDO_AOV", "BuiltScene", "ColorFeed", "CyclesTranslator", "apply_engine_settings", "build_scene"]
 
-ALBEDO_AOV = "bf_albedo"
 _COLOR_ATTR = "bf_color_{}"
 _RADIUS_ATTR = "bf_radius"
-_UV = "UVMap"
+#: material parameters read through the mesh's UVs
+_MAPS = ("roughness_map", "metallic_map", "normal_map")
+#: object types ``attach_blend`` parses into the IR (rendered from the IR) -- every other renderable
+#: type (volumes, hair curves, grease pencil, ...) is linked from the attached file itself
+_PARSED_TYPES = ("MESH", "CURVE", "SURFACE", "META", "FONT", "LIGHT", "CAMERA", "EMPTY", "POINTCLOUD")
 
 
-# ---------------------------------------------------------------------------------------------------
-# datablock bookkeeping
-# ---------------------------------------------------------------------------------------------------
-
-
-@dataclass
-class _Entry:
-    """The datablocks of one renderable (or of the lights / world / camera)."""
-
-    objects: list[Any] = field(default_factory=list)
-    data: list[tuple[str, Any]] = field(default_factory=list)  # (bpy.data collection name, ID)
-    key: tuple[Any, ...] = ()
-    offset: np.ndarray | None = None  # object-space centre folded into the object matrix
-    timings: dict[str, float] = field(default_factory=dict)  # seconds per build step (benchmarks)
-    ids: list[Any] = field(default_factory=list)  # any other datablocks (removed with batch_remove)
-
-    def add(self, collection: str, block: Any) -> Any:
-        self.data.append((collection, block))
-        return block
-
-    def remove(self) -> None:
-        bpy = _runtime.bpy_module()
-        for obj in self.objects:
-            try:
-                bpy.data.objects.remove(obj, do_unlink=True)
-            except ReferenceError:
-                pass
-        for coll, block in reversed(self.data):
-            try:
-                getattr(bpy.data, coll).remove(block, do_unlink=True)
-            except (ReferenceError, RuntimeError):
-                pass
-        alive = []
-        for block in self.ids:
-            try:
-                _ = block.name
-                alive.append(block)
-            except ReferenceError:
-                pass
-        if alive:
-            bpy.data.batch_remove(alive)
-        self.objects.clear()
-        self.data.clear()
-        self.ids.clear()
-
-
-@dataclass
-class BuiltScene:
-    """The bpy scene built for one IR scene, with every datablock created for it."""
-
-    bscene: Any
-    entries: dict[int, _Entry] = field(default_factory=dict)  # renderable uid -> entry
-    lights: _Entry = field(default_factory=_Entry)
-    world: _Entry = field(default_factory=_Entry)
-    camera: _Entry = field(default_factory=_Entry)
-    compositor: _Entry = field(default_factory=_Entry)
-    attached: _Entry = field(default_factory=_Entry)
-    #: primitive meshes shared by every primitive of the same shape (materials linked per object)
-    shared: _Entry = field(default_factory=_Entry)
-    shared_meshes: dict[tuple[Any, ...], tuple[Any, np.ndarray | None]] = field(default_factory=dict)
-    #: materials with a uniform colour, shared by every object using the same (material, colour)
-    shared_materials: dict[tuple[Any, ...], tuple[Any, Any]] = field(default_factory=dict)
-    generation: int = -1
-    engine_settings: dict[str, Any] = field(default_factory=dict)
-    instance_tags: list[str] = field(default_factory=list)
-
-    @property
-    def camera_object(self) -> Any:
-        return self.camera.objects[0] if self.camera.objects else None
-
-    def all_entries(self) -> list[_Entry]:
-        return [
-            *self.entries.values(),
-            self.lights,
-            self.world,
-            self.camera,
-            self.compositor,
-            self.attached,
-            self.shared,
-        ]
-
-    def remove(self) -> None:
-        """Delete every datablock this scene created (objects first)."""
-        for e in self.all_entries():
-            e.remove()
-        self.entries.clear()
-        self.shared_meshes.clear()
-        self.shared_materials.clear()
+def _exact(note: str) -> Capability:
+    """An exact feature with a note saying how."""
+    return Capability("exact", note)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -175,7 +131,7 @@ def _object_matrix(r: Any, entry: _Entry) -> np.ndarray:
 
 
 def _set_matrix(obj: Any, m: np.ndarray) -> None:
-    import mathutils
+    import mathutils  # Blender's module: importable once bpy is
 
     obj.matrix_world = mathutils.Matrix(np.asarray(m, dtype=np.float64).tolist())
 
@@ -191,7 +147,7 @@ def new_mesh(
 ) -> Any:
     """A triangle mesh from numpy arrays with bulk ``foreach_set`` (vertices float32 (N, 3), faces
     (F, 3), optional per-vertex custom normals, per-corner UVs (F, 3, 2), material index per face)."""
-    bpy = _runtime.bpy_module()
+    bpy = bpy_module()
     me = bpy.data.meshes.new(name)
     n, f = len(vertices), len(faces)
     me.vertices.add(n)
@@ -211,326 +167,532 @@ def new_mesh(
         if material_index is not None:
             me.polygons.foreach_set("material_index", np.ascontiguousarray(material_index, dtype=np.int32))
         if corner_uv is not None:
-            uv = me.uv_layers.new(name=_UV)
+            uv = me.uv_layers.new(name="UVMap")
             uv.data.foreach_set("uv", np.ascontiguousarray(corner_uv, dtype=np.float32).ravel())
         if smooth and normals is not None:
             me.normals_split_custom_set_from_vertices(np.ascontiguousarray(normals, dtype=np.float32))
     return me
 
 
-# ---------------------------------------------------------------------------------------------------
-# camera
-# ---------------------------------------------------------------------------------------------------
-
-
-def camera_parameters(cam: Any) -> dict[str, Any]:
-    """Blender camera and render parameters for an IR camera (CONVENTIONS.md section 1.2/1.3)."""
-    w, h = cam.width, cam.height
-    if cam.kind == "perspective":
-        fx, fy = cam.fx, cam.fy
-        pax, pay = max(fy / fx, 1.0), max(fx / fy, 1.0)
-    else:
-        pax = pay = 1.0
-    ycor = pay / pax
-    p: dict[str, Any] = {
-        "resolution": (w, h),
-        "pixel_aspect": (pax, pay),
-        "sensor_fit": "HORIZONTAL",
-        "sensor_width": 36.0,
-        "shift_x": (w / 2.0 - (cam.cx + 0.5)) / w,
-        "shift_y": ((cam.cy + 0.5) - h / 2.0) * ycor / w,
-        "clip_start": cam.near,
-        "clip_end": cam.far,
-    }
-    if cam.kind == "perspective":
-        p["type"] = "PERSP"
-        p["lens"] = cam.fx * 36.0 / w
-    else:
-        p["type"] = "ORTHO"
-        p["ortho_scale"] = cam.ortho_scale
-    return p
-
-
-def _apply_camera(built: BuiltScene, cam: Any) -> None:
-    bpy = _runtime.bpy_module()
-    sc = built.bscene
-    if not built.camera.objects:
-        data = built.camera.add("cameras", bpy.data.cameras.new("bf_camera"))
-        obj = bpy.data.objects.new("bf_camera", data)
-        sc.collection.objects.link(obj)
-        built.camera.objects.append(obj)
-    obj = built.camera.objects[0]
-    data = obj.data
-    p = camera_parameters(cam)
-    data.type = p["type"]
-    data.sensor_fit = p["sensor_fit"]
-    data.sensor_width = p["sensor_width"]
-    if p["type"] == "PERSP":
-        data.lens_unit = "MILLIMETERS"
-        data.lens = p["lens"]
-    else:
-        data.ortho_scale = p["ortho_scale"]
-    data.shift_x, data.shift_y = p["shift_x"], p["shift_y"]
-    data.clip_start, data.clip_end = p["clip_start"], p["clip_end"]
-    _set_matrix(obj, cam.matrix_world)
-    sc.camera = obj
-    r = sc.render
-    r.resolution_x, r.resolution_y = p["resolution"]
-    r.resolution_percentage = 100
-    r.pixel_aspect_x, r.pixel_aspect_y = p["pixel_aspect"]
-
-
-# ---------------------------------------------------------------------------------------------------
-# renderables
-# ---------------------------------------------------------------------------------------------------
-
-
-def _renderable_key(r: Any) -> tuple[Any, ...]:
-    mats = tuple((id(m), m.revision) for m in r.materials)
-    cols = tuple(id(c) for c in r.colors_list)
-    return (type(r), r.revision("geometry"), r.revision("appearance"), mats, cols)
-
-
-def _build_renderable(r: Any, index: int, sc: Any, mb: MaterialBuilder, built: BuiltScene | None = None) -> _Entry:
-    entry = _Entry(key=_renderable_key(r))
-    name = f"bf_{index}_{r.tag}"[:60]
-    if isinstance(r, PointCloud):
-        obj = _build_pointcloud(r, name, entry, mb)
-    elif isinstance(r, CurveBezier):
-        obj = _build_curve(r, name, entry, mb, built)
-    elif built is not None and isinstance(r, (MeshPrimitive, SphereNURBS, EllipsoidNURBS)):
-        obj = _build_shared_primitive(r, name, entry, mb, built)
-    else:
-        obj = _build_mesh_like(r, name, entry, mb, built=built)
-    entry.objects.append(obj)
-    sc.collection.objects.link(obj)
-    _set_matrix(obj, _object_matrix(r, entry))
-    obj.pass_index = index + 1
-    obj.visible_shadow = bool(r.emit_shadows)
-    if isinstance(r, PlaneMesh) and r.shadow_catcher:
-        obj.is_shadow_catcher = True
-    return entry
-
-
 def _material_value_key(m: Any) -> tuple[Any, ...]:
     """A hashable key of a material's class and values (texture maps by identity)."""
     items = []
-    for k, v in sorted(m.parameters().items()):
+    for k in sorted(m.parameter_names()):
+        v = getattr(m, k)
         if v is not None and not isinstance(v, (int, float, str, tuple)):
             v = ("texture", id(v))
         items.append((k, v))
     return (type(m).__name__, m.color_space, tuple(items))
 
 
-def _materials_for(r: Any, name: str, entry: _Entry, mb: MaterialBuilder, built: BuiltScene | None = None) -> list[Any]:
-    """The bpy materials of ``r``'s slots. (material, uniform colour) pairs are built once per scene and
-    shared (owned by ``built.shared``); other colour sources get a material of their own."""
-    out = []
-    for i, (m, c) in enumerate(zip(r.materials, r.colors_list)):
-        if built is not None and isinstance(c, UniformColors):
-            key = (_material_value_key(m), tuple(float(x) for x in c.linear_rgba))
-            hit = built.shared_materials.get(key)
-            if hit is None:
-                mat = mb.build(f"bf_mat_{len(built.shared_materials)}", m, c, slot=i, entry=built.shared)
-                # the IR material is kept alive with the cache: the ids of its texture maps stay unique
-                built.shared_materials[key] = hit = (m, mat)
-            out.append(hit[1])
-        else:
-            out.append(mb.build(f"{name}_m{i}", m, c, slot=i, entry=entry))
+def _uses_maps(m: Any) -> bool:
+    """Whether a material reads texture maps through the UVs (only the Principled family has maps)."""
+    return any(getattr(m, k, None) is not None for k in _MAPS)
+
+
+def _radius_key(r: Any) -> str:
+    return repr(r.radius.tolist() if isinstance(r.radius, np.ndarray) else r.radius)
+
+
+def _rgba(rgb: np.ndarray) -> np.ndarray:
+    out = np.ones(rgb.shape[:2] + (4,), dtype=np.float32)
+    out[..., :3] = rgb
     return out
 
 
-def _build_mesh_like(
-    r: Any, name: str, entry: _Entry, mb: MaterialBuilder, materials: bool = True, built: BuiltScene | None = None
-) -> Any:
-    bpy = _runtime.bpy_module()
-    if isinstance(r, Mesh):
-        verts, faces = r.vertices, r.faces
-        smooth, normals = r.smooth, None
-        corner_uv = r.triangle_uvs()
-        mat_index = r.faces_material
-        need_uv = any(isinstance(c, (TextureColors, FileTextureColors)) for c in r.colors_list) or any(
-            m.parameters().get(k) is not None
-            for m in r.materials
-            for k in ("roughness_map", "metallic_map", "normal_map")
+def _all_ids(bpy: Any) -> list[Any]:
+    out: list[Any] = []
+    for name in dir(bpy.data):
+        coll = getattr(bpy.data, name, None)
+        if isinstance(coll, bpy.types.bpy_prop_collection) and name not in ("window_managers", "screens", "workspaces"):
+            try:
+                out.extend(i for i in coll if isinstance(i, bpy.types.ID))
+            except TypeError:
+                continue
+    return out
+
+
+def check_scene(scene: Any) -> None:
+    """Refuse what is not a Scene, or a scene without a camera (InvalidSceneError)."""
+    if not isinstance(scene, Scene):
+        raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
+    if scene.camera is None:
+        raise InvalidSceneError("scene.camera: the scene has no camera; call scene.set_perspective_camera(...) first")
+
+
+@dataclass
+class ColorFeed:
+    """How a colour source gives a material its base colour (what a colour handler returns).
+
+    ``nodes(nt, name, entry)`` adds the nodes to a material's node tree and returns (colour, alpha), each
+    a node output socket or a constant (images are named after the material and owned by ``entry``);
+    ``vertex_rgba`` (per-vertex linear RGBA) is written by the renderable as the colour attribute
+    ``bf_color_<slot>``; materials fed by an equal ``share_key`` are built once per scene; ``needs_uv``:
+    the colour is read through the mesh's UVs."""
+
+    nodes: Callable[[Any, str, Any], tuple[Any, Any]]
+    vertex_rgba: np.ndarray | None = None
+    share_key: tuple[Any, ...] | None = None
+    needs_uv: bool = False
+
+
+@dataclass
+class MaterialTarget:
+    """Where a material handler puts its material: the datablock ``name``, the ``entry`` owning it, and
+    ``emission_from_color`` > 0 to make the surface emit its own colour (point-cloud emission)."""
+
+    name: str
+    entry: _Entry
+    emission_from_color: float = 0.0
+
+
+# ---------------------------------------------------------------------------------------------------
+# the translator
+# ---------------------------------------------------------------------------------------------------
+
+
+class CyclesTranslator(Translator):
+    """Translates one IR scene into the bpy scene of ``built``: one handler per IR type (see the module
+    docstring for where each lives). ``share=False`` builds every primitive mesh and material for its own
+    object (the benchmarks time single renderables that way)."""
+
+    backend = "cycles"
+    #: capabilities not tied to one IR type
+    extra_capabilities: ClassVar[dict[str, Capability]] = {
+        "object.no_shadow": EXACT,  # _renderable: the object's shadow-ray visibility
+        "light.no_shadow": EXACT,  # _light: the light's use_shadow
+        # the outputs: render.py's passes
+        "output.rgb": EXACT,
+        "output.depth": _exact("Cycles Z pass (one sample per pixel, not anti-aliased)"),
+        "output.normal": EXACT,
+        "output.albedo": _exact("material colour input through a shader AOV"),
+        "output.instance": _exact("object index pass (not anti-aliased)"),
+    }
+    check_scene = staticmethod(check_scene)
+
+    def __init__(
+        self,
+        built: BuiltScene,
+        settings: RenderSettings,
+        device: str = "CPU",
+        compute_device_type: str = "",
+        share: bool = True,
+    ) -> None:
+        self.built = built
+        self.sc = built.bscene
+        self.settings = settings
+        self.device = device
+        self.compute_device_type = compute_device_type
+        self.share = share
+        self.mb = MaterialBuilder()
+
+    # -- the walk ----------------------------------------------------------------------------------
+    def translate(self, scene: Any, changes: SceneChanges, ctx: TranslationContext) -> dict[str, Any]:
+        """Bring ``self.built`` in line with ``scene`` given what changed; returns what was done."""
+        built = self.built
+        stats: dict[str, Any] = {"built": 0, "moved": 0, "removed": 0, "lights_rebuilt": False}
+        for uid in changes.removed:
+            entry = built.entries.pop(uid, None)
+            if entry is not None:
+                entry.remove()
+                stats["removed"] += 1
+        rebuilt, moved = set(changes.rebuilt), set(changes.moved)
+        reindex = bool(changes.order or changes.added or changes.removed)
+        for i, r in enumerate(scene.renderables):
+            entry = built.entries.get(r.uid)
+            if entry is not None and r.uid in rebuilt:
+                entry.remove()
+                entry = None
+            if entry is None:
+                built.entries[r.uid] = self._renderable(r, i, ctx)
+                stats["built"] += 1
+                continue
+            obj = entry.objects[0]
+            if reindex and obj.pass_index != i + 1:  # an RNA write tags the depsgraph: only when it changed
+                obj.pass_index = i + 1
+            if r.uid in moved:
+                _set_matrix(obj, _object_matrix(r, entry))
+                stats["moved"] += 1
+        if changes.attachments or (changes.first and scene.attachments):
+            built.attached.remove()
+            built.attached = _Entry()
+            for a in scene.attachments:
+                self.dispatch(a, ctx)
+            stats["attached_blends"] = len(scene.attached_blends)
+        if changes.first or changes.lights:
+            built.lights.remove()
+            built.lights = _Entry()
+            for i, light in enumerate(scene.lights):
+                self._light(light, i, ctx)
+            stats["lights_rebuilt"] = True
+        if changes.first or changes.world:
+            built.world.remove()
+            built.world = self._world(scene.lights, ctx)
+            stats["world_rebuilt"] = True
+        self.dispatch(scene.camera, ctx)  # every time: cheap, and camera objects come and go between renders
+        built.engine_settings = apply_engine_settings(
+            self.sc, self.settings, scene, self.device, self.compute_device_type
         )
-        if need_uv and corner_uv is None:
+        built.instance_tags = [r.tag for r in scene.renderables]
+        if ctx.ignored:
+            stats["ignored"] = list(ctx.ignored)
+        return stats
+
+    def _renderable(self, r: Any, index: int, ctx: TranslationContext) -> _Entry:
+        """The datablocks of one renderable: its handler builds the object, placed and linked here."""
+        entry = _Entry()
+        name = f"bf_{index}_{r.tag}"[:60]
+        obj = self.dispatch(r, ctx, entry, name)
+        entry.objects.append(obj)
+        self.sc.collection.objects.link(obj)
+        _set_matrix(obj, _object_matrix(r, entry))
+        obj.pass_index = index + 1
+        obj.visible_shadow = bool(r.emit_shadows)
+        return entry
+
+    # -- renderables ---------------------------------------------------------------------------------
+    @handles(Mesh, features={"mesh": EXACT, "mesh.smooth": EXACT, "mesh.faces_material": EXACT})
+    def mesh(self, r: Mesh, ctx: TranslationContext, entry: _Entry, name: str) -> Any:
+        feeds = self._feeds(r, ctx)
+        corner_uv = r.triangle_uvs()
+        if corner_uv is None and (any(f.needs_uv for f in feeds) or any(_uses_maps(m) for m in r.materials)):
             raise InvalidSceneError(
                 f"uv_map: renderable {r.tag!r} uses a texture but has no UV map (pass uv_map= to add_mesh)"
             )
-    else:
+        return self._mesh_object(
+            r, name, entry, ctx, feeds, r.vertices, r.faces, r.smooth, None, corner_uv, r.faces_material
+        )
+
+    @handles(
+        PointCloud,
+        features={
+            "pointcloud": _exact("native Cycles points (Geometry Nodes Mesh to Points)"),
+            "pointcloud.vertex_colors": EXACT,
+            "pointcloud.emission": EXACT,
+        },
+    )
+    def pointcloud(self, r: PointCloud, ctx: TranslationContext, entry: _Entry, name: str) -> Any:
+        """Native Cycles points: a vertex-only mesh + Geometry Nodes (Mesh to Points, radius from an
+        attribute, Set Material)."""
+        bpy = bpy_module()
+        v32 = _recentre(r.vertices, entry)
+        me = entry.add("meshes", bpy.data.meshes.new(name))
+        n = len(v32)
+        me.vertices.add(n)
+        me.vertices.foreach_set("co", v32.ravel())
+        radii = r.radii().astype(np.float32)
+        per_point_radius = np.ndim(r.point_size) != 0
+        if per_point_radius and n:
+            a = me.attributes.new(_RADIUS_ATTR, "FLOAT", "POINT")
+            a.data.foreach_set("value", radii)
+        feed = self.dispatch(r.colors_list[0], ctx, 0)
+        if feed.vertex_rgba is not None and n:
+            ca = me.attributes.new(_COLOR_ATTR.format(0), "FLOAT_COLOR", "POINT")
+            ca.data.foreach_set("color", np.ascontiguousarray(feed.vertex_rgba, dtype=np.float32).ravel())
+        me.update()
+        target = MaterialTarget(f"{name}_m0", entry, emission_from_color=r.particle_emission_strength)
+        mat = self.dispatch(r.materials[0], ctx, feed, target)
+        me.materials.append(mat)
+        ng = entry.add("node_groups", bpy.data.node_groups.new(f"{name}_points", "GeometryNodeTree"))
+        ng.interface.new_socket(name="Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+        ng.interface.new_socket(name="Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+        gi = ng.nodes.new("NodeGroupInput")
+        go = ng.nodes.new("NodeGroupOutput")
+        m2p = ng.nodes.new("GeometryNodeMeshToPoints")
+        m2p.mode = "VERTICES"
+        if per_point_radius:
+            na = ng.nodes.new("GeometryNodeInputNamedAttribute")
+            na.data_type = "FLOAT"
+            na.inputs["Name"].default_value = _RADIUS_ATTR
+            ng.links.new(na.outputs["Attribute"], m2p.inputs["Radius"])
+        else:
+            m2p.inputs["Radius"].default_value = float(radii[0]) if n else 0.0
+        sm = ng.nodes.new("GeometryNodeSetMaterial")
+        sm.inputs["Material"].default_value = mat
+        ng.links.new(gi.outputs[0], m2p.inputs["Mesh"])
+        ng.links.new(m2p.outputs["Points"], sm.inputs["Geometry"])
+        ng.links.new(sm.outputs["Geometry"], go.inputs[0])
+        obj = bpy.data.objects.new(name, me)
+        mod = obj.modifiers.new("bf_points", "NODES")
+        mod.node_group = ng
+        return obj
+
+    @handles(
+        CubeMesh,
+        CircleMesh,
+        CylinderMesh,
+        features={"primitive.cube": EXACT, "primitive.circle": EXACT, "primitive.cylinder": EXACT},
+    )
+    def primitive(self, r: Any, ctx: TranslationContext, entry: _Entry, name: str) -> Any:
+        return self._primitive(r, ctx, entry, name, self._mesh_primitive_key(r))
+
+    @handles(PlaneMesh, features={"primitive.plane": EXACT, "shadow_catcher": EXACT})
+    def plane(self, r: PlaneMesh, ctx: TranslationContext, entry: _Entry, name: str) -> Any:
+        obj = self._primitive(r, ctx, entry, name, self._mesh_primitive_key(r))
+        if r.shadow_catcher:
+            obj.is_shadow_catcher = True
+        return obj
+
+    @handles(
+        SphereNURBS,
+        features={"primitive.sphere": _exact("the IR's shared tessellation (64x32 UV sphere, exact normals)")},
+    )
+    def sphere(self, r: SphereNURBS, ctx: TranslationContext, entry: _Entry, name: str) -> Any:
+        return self._primitive(r, ctx, entry, name, ("SphereNURBS", _radius_key(r), 1), force_smooth=True)
+
+    @handles(
+        EllipsoidNURBS, features={"primitive.ellipsoid": _exact("the IR's shared tessellation (64x32, exact normals)")}
+    )
+    def ellipsoid(self, r: EllipsoidNURBS, ctx: TranslationContext, entry: _Entry, name: str) -> Any:
+        return self._primitive(r, ctx, entry, name, ("EllipsoidNURBS", _radius_key(r), 1), force_smooth=True)
+
+    @handles(
+        CurveBezier,
+        features={"primitive.curve": _exact("Blender curve: POLY spline bevelled to the radius, filled caps")},
+    )
+    def curve(self, r: CurveBezier, ctx: TranslationContext, entry: _Entry, name: str) -> Any:
+        """A tube through the keypoints: a POLY spline bevelled to ``radius`` with filled caps."""
+        bpy = bpy_module()
+        k32 = _recentre(r.keypoints, entry)
+        cu = entry.add("curves", bpy.data.curves.new(name, "CURVE"))
+        cu.dimensions = "3D"
+        cu.bevel_mode = "ROUND"
+        cu.bevel_depth = float(r.radius)
+        cu.bevel_resolution = 6
+        cu.use_fill_caps = True
+        cu.twist_mode = "MINIMUM"
+        sp = cu.splines.new("POLY")
+        sp.points.add(len(k32) - 1)
+        co = np.ones((len(k32), 4), dtype=np.float32)
+        co[:, :3] = k32
+        sp.points.foreach_set("co", co.ravel())
+        sp.use_smooth = True
+        for mat in self._materials(r, name, entry, ctx, self._feeds(r, ctx)):
+            cu.materials.append(mat)
+        return bpy.data.objects.new(name, cu)
+
+    # -- renderable helpers ------------------------------------------------------------------------
+    def _feeds(self, r: Any, ctx: TranslationContext) -> list[ColorFeed]:
+        """The colour feeds of ``r``'s material slots (from the colour handlers)."""
+        return [self.dispatch(c, ctx, i) for i, c in enumerate(r.colors_list)]
+
+    def _materials(
+        self, r: Any, name: str, entry: _Entry, ctx: TranslationContext, feeds: list[ColorFeed]
+    ) -> list[Any]:
+        """The bpy materials of ``r``'s slots. Materials fed by a shareable colour (uniform) are built once
+        per scene for each (material values, colour) and owned by ``built.shared``; others get their own."""
+        built = self.built
+        out = []
+        for i, (m, feed) in enumerate(zip(r.materials, feeds)):
+            if self.share and feed.share_key is not None:
+                key = (_material_value_key(m), feed.share_key)
+                hit = built.shared_materials.get(key)
+                if hit is None:
+                    mat = self.dispatch(
+                        m, ctx, feed, MaterialTarget(f"bf_mat_{len(built.shared_materials)}", built.shared)
+                    )
+                    # the IR material is kept alive with the cache: the ids of its texture maps stay unique
+                    built.shared_materials[key] = hit = (m, mat)
+                out.append(hit[1])
+            else:
+                out.append(self.dispatch(m, ctx, feed, MaterialTarget(f"{name}_m{i}", entry)))
+        return out
+
+    def _mesh_object(
+        self,
+        r: Any,
+        name: str,
+        entry: _Entry,
+        ctx: TranslationContext,
+        feeds: list[ColorFeed],
+        verts: np.ndarray,
+        faces: np.ndarray,
+        smooth: bool,
+        normals: np.ndarray | None,
+        corner_uv: np.ndarray | None,
+        mat_index: np.ndarray | None,
+        materials: bool = True,
+    ) -> Any:
+        bpy = bpy_module()
+        t0 = time.perf_counter()
+        v32 = _recentre(verts, entry)
+        me = entry.add("meshes", new_mesh(name, v32, faces, smooth, normals, corner_uv, mat_index))
+        t1 = time.perf_counter()
+        for i, feed in enumerate(feeds):
+            if feed.vertex_rgba is not None:
+                ca = me.color_attributes.new(_COLOR_ATTR.format(i), "FLOAT_COLOR", "POINT")
+                ca.data.foreach_set("color", np.ascontiguousarray(feed.vertex_rgba, dtype=np.float32).ravel())
+        t2 = time.perf_counter()
+        if materials:
+            for mat in self._materials(r, name, entry, ctx, feeds):
+                me.materials.append(mat)
+        t3 = time.perf_counter()
+        entry.timings.update(geometry=t1 - t0, vertex_colors=t2 - t1, materials=t3 - t2)
+        return bpy.data.objects.new(name, me)
+
+    @staticmethod
+    def _mesh_primitive_key(r: Any) -> tuple[Any, ...]:
+        params = tuple(sorted((k, repr(v)) for k, v in r._params().items()))
+        fm = r._faces_material_poly
+        return (type(r).__name__, params, r.smooth, None if fm is None else tuple(fm.tolist()), len(r.materials))
+
+    def _primitive(
+        self,
+        r: Any,
+        ctx: TranslationContext,
+        entry: _Entry,
+        name: str,
+        key: tuple[Any, ...],
+        force_smooth: bool = False,
+    ) -> Any:
+        """A primitive from the IR's tessellation (``to_mesh``). Its mesh is shared with every other primitive
+        of the same shape (``key``: one tessellation, one upload); its materials sit in object-linked slots."""
+        bpy = bpy_module()
+        feeds = self._feeds(r, ctx)
+        if not self.share:
+            return self._primitive_mesh(r, name, entry, ctx, feeds, force_smooth)
+        built = self.built
+        cached = built.shared_meshes.get(key)
+        if cached is None:
+            tmp = _Entry()
+            obj = self._primitive_mesh(
+                r, f"bf_shared_{len(built.shared_meshes)}_{type(r).__name__}", tmp, ctx, feeds, force_smooth, False
+            )
+            me = obj.data
+            bpy.data.objects.remove(obj)
+            for _ in r.materials:
+                me.materials.append(None)
+            built.shared.data.append(("meshes", me))
+            built.shared_meshes[key] = cached = (me, tmp.offset)
+            entry.timings.update(tmp.timings)
+        me, entry.offset = cached
+        obj = bpy.data.objects.new(name, me)
+        for i, mat in enumerate(self._materials(r, name, entry, ctx, feeds)):
+            slot = obj.material_slots[i]
+            slot.link = "OBJECT"
+            slot.material = mat
+        return obj
+
+    def _primitive_mesh(
+        self,
+        r: Any,
+        name: str,
+        entry: _Entry,
+        ctx: TranslationContext,
+        feeds: list[ColorFeed],
+        force_smooth: bool,
+        materials: bool = True,
+    ) -> Any:
         tm = r.to_mesh()
-        verts, faces, smooth = tm.vertices, tm.faces, bool(tm.smooth or isinstance(r, (SphereNURBS, EllipsoidNURBS)))
-        normals = tm.normals if smooth else None
-        corner_uv = tm.uv
+        smooth = bool(tm.smooth or force_smooth)
         mat_index = None
         fm = getattr(r, "_faces_material_poly", None)
         if fm is not None and tm.face_polygon is not None:
             mat_index = fm[tm.face_polygon]
-    t0 = time.perf_counter()
-    v32 = _recentre(verts, entry)
-    me = entry.add("meshes", new_mesh(name, v32, faces, smooth, normals, corner_uv, mat_index))
-    t1 = time.perf_counter()
-    for i, c in enumerate(r.colors_list):
-        if isinstance(c, VertexColors):
-            ca = me.color_attributes.new(_COLOR_ATTR.format(i), "FLOAT_COLOR", "POINT")
-            ca.data.foreach_set("color", np.ascontiguousarray(c.linear_rgba, dtype=np.float32).ravel())
-    t2 = time.perf_counter()
-    if materials:
-        for mat in _materials_for(r, name, entry, mb, built):
-            me.materials.append(mat)
-    t3 = time.perf_counter()
-    entry.timings.update(geometry=t1 - t0, vertex_colors=t2 - t1, materials=t3 - t2)
-    return bpy.data.objects.new(name, me)
+        normals = tm.normals if smooth else None
+        return self._mesh_object(
+            r, name, entry, ctx, feeds, tm.vertices, tm.faces, smooth, normals, tm.uv, mat_index, materials
+        )
 
+    # -- colour sources ----------------------------------------------------------------------------
+    @handles(UniformColors)
+    def uniform_colors(self, c: UniformColors, ctx: TranslationContext, slot: int) -> ColorFeed:
+        rgba = tuple(float(x) for x in c.linear_rgba)
+        return ColorFeed(lambda nt, name, entry: (rgba, rgba[3]), share_key=rgba)
 
-def _primitive_key(r: Any) -> tuple[Any, ...]:
-    if isinstance(r, MeshPrimitive):
-        params = tuple(sorted((k, repr(v)) for k, v in r._params().items()))
-        fm = getattr(r, "_faces_material_poly", None)
-        return (type(r).__name__, params, r.smooth, None if fm is None else tuple(fm.tolist()), len(r.materials))
-    radius = r.radius.tolist() if isinstance(r.radius, np.ndarray) else r.radius
-    return (type(r).__name__, repr(radius), 1)
+    @handles(VertexColors, features={"mesh.vertex_colors": EXACT})
+    def vertex_colors(self, c: VertexColors, ctx: TranslationContext, slot: int) -> ColorFeed:
+        attribute = _COLOR_ATTR.format(slot)
+        return ColorFeed(
+            lambda nt, name, entry: self.mb.attribute_color(nt, attribute, c.has_alpha), vertex_rgba=c.linear_rgba
+        )
 
+    @handles(TextureColors, features={"mesh.texture": EXACT})
+    def texture_colors(self, c: TextureColors, ctx: TranslationContext, slot: int) -> ColorFeed:
+        def nodes(nt: Any, name: str, entry: _Entry) -> tuple[Any, Any]:
+            t0 = time.perf_counter()
+            if c.texture.dtype == np.uint8:
+                cs = "sRGB" if c.color_space == "srgb" else "Linear Rec.709"
+                img = self.mb.image_from_uint8(f"{name}_tex", c.texture, cs, entry)
+            else:
+                img = self.mb.image_from_array(f"{name}_tex", c.linear_rgba_image(), "Linear Rec.709", entry)
+            entry.timings["texture_upload"] = entry.timings.get("texture_upload", 0.0) + time.perf_counter() - t0
+            return self.mb.image_color(nt, img, c.interpolation, c.has_alpha)
 
-def _build_shared_primitive(r: Any, name: str, entry: _Entry, mb: MaterialBuilder, built: BuiltScene) -> Any:
-    """A primitive whose mesh is shared with every other primitive of the same shape (one tessellation,
-    one upload); its materials sit in object-linked material slots."""
-    bpy = _runtime.bpy_module()
-    key = _primitive_key(r)
-    cached = built.shared_meshes.get(key)
-    if cached is None:
-        tmp = _Entry()
-        obj = _build_mesh_like(r, f"bf_shared_{len(built.shared_meshes)}_{type(r).__name__}", tmp, mb, materials=False)
-        me = obj.data
-        bpy.data.objects.remove(obj)
-        for _ in r.materials:
-            me.materials.append(None)
-        built.shared.data.append(("meshes", me))
-        built.shared_meshes[key] = cached = (me, tmp.offset)
-        entry.timings.update(tmp.timings)
-    me, entry.offset = cached
-    obj = bpy.data.objects.new(name, me)
-    for i, mat in enumerate(_materials_for(r, name, entry, mb, built)):
-        slot = obj.material_slots[i]
-        slot.link = "OBJECT"
-        slot.material = mat
-    return obj
+        return ColorFeed(nodes, needs_uv=True)
 
+    @handles(FileTextureColors, features={"mesh.file_texture": EXACT})
+    def file_texture_colors(self, c: FileTextureColors, ctx: TranslationContext, slot: int) -> ColorFeed:
+        def nodes(nt: Any, name: str, entry: _Entry) -> tuple[Any, Any]:
+            cs = "sRGB" if c.color_space == "srgb" else "Linear Rec.709"
+            img = self.mb.image_from_file(f"{name}_tex", c.texture_path, cs, entry)
+            return self.mb.image_color(nt, img, c.interpolation, c.has_alpha)
 
-def _build_pointcloud(r: PointCloud, name: str, entry: _Entry, mb: MaterialBuilder) -> Any:
-    """Native Cycles points: a vertex-only mesh + Geometry Nodes (Mesh to Points, radius from an
-    attribute, Set Material)."""
-    bpy = _runtime.bpy_module()
-    v32 = _recentre(r.vertices, entry)
-    me = entry.add("meshes", bpy.data.meshes.new(name))
-    n = len(v32)
-    me.vertices.add(n)
-    me.vertices.foreach_set("co", v32.ravel())
-    radii = r.radii().astype(np.float32)
-    per_point_radius = np.ndim(r.point_size) != 0
-    if per_point_radius and n:
-        a = me.attributes.new(_RADIUS_ATTR, "FLOAT", "POINT")
-        a.data.foreach_set("value", radii)
-    c = r.colors_list[0]
-    if isinstance(c, VertexColors) and n:
-        ca = me.attributes.new(_COLOR_ATTR.format(0), "FLOAT_COLOR", "POINT")
-        ca.data.foreach_set("color", np.ascontiguousarray(c.linear_rgba, dtype=np.float32).ravel())
-    me.update()
-    mat = mb.build(
-        f"{name}_m0", r.materials[0], c, slot=0, entry=entry, emission_from_color=r.particle_emission_strength
+        return ColorFeed(nodes, needs_uv=True)
+
+    # -- materials ---------------------------------------------------------------------------------
+    @handles(
+        PrincipledBSDFMaterial,
+        DiffuseMaterial,
+        MetalMaterial,
+        PlasticMaterial,
+        features={
+            "material.principled": EXACT,
+            "material.diffuse_only": EXACT,
+            "material.metallic": EXACT,
+            "material.transmission": EXACT,
+            "material.coat": EXACT,
+            "material.sheen": EXACT,
+            "material.subsurface": EXACT,
+            "material.emission": EXACT,
+            "material.alpha": EXACT,
+            "material.roughness_map": EXACT,
+            "material.metallic_map": EXACT,
+            "material.normal_map": EXACT,
+        },
     )
-    me.materials.append(mat)
-    ng = entry.add("node_groups", bpy.data.node_groups.new(f"{name}_points", "GeometryNodeTree"))
-    ng.interface.new_socket(name="Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
-    ng.interface.new_socket(name="Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    gi = ng.nodes.new("NodeGroupInput")
-    go = ng.nodes.new("NodeGroupOutput")
-    m2p = ng.nodes.new("GeometryNodeMeshToPoints")
-    m2p.mode = "VERTICES"
-    if per_point_radius:
-        na = ng.nodes.new("GeometryNodeInputNamedAttribute")
-        na.data_type = "FLOAT"
-        na.inputs["Name"].default_value = _RADIUS_ATTR
-        ng.links.new(na.outputs["Attribute"], m2p.inputs["Radius"])
-    else:
-        m2p.inputs["Radius"].default_value = float(radii[0]) if n else 0.0
-    sm = ng.nodes.new("GeometryNodeSetMaterial")
-    sm.inputs["Material"].default_value = mat
-    ng.links.new(gi.outputs[0], m2p.inputs["Mesh"])
-    ng.links.new(m2p.outputs["Points"], sm.inputs["Geometry"])
-    ng.links.new(sm.outputs["Geometry"], go.inputs[0])
-    obj = bpy.data.objects.new(name, me)
-    mod = obj.modifiers.new("bf_points", "NODES")
-    mod.node_group = ng
-    return obj
+    def principled(self, m: Any, ctx: TranslationContext, feed: ColorFeed, target: MaterialTarget) -> Any:
+        """A Principled BSDF with every input of the material, coloured by the feed."""
+        mat, nt, out = self.mb.new_material(target.name, target.entry)
+        color, color_alpha = feed.nodes(nt, target.name, target.entry)
+        alpha = self.mb.alpha(nt, m.alpha, color_alpha)
+        bsdf = self.mb.principled(nt, target.name, m, color, alpha, target.entry, target.emission_from_color)
+        self.mb.finish(nt, out, bsdf.outputs["BSDF"], color)
+        return mat
 
+    @handles(
+        PrincipledBSDFWireframeMaterial,
+        PlasticWireframeMaterial,
+        MetalWireframeMaterial,
+        features={"material.wireframe": EXACT},
+    )
+    def wireframe(self, m: Any, ctx: TranslationContext, feed: ColorFeed, target: MaterialTarget) -> Any:
+        """The Principled surface with the triangle edges drawn over it (the albedo shows the wire too)."""
+        mat, nt, out = self.mb.new_material(target.name, target.entry)
+        color, color_alpha = feed.nodes(nt, target.name, target.entry)
+        alpha = self.mb.alpha(nt, m.alpha, color_alpha)
+        bsdf = self.mb.principled(nt, target.name, m, color, alpha, target.entry, target.emission_from_color)
+        surface, albedo = self.mb.wireframe(nt, target.name, m, bsdf.outputs["BSDF"], color, alpha, target.entry)
+        self.mb.finish(nt, out, surface, albedo)
+        return mat
 
-def _build_curve(r: CurveBezier, name: str, entry: _Entry, mb: MaterialBuilder, built: BuiltScene | None = None) -> Any:
-    """A tube through the keypoints: a POLY spline bevelled to ``radius`` with filled caps."""
-    bpy = _runtime.bpy_module()
-    k32 = _recentre(r.keypoints, entry)
-    cu = entry.add("curves", bpy.data.curves.new(name, "CURVE"))
-    cu.dimensions = "3D"
-    cu.bevel_mode = "ROUND"
-    cu.bevel_depth = float(r.radius)
-    cu.bevel_resolution = 6
-    cu.use_fill_caps = True
-    cu.twist_mode = "MINIMUM"
-    sp = cu.splines.new("POLY")
-    sp.points.add(len(k32) - 1)
-    co = np.ones((len(k32), 4), dtype=np.float32)
-    co[:, :3] = k32
-    sp.points.foreach_set("co", co.ravel())
-    sp.use_smooth = True
-    for mat in _materials_for(r, name, entry, mb, built):
-        cu.materials.append(mat)
-    return bpy.data.objects.new(name, cu)
+    @handles(GlossyBSDFMaterial, features={"material.glossy": EXACT})
+    def glossy(self, m: GlossyBSDFMaterial, ctx: TranslationContext, feed: ColorFeed, target: MaterialTarget) -> Any:
+        """Blender's Glossy BSDF tinted by the feed's colour."""
+        mat, nt, out = self.mb.new_material(target.name, target.entry)
+        color, color_alpha = feed.nodes(nt, target.name, target.entry)
+        alpha = self.mb.alpha(nt, m.alpha, color_alpha)
+        surface = self.mb.glossy(nt, m, color, alpha, target.emission_from_color)
+        self.mb.finish(nt, out, surface, color)
+        return mat
 
-
-# ---------------------------------------------------------------------------------------------------
-# lights and world
-# ---------------------------------------------------------------------------------------------------
-
-
-def _lights_key(scene: Any) -> tuple[Any, ...]:
-    lights = scene.lights
-    items = tuple((light.uid, light.revision("transform"), light.revision("appearance")) for light in lights)
-    bg = lights.background
-    env = lights.environment
-    bg_key = None if bg is None else (bg.strength, tuple(bg.color), bg.color_space)
-    env_key = None if env is None else (id(env), env.strength, tuple(env.quaternion), env.color_space)
-    return (lights.revision, items, bg_key, env_key)
-
-
-def _build_lights(scene: Any, sc: Any) -> _Entry:
-    bpy = _runtime.bpy_module()
-    entry = _Entry()
-    for i, light in enumerate(scene.lights):
-        name = f"bf_light_{i}_{light.tag}"[:60]
-        if isinstance(light, PointLight):
-            data = bpy.data.lights.new(name, "POINT")
-            data.shadow_soft_size = light.shadow_soft_size
-            data.use_soft_falloff = False
-        elif isinstance(light, SpotLight):
-            data = bpy.data.lights.new(name, "SPOT")
-            data.shadow_soft_size = light.shadow_soft_size
-            data.use_soft_falloff = False
-            data.spot_size = light.spot_size
-            data.spot_blend = light.spot_blend
-        elif isinstance(light, SunLight):
-            data = bpy.data.lights.new(name, "SUN")
-            data.angle = light.angular_diameter
-        elif isinstance(light, AreaLight):
-            data = bpy.data.lights.new(name, "AREA")
-            data.shape = {"square": "SQUARE", "circle": "DISK", "rectangle": "RECTANGLE", "ellipse": "ELLIPSE"}[
-                light.shape
-            ]
-            data.size = light.size[0]
-            data.size_y = light.size[1]
-            data.normalize = True
-        else:  # pragma: no cover - the IR has no other light types
-            raise InvalidSceneError(f"light {light.tag!r}: unknown light type {type(light).__name__}")
+    # -- lights ------------------------------------------------------------------------------------
+    def _light(self, light: Any, index: int, ctx: TranslationContext) -> None:
+        """One light: its handler makes the light data; strength, colour and shadows are common."""
+        bpy = bpy_module()
+        entry = self.built.lights
+        name = f"bf_light_{index}_{light.tag}"[:60]
+        data = self.dispatch(light, ctx, name)
         entry.add("lights", data)
         data.energy = float(light.strength)
         data.color = tuple(float(x) for x in light.linear_color)
@@ -539,35 +701,100 @@ def _build_lights(scene: Any, sc: Any) -> _Entry:
         data.use_temperature = False
         obj = bpy.data.objects.new(name, data)
         obj.visible_camera = False
-        sc.collection.objects.link(obj)
+        self.sc.collection.objects.link(obj)
         _set_matrix(obj, light.matrix_world)
         entry.objects.append(obj)
-    return entry
 
+    @handles(
+        PointLight,
+        features={
+            "light.point": EXACT,
+            "light.point.soft": _exact("sphere light, soft falloff off (matches a sphere emitter)"),
+        },
+    )
+    def point_light(self, light: PointLight, ctx: TranslationContext, name: str) -> Any:
+        data = bpy_module().data.lights.new(name, "POINT")
+        data.shadow_soft_size = light.shadow_soft_size
+        data.use_soft_falloff = False
+        return data
 
-def _build_world(scene: Any, sc: Any, mb: MaterialBuilder) -> _Entry:
-    """The world: background light (colour x strength) plus the environment map; nothing else (the new
-    World's 0.05 grey is replaced)."""
-    import mathutils
+    @handles(
+        SpotLight, features={"light.spot": EXACT, "light.spot.blend": _exact("Blender's own smoothstep cone edge")}
+    )
+    def spot_light(self, light: SpotLight, ctx: TranslationContext, name: str) -> Any:
+        data = bpy_module().data.lights.new(name, "SPOT")
+        data.shadow_soft_size = light.shadow_soft_size
+        data.use_soft_falloff = False
+        data.spot_size = light.spot_size
+        data.spot_blend = light.spot_blend
+        return data
 
-    bpy = _runtime.bpy_module()
-    entry = _Entry()
-    world = entry.add("worlds", bpy.data.worlds.new("bf_world"))
-    sc.world = world
-    nt = world.node_tree
-    nt.nodes.clear()
-    out = nt.nodes.new("ShaderNodeOutputWorld")
-    out.target = "ALL"
-    shaders = []
-    bg = scene.lights.background
-    if bg is not None and bg.strength > 0:
-        node = nt.nodes.new("ShaderNodeBackground")
+    @handles(SunLight, features={"light.sun": EXACT, "light.sun.soft": EXACT})
+    def sun_light(self, light: SunLight, ctx: TranslationContext, name: str) -> Any:
+        data = bpy_module().data.lights.new(name, "SUN")
+        data.angle = light.angular_diameter
+        return data
+
+    @handles(AreaLight, features={"light.area": EXACT, "light.area.disk": EXACT})
+    def area_light(self, light: AreaLight, ctx: TranslationContext, name: str) -> Any:
+        data = bpy_module().data.lights.new(name, "AREA")
+        data.shape = {"square": "SQUARE", "circle": "DISK", "rectangle": "RECTANGLE", "ellipse": "ELLIPSE"}[light.shape]
+        data.size = light.size[0]
+        data.size_y = light.size[1]
+        data.normalize = True
+        return data
+
+    # -- world -------------------------------------------------------------------------------------
+    def _world(self, lights: Any, ctx: TranslationContext) -> _Entry:
+        """The world: background light plus the environment map, added; nothing else (the new World's
+        0.05 grey is replaced, by black when neither is present)."""
+        bpy = bpy_module()
+        entry = _Entry()
+        world = entry.add("worlds", bpy.data.worlds.new("bf_world"))
+        self.sc.world = world
+        nt = world.node_tree
+        nt.nodes.clear()
+        out = nt.nodes.new("ShaderNodeOutputWorld")
+        out.target = "ALL"
+        shaders = []
+        for source in (lights.background, lights.environment):
+            if source is not None:
+                shader = self.dispatch(source, ctx, world, entry)
+                if shader is not None:
+                    shaders.append(shader)
+        if not shaders:
+            node = nt.nodes.new("ShaderNodeBackground")
+            node.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+            node.inputs["Strength"].default_value = 0.0
+            shaders.append(node.outputs[0])
+        while len(shaders) > 1:
+            add = nt.nodes.new("ShaderNodeAddShader")
+            nt.links.new(shaders.pop(), add.inputs[0])
+            nt.links.new(shaders.pop(), add.inputs[1])
+            shaders.append(add.outputs[0])
+        nt.links.new(shaders[0], out.inputs["Surface"])
+        return entry
+
+    @handles(BackgroundLight, features={"light.background": EXACT})
+    def background_light(self, bg: BackgroundLight, ctx: TranslationContext, world: Any, entry: _Entry) -> Any:
+        """A Background shader of the light's colour and strength (None when the strength is 0)."""
+        if bg.strength <= 0:
+            return None
+        node = world.node_tree.nodes.new("ShaderNodeBackground")
         node.inputs["Color"].default_value = (*(float(x) for x in bg.linear_color), 1.0)
         node.inputs["Strength"].default_value = float(bg.strength)
-        shaders.append(node.outputs[0])
-    env = scene.lights.environment
-    if env is not None and env.strength > 0:
-        img = mb.image_from_array("bf_environment", _rgba(env.linear_rgb_image()), "Linear Rec.709", entry)
+        return node.outputs[0]
+
+    @handles(EnvironmentMap, features={"light.environment": EXACT})
+    def environment_map(self, env: EnvironmentMap, ctx: TranslationContext, world: Any, entry: _Entry) -> Any:
+        """An equirectangular Environment Texture through a Mapping node that rotates directions by the
+        inverse of the map's rotation (None when the strength is 0)."""
+        import mathutils  # Blender's module: importable once bpy is
+
+        if env.strength <= 0:
+            return None
+        nt = world.node_tree
+        img = self.mb.image_from_array("bf_environment", _rgba(env.linear_rgb_image()), "Linear Rec.709", entry)
         tex = nt.nodes.new("ShaderNodeTexEnvironment")
         tex.image = img
         tex.interpolation = "Linear"
@@ -582,73 +809,80 @@ def _build_world(scene: Any, sc: Any, mb: MaterialBuilder) -> _Entry:
         node = nt.nodes.new("ShaderNodeBackground")
         node.inputs["Strength"].default_value = float(env.strength)
         nt.links.new(tex.outputs["Color"], node.inputs["Color"])
-        shaders.append(node.outputs[0])
         # importance map at the image's resolution (AUTOMATIC bakes 1024 wide: ~1.8 s per render here)
         world.cycles.sampling_method = "MANUAL"
         world.cycles.sample_map_resolution = int(min(max(img.size[0], 32), 1024))
-    if not shaders:
-        node = nt.nodes.new("ShaderNodeBackground")
-        node.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-        node.inputs["Strength"].default_value = 0.0
-        shaders.append(node.outputs[0])
-    while len(shaders) > 1:
-        add = nt.nodes.new("ShaderNodeAddShader")
-        nt.links.new(shaders.pop(), add.inputs[0])
-        nt.links.new(shaders.pop(), add.inputs[1])
-        shaders.append(add.outputs[0])
-    nt.links.new(shaders[0], out.inputs["Surface"])
-    return entry
+        return node.outputs[0]
 
+    # -- cameras (CONVENTIONS.md section 1.2/1.3) ----------------------------------------------------
+    @handles(
+        PerspectiveCamera, features={"camera.perspective": EXACT, "camera.anisotropic": _exact("pixel aspect ratio")}
+    )
+    def perspective_camera(self, cam: PerspectiveCamera, ctx: TranslationContext) -> None:
+        """A pinhole: lens from fx with a 36 mm ``HORIZONTAL`` sensor, fx != fy through the pixel aspect."""
+        fx, fy = cam.fx, cam.fy
+        self._camera(
+            cam,
+            (max(fy / fx, 1.0), max(fx / fy, 1.0)),
+            type="PERSP",
+            lens_unit="MILLIMETERS",
+            lens=cam.fx * 36.0 / cam.width,
+        )
 
-def _rgba(rgb: np.ndarray) -> np.ndarray:
-    out = np.ones(rgb.shape[:2] + (4,), dtype=np.float32)
-    out[..., :3] = rgb
-    return out
+    @handles(OrthographicCamera, features={"camera.orthographic": EXACT})
+    def orthographic_camera(self, cam: OrthographicCamera, ctx: TranslationContext) -> None:
+        self._camera(cam, (1.0, 1.0), type="ORTHO", ortho_scale=cam.ortho_scale)
 
+    def _camera(self, cam: Any, pixel_aspect: tuple[float, float], **data_fields: Any) -> None:
+        """The camera object (made once per scene), its data (``data_fields`` first, then the sensor, the
+        principal point through the shift and the clipping) and the render resolution."""
+        bpy = bpy_module()
+        built, sc = self.built, self.sc
+        if not built.camera.objects:
+            data = built.camera.add("cameras", bpy.data.cameras.new("bf_camera"))
+            obj = bpy.data.objects.new("bf_camera", data)
+            sc.collection.objects.link(obj)
+            built.camera.objects.append(obj)
+        obj = built.camera.objects[0]
+        data = obj.data
+        w, h = cam.width, cam.height
+        pax, pay = pixel_aspect
+        ycor = pay / pax
+        for k, v in data_fields.items():
+            setattr(data, k, v)
+        data.sensor_fit = "HORIZONTAL"
+        data.sensor_width = 36.0
+        data.shift_x = (w / 2.0 - (cam.cx + 0.5)) / w
+        data.shift_y = ((cam.cy + 0.5) - h / 2.0) * ycor / w
+        data.clip_start, data.clip_end = cam.near, cam.far
+        _set_matrix(obj, cam.matrix_world)
+        sc.camera = obj
+        r = sc.render
+        r.resolution_x, r.resolution_y = w, h
+        r.resolution_percentage = 100
+        r.pixel_aspect_x, r.pixel_aspect_y = pax, pay
 
-# ---------------------------------------------------------------------------------------------------
-# attached .blend files
-# ---------------------------------------------------------------------------------------------------
-
-#: object types ``attach_blend`` parses into the IR (rendered from the IR) -- every other renderable
-#: type (volumes, hair curves, grease pencil, ...) is linked from the attached file itself
-_PARSED_TYPES = ("MESH", "CURVE", "SURFACE", "META", "FONT", "LIGHT", "CAMERA", "EMPTY", "POINTCLOUD")
-
-
-def _build_attached(scene: Any, sc: Any) -> _Entry:
-    """Append the scenes of ``scene.attached_blends`` (through blendfile.append_blend_scenes: auto-run
-    off, Python drivers and text blocks removed) and link the objects the IR could not represent into
-    the render scene; everything appended is owned by the returned entry."""
-    entry = _Entry(key=tuple(scene.attached_blends))
-    if not scene.attached_blends:
-        return entry
-    from . import blendfile
-
-    bpy = _runtime.bpy_module()
-    before = {idb.as_pointer() for idb in _all_ids(bpy)}
-    try:
-        for path in scene.attached_blends:
-            scenes, _notes = blendfile.append_blend_scenes(path)
+    # -- attached files ----------------------------------------------------------------------------
+    @handles(Attachment)
+    def attachment(self, a: Attachment, ctx: TranslationContext) -> None:
+        """An attached .blend: its scenes are appended (through ``blendfile.append_blend_scenes``: auto-run
+        off, Python drivers and text blocks removed) and the objects the IR could not represent (hair,
+        volumes, ...) are linked into the render scene; everything appended is owned by ``built.attached``."""
+        if a.format != "blend":
+            ctx.ignore(a, f"Cycles renders attached .blend files only, not .{a.format}")
+            return
+        bpy = bpy_module()
+        sc = self.sc
+        before = {idb.as_pointer() for idb in _all_ids(bpy)}
+        try:
+            scenes, _notes = append_blend_scenes(a.path)
             for bs in scenes:
                 for obj in bs.objects:
                     if obj.type not in _PARSED_TYPES and obj.name not in sc.collection.objects:
                         sc.collection.objects.link(obj)
                         obj.pass_index = 0
-    finally:
-        entry.ids = [idb for idb in _all_ids(bpy) if idb.as_pointer() not in before and idb != sc]
-    return entry
-
-
-def _all_ids(bpy: Any) -> list[Any]:
-    out: list[Any] = []
-    for name in dir(bpy.data):
-        coll = getattr(bpy.data, name, None)
-        if isinstance(coll, bpy.types.bpy_prop_collection) and name not in ("window_managers", "screens", "workspaces"):
-            try:
-                out.extend(i for i in coll if isinstance(i, bpy.types.ID))
-            except TypeError:
-                continue
-    return out
+        finally:
+            self.built.attached.ids.extend(idb for idb in _all_ids(bpy) if idb.as_pointer() not in before and idb != sc)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -759,152 +993,8 @@ def apply_engine_settings(
 
 
 # ---------------------------------------------------------------------------------------------------
-# whole-scene build and the cached translator
+# whole-scene build (the .blend export) and single renderables (the benchmarks)
 # ---------------------------------------------------------------------------------------------------
-
-
-def _check_scene(scene: Any) -> None:
-    from blendify_core.ir.scene import Scene
-
-    if not isinstance(scene, Scene):
-        raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
-    if scene.camera is None:
-        raise InvalidSceneError("scene.camera: the scene has no camera; call scene.set_perspective_camera(...) first")
-
-
-class Translator:
-    """Keeps one translated scene in the bpy session and updates it incrementally.
-
-    A different IR scene (another renderables collection) resets bpy to factory settings and removes
-    everything; the same scene only gets what changed: new/removed/modified renderables, moved
-    objects (matrix only), lights/world when any light changed, camera and engine settings always."""
-
-    def __init__(self, device: str = "CPU", gpu_setup: Any = None) -> None:
-        self.built: BuiltScene | None = None
-        self._scene_ref: Any = None
-        self._lights_key: Any = None
-        self._transforms: dict[int, int] = {}
-        self.device = device
-        #: called after every factory reset when device == "GPU" (the reset forgets the preferences);
-        #: returns the compute device type enabled, or "" to fall back to the CPU
-        self.gpu_setup = gpu_setup
-        self.compute_device_type = ""
-        self.last_stats: dict[str, Any] = {}
-
-    def _same_scene(self, scene: Any) -> bool:
-        if self.built is None or self._scene_ref is None or self.built.generation != _runtime.generation():
-            return False
-        if self._scene_ref() is not scene.renderables:
-            return False
-        if not self._alive():
-            # someone else reset or replaced the bpy session: the cached datablocks are gone
-            self.built, self._scene_ref, self._lights_key = None, None, None
-            self._transforms.clear()
-            return False
-        return True
-
-    def _alive(self) -> bool:
-        """Whether the cached datablocks still exist (cheap spot check)."""
-        built = self.built
-        if built is None:
-            return False
-        try:
-            if _runtime.bpy_module().context.scene != built.bscene:
-                return False
-            for entry in [built.camera, *list(built.entries.values())[:1]]:
-                for obj in entry.objects:
-                    _ = obj.name
-        except ReferenceError:
-            return False
-        return True
-
-    def clear(self) -> None:
-        """Remove every datablock of the cached scene (the bpy session is left empty, not reset)."""
-        if self.built is not None and self.built.generation == _runtime.generation() and self._alive():
-            self.built.remove()
-            bpy = _runtime.bpy_module()
-            for img in list(bpy.data.images):  # created by our renders ("Render Result", "Viewer Node")
-                if img.type in ("RENDER_RESULT", "COMPOSITING"):
-                    bpy.data.images.remove(img)
-            try:
-                _runtime.bpy_module().data.orphans_purge(do_recursive=True)
-            except Exception:  # pragma: no cover - best effort
-                pass
-        self.built = None
-        self._scene_ref = None
-        self._lights_key = None
-        self._transforms.clear()
-
-    def sync(self, scene: Any, settings: RenderSettings) -> BuiltScene:
-        """Bring the bpy scene in line with ``scene`` and ``settings``; returns the BuiltScene."""
-        _check_scene(scene)
-        bpy = _runtime.bpy_module()
-        stats = {"new_scene": False, "built": 0, "moved": 0, "removed": 0, "lights_rebuilt": False}
-        if not self._same_scene(scene):
-            self.clear()
-            _runtime.factory_reset()
-            if self.device == "GPU" and self.gpu_setup is not None:
-                self.compute_device_type = self.gpu_setup()
-            self.built = BuiltScene(bscene=bpy.context.scene, generation=_runtime.generation())
-            self._scene_ref = weakref.ref(scene.renderables)
-            stats["new_scene"] = True
-        built = self.built
-        if built is None:  # set just above for a new scene; an internal invariant
-            raise RenderError("cycles: the translated scene is missing (internal error)")
-        try:
-            self._sync_contents(scene, settings, built, stats)
-        except BaseException:
-            # a half-updated scene (error or Ctrl-C) is never reused
-            self.clear()
-            raise
-        self.last_stats = stats
-        return built
-
-    def _sync_contents(self, scene: Any, settings: RenderSettings, built: BuiltScene, stats: dict[str, Any]) -> None:
-        sc = built.bscene
-        mb = MaterialBuilder()
-        present = set()
-        for i, r in enumerate(scene.renderables):
-            present.add(r.uid)
-            entry = built.entries.get(r.uid)
-            key = _renderable_key(r)
-            if entry is not None and entry.key != key:
-                entry.remove()
-                entry = None
-            if entry is None:
-                entry = _build_renderable(r, i, sc, mb, built)
-                built.entries[r.uid] = entry
-                self._transforms[r.uid] = r.revision("transform")
-                stats["built"] += 1
-            else:
-                obj = entry.objects[0]
-                if obj.pass_index != i + 1:  # an RNA write tags the depsgraph: only when it changed
-                    obj.pass_index = i + 1
-                if self._transforms.get(r.uid) != r.revision("transform"):
-                    _set_matrix(obj, _object_matrix(r, entry))
-                    self._transforms[r.uid] = r.revision("transform")
-                    stats["moved"] += 1
-        for uid in [u for u in built.entries if u not in present]:
-            built.entries.pop(uid).remove()
-            self._transforms.pop(uid, None)
-            stats["removed"] += 1
-        attached = tuple(getattr(scene, "attached_blends", ()))
-        if attached != built.attached.key:
-            built.attached.remove()
-            built.attached = _build_attached(scene, sc)
-            stats["attached_blends"] = len(attached)
-        key = _lights_key(scene)
-        if key != self._lights_key:
-            built.lights.remove()
-            built.world.remove()
-            built.lights = _build_lights(scene, sc)
-            built.world = _build_world(scene, sc, mb)
-            self._lights_key = key
-            stats["lights_rebuilt"] = True
-        _apply_camera(built, scene.camera)
-        device = "GPU" if (self.device == "GPU" and self.compute_device_type) else "CPU"
-        built.engine_settings = apply_engine_settings(sc, settings, scene, device, self.compute_device_type)
-        built.instance_tags = [r.tag for r in scene.renderables]
 
 
 def build_scene(scene: Any, settings: RenderSettings | None = None, reset: bool = True) -> BuiltScene:
@@ -912,15 +1002,24 @@ def build_scene(scene: Any, settings: RenderSettings | None = None, reset: bool 
 
     ``settings`` defaults to the "final" preset. With ``reset=True`` (default) bpy is first reset to an
     empty factory scene; with ``reset=False`` the objects are added to the current scene."""
-    from blendify_core.pipeline.settings import resolve_settings
-
-    _check_scene(scene)
+    check_scene(scene)
     settings = settings or resolve_settings("final")
-    bpy = _runtime.bpy_module()
-    with _runtime.BPY_LOCK:
+    bpy = bpy_module()
+    with BPY_LOCK:
         if reset:
-            _runtime.factory_reset()
-        built = BuiltScene(bscene=bpy.context.scene, generation=_runtime.generation())
-        with _runtime.capture_output("build scene") as cap, _runtime.engine_errors("building the scene", cap):
-            Translator()._sync_contents(scene, settings, built, {"built": 0, "moved": 0, "removed": 0})
+            factory_reset()
+        built = BuiltScene(bscene=bpy.context.scene, generation=generation())
+        with capture_output("build scene") as cap, engine_errors("building the scene", cap):
+            built.stats = CyclesTranslator(built, settings).translate(
+                scene, SceneChanges(first=True), TranslationContext()
+            )
         return built
+
+
+def _build_renderable(r: Any, index: int, sc: Any, mb: MaterialBuilder | None = None) -> _Entry:
+    """The datablocks of one renderable in the bpy scene ``sc``, nothing shared with other objects (the
+    benchmarks time this; ``entry.timings`` has the build steps)."""
+    translator = CyclesTranslator(BuiltScene(bscene=sc), resolve_settings(), share=False)
+    if mb is not None:
+        translator.mb = mb
+    return translator._renderable(r, index, TranslationContext())

@@ -18,6 +18,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -27,7 +28,7 @@ from blendify_core.ir.attachments import Attachment
 from blendify_core.pipeline.result import RenderResult, _jsonable
 from blendify_core.pipeline.settings import RenderSettings
 
-__all__ = ["WorkerClient", "main"]
+__all__ = ["IsolatedScene", "WorkerClient", "main"]
 
 _ARRAYS = ("rgba", "depth", "normal", "albedo", "instance")
 _ERRORS = {"RenderError": RenderError, "InvalidSceneError": InvalidSceneError}
@@ -53,6 +54,14 @@ def _load_result(path: str) -> RenderResult:
         result.instance_tags = [str(t) for t in z["instance_tags"]]
         result.meta = json.loads(str(z["meta"]))
     return result
+
+
+@dataclass(frozen=True)
+class IsolatedScene:
+    """What ``CyclesBackend.translate`` returns with ``isolate=True``: the IR scene, which the worker process
+    translates and renders (nothing touches bpy in this process)."""
+
+    scene: Any
 
 
 class WorkerClient:

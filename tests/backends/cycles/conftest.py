@@ -20,6 +20,6 @@ def cycles():
 
 @pytest.fixture
 def bpy(cycles):
-    from blendify_blender import _runtime
+    from blendify_blender import session
 
-    return _runtime.bpy_module()
+    return session.bpy_module()

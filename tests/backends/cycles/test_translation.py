@@ -288,44 +288,44 @@ def test_engine_settings_and_effects(cycles, bpy):
 def test_incremental_updates_do_not_rebuild_meshes(cycles, bpy):
     scene = testing.bunny_scene((32, 32))
     cycles.translate(scene, resolve_settings())
-    assert cycles._translator.last_stats["new_scene"]
+    assert cycles._session.last_stats["new_scene"]
     me = _obj(bpy, "bunny").data
     ptr = me.as_pointer()
     scene.camera.translation = scene.camera.translation + 0.01
     scene.lights.add_point(10.0, translation=(0, 0, 1))
     cycles.translate(scene, resolve_settings())
-    st = cycles._translator.last_stats
+    st = cycles._session.last_stats
     assert (st["new_scene"], st["built"], st["moved"], st["lights_rebuilt"]) == (False, 0, 0, True)
     assert _obj(bpy, "bunny").data.as_pointer() == ptr
     scene.renderables["ground"].translation = (0, 0, -0.1)
     cycles.translate(scene, resolve_settings())
-    st = cycles._translator.last_stats
+    st = cycles._session.last_stats
     assert (st["built"], st["moved"]) == (0, 1)
     assert _obj(bpy, "ground").matrix_world.translation.z == pytest.approx(-0.1)
     scene.renderables["ground"].update_material(bf.PlasticMaterial())
     scene.renderables.remove("bunny")
     cycles.translate(scene, resolve_settings())
-    st = cycles._translator.last_stats
+    st = cycles._session.last_stats
     assert (st["built"], st["removed"]) == (1, 1)
 
 
 def test_clear_removes_every_datablock(bpy):
-    from blendify_blender import _runtime
+    from blendify_blender import session
 
     with CyclesBackend() as b:
         b.translate(testing.every_feature_scene(), resolve_settings())
-        _runtime.factory_reset()
-        baseline = _runtime.datablock_counts()
+        session.factory_reset()
+        baseline = session.datablock_counts()
         b.render_scene(testing.every_feature_scene((16, 12)), resolve_settings(samples=1, outputs=("rgb", "albedo")))
-        assert _runtime.datablock_counts()["objects"] > 10
+        assert session.datablock_counts()["objects"] > 10
         b.clear()
-        assert _runtime.datablock_counts() == baseline
+        assert session.datablock_counts() == baseline
 
 
 def test_engine_errors_become_render_errors(bpy):
-    from blendify_blender import _runtime
+    from blendify_blender import session
 
-    with pytest.raises(RenderError, match="poll"), _runtime.engine_errors("switching mode"):
+    with pytest.raises(RenderError, match="poll"), session.engine_errors("switching mode"):
         bpy.ops.object.mode_set(mode="EDIT")
 
 

@@ -1,4 +1,4 @@
-"""Rendering a translated scene and reading the passes back.
+"""Rendering a translated scene (:class:`~blendify_blender.session.BuiltScene`) into a RenderResult.
 
 The passes are written by a compositor File Output node as one single-layer 32-bit EXR per pass into
 a private temporary directory (removed afterwards), then read with ``openexr``. Single-layer files are
@@ -20,9 +20,8 @@ from blendify_core.errors import RenderError
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
 
-from . import _runtime
 from .materials import ALBEDO_AOV
-from .translate import BuiltScene
+from .session import BuiltScene, bpy_module, capture_output, engine_errors
 
 __all__ = ["render_built", "PASSES"]
 
@@ -38,7 +37,7 @@ _BACKGROUND_DEPTH = 1e9  # Cycles writes 1e10 where nothing was hit
 
 
 def _setup_passes(built: BuiltScene, outputs: tuple[str, ...], directory: str) -> None:
-    bpy = _runtime.bpy_module()
+    bpy = bpy_module()
     sc = built.bscene
     vl = sc.view_layers[0]
     vl.use_pass_combined = True
@@ -97,22 +96,22 @@ def _find(directory: str, item: str) -> str:
 
 def render_built(built: BuiltScene, settings: RenderSettings, verbose: bool = False) -> RenderResult:
     """Render the translated scene with Cycles; return the requested outputs as a RenderResult."""
-    bpy = _runtime.bpy_module()
+    bpy = bpy_module()
     outputs = tuple(settings.outputs)
     timings: dict[str, float] = {}
     directory = tempfile.mkdtemp(prefix="blendify_cycles_")
     try:
         t0 = time.perf_counter()
-        with _runtime.capture_output("render", verbose) as cap:
+        with capture_output("render", verbose) as cap:
             # the depth pass (one sample per pixel) also tells where nothing was hit, so the filtered
             # normal/albedo passes can be 0 there as the output contract says
             passes = outputs
             if ("normal" in outputs or "albedo" in outputs) and "depth" not in outputs:
                 passes = (*outputs, "depth")
-            with _runtime.engine_errors("setting up the render passes", cap):
+            with engine_errors("setting up the render passes", cap):
                 _setup_passes(built, passes, directory)
             t1 = time.perf_counter()
-            with _runtime.engine_errors("rendering", cap):
+            with engine_errors("rendering", cap):
                 res = bpy.ops.render.render(write_still=False, scene=built.bscene.name)
                 if "FINISHED" not in res:
                     raise RuntimeError(f"render operator returned {sorted(res)}")
@@ -156,6 +155,7 @@ def render_built(built: BuiltScene, settings: RenderSettings, verbose: bool = Fa
         result.meta["engine_settings"] = dict(built.engine_settings)
         result.meta["samples"] = int(built.engine_settings.get("samples", settings.samples))
         result.meta["log_tail"] = cap.lines[-5:]
+        result.meta["translation"] = dict(built.stats)
         return result
     finally:
         shutil.rmtree(directory, ignore_errors=True)
