@@ -26,12 +26,8 @@ if importlib.util.find_spec("bpy") is None:  # pragma: no cover - depends on the
     print("tests/backends/cycles/test_blendfile.py: skipped, the 'bpy' package is not installed")
     pytest.skip("the 'bpy' package (Blender as a module) is not installed", allow_module_level=True)
 
-from blendify_blender.blendfile import (
-    BlendAttachWarning,
-    attach_blend,
-    blender_camera_intrinsics,
-    export_blend,
-)
+from blendify_blender.blendfile import BlendAttachWarning, attach_blend, blender_camera_intrinsics
+from blendify_blender.blendfile.export import export_blend
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colors import (
@@ -185,13 +181,14 @@ def test_attach_never_runs_embedded_python(evil_blend: tuple[Path, Path, Path]):
 def test_append_blend_scenes_for_cycles_strips_python(evil_blend: tuple[Path, Path, Path]):
     """The raw-content helper the Cycles backend may use applies the same protections."""
     import bpy
-    from blendify_blender.blendfile import _all_ids, append_blend_scenes
+    from blendify_blender.blendfile import append_blend_scenes
+    from blendify_blender.blendfile.safety import all_ids
 
     path, m_text, m_driver = evil_blend
     prefs = bpy.context.preferences.filepaths
     old = prefs.use_scripts_auto_execute
     prefs.use_scripts_auto_execute = True
-    before = set(_all_ids(bpy))
+    before = set(all_ids(bpy))
     try:
         scenes, removed = append_blend_scenes(path)
         assert len(scenes) == 1 and sum("Python driver" in r for r in removed) == 2
@@ -202,7 +199,7 @@ def test_append_blend_scenes_for_cycles_strips_python(evil_blend: tuple[Path, Pa
             bpy.context.evaluated_depsgraph_get().update()
     finally:
         prefs.use_scripts_auto_execute = old
-        bpy.data.batch_remove([i for ptr, i in _all_ids(bpy).items() if ptr not in before])
+        bpy.data.batch_remove([i for ptr, i in all_ids(bpy).items() if ptr not in before])
     assert not m_text.exists() and not m_driver.exists()
 
 
