@@ -25,4 +25,4 @@ def scalar_backend():
 @pytest.fixture
 def mi_scalar(scalar_backend):
     """The mitsuba module with the scalar_rgb variant set (set again for every test: it is global)."""
-    return scalar_backend._set_variant()
+    return scalar_backend.session.set_variant()

@@ -68,7 +68,7 @@ def test_camera_self_test_non_square_pixels(scalar_backend, fy):
 
 
 def test_row_resampling_is_exact_for_smooth_images():
-    from blendify_mitsuba._aniso import plan_square_pixels, resample_rows
+    from blendify_mitsuba.aniso import plan_square_pixels, resample_rows
 
     from blendify_core.ir.cameras import PerspectiveCamera
 

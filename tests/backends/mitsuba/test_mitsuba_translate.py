@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 from blendify_mitsuba import MitsubaBackend
+from blendify_mitsuba.translate import MitsubaContext, MitsubaTranslator
 
 import blendify_core as bf
 from blendify_core import testing
@@ -30,15 +31,20 @@ if not _status.available:  # pragma: no cover - depends on the machine
 
 pytestmark = pytest.mark.mitsuba
 
-FILM = {"type": "hdrfilm", "width": 64, "height": 48, "pixel_format": "rgba", "rfilter": {"type": "box"}}
-SAMPLER = {"type": "independent", "sample_count": 4}
-INTEGRATOR = {"type": "path", "max_depth": 4, "hide_emitters": True}
+SETTINGS = resolve_settings(samples=4, max_bounces=2)
 
 
-def _translate(scene, mi_scalar, max_spheres=1000):
-    from blendify_mitsuba._translate import translate_scene
+def _translate(scene, mi_scalar, max_spheres=1000, settings=SETTINGS):
+    return MitsubaTranslator(settings, max_analytic_spheres=max_spheres).translate(scene)
 
-    return translate_scene(scene, FILM, SAMPLER, INTEGRATOR, max_spheres)
+
+def _handle(obj, *args, scene=None):
+    """What the translator's handler for ``obj`` returns (one object, without walking a scene)."""
+    return MitsubaTranslator(SETTINGS).dispatch(obj, MitsubaContext(scene=scene), *args)
+
+
+def _emitters(scene):
+    return MitsubaTranslator(SETTINGS).emitters(MitsubaContext(scene=scene))
 
 
 def _m(t) -> np.ndarray:
@@ -68,9 +74,7 @@ def test_perspective_camera(mi_scalar):
     cam = scene.set_perspective_camera(
         (64, 48), K=k, rotation_mode="look_at", rotation=(0, 0, 0), translation=(1, -3, 2), near=0.2, far=50
     )
-    from blendify_mitsuba._translate import camera_dict
-
-    d = camera_dict(cam, FILM, SAMPLER)
+    d = _handle(cam)
     assert d["type"] == "perspective" and d["fov_axis"] == "x"
     assert d["fov"] == pytest.approx(math.degrees(2 * math.atan(64 / 140.0)))
     assert d["principal_point_offset_x"] == pytest.approx((32 - 30.7) / 64)
@@ -89,9 +93,7 @@ def test_perspective_camera(mi_scalar):
 def test_orthographic_camera_translates_for_the_principal_point(mi_scalar):
     scene = bf.Scene()
     cam = scene.set_orthographic_camera((64, 48), ortho_scale=3.2, center=(40.5, 20.0), translation=(0, 0, 5))
-    from blendify_mitsuba._translate import camera_dict
-
-    d = camera_dict(cam, FILM, SAMPLER)
+    d = _handle(cam)
     assert d["type"] == "orthographic"
     m = _m(d["to_world"])
     np.testing.assert_allclose(np.linalg.norm(m[:3, :3], axis=0), [1.6, 1.6, 1.0], rtol=1e-6)
@@ -108,9 +110,7 @@ def test_lights_radiometry(mi_scalar):
     scene.lights.add_area("rectangle", (0.5, 0.2), 40.0, translation=(1, 0, 2))
     scene.lights.add_area("circle", 0.4, 30.0, translation=(-1, 0, 2))
     scene.lights.set_background_light(0.5, (1, 1, 1))
-    from blendify_mitsuba._translate import light_dicts
-
-    d = light_dicts(scene)
+    d = _emitters(scene)
     point, sun, spot, rect, disk = (d[f"light{i:04d}"] for i in range(5))
     assert point["type"] == "point"
     assert point["intensity"]["value"] == pytest.approx([100 / (4 * np.pi)] * 3)
@@ -133,9 +133,7 @@ def test_lights_radiometry(mi_scalar):
 def test_point_light_with_radius_is_a_sphere_emitter(mi_scalar):
     scene = bf.Scene()
     scene.lights.add_point(100.0, shadow_soft_size=0.2, translation=(0, 0, 2))
-    from blendify_mitsuba._translate import light_dicts
-
-    d = light_dicts(scene)["light0000"]
+    d = _emitters(scene)["light0000"]
     assert d["type"] == "sphere" and d["radius"] == 0.2 and d["bsdf"]["type"] == "null"
     assert d["emitter"]["radiance"]["value"] == pytest.approx([100 / (4 * np.pi**2 * 0.04)] * 3)
 
@@ -143,8 +141,6 @@ def test_point_light_with_radius_is_a_sphere_emitter(mi_scalar):
 def test_environment_map_follows_equirect_uv(mi_scalar):
     """The envmap emitter must look up the texel that blendify_core.ir.lights.equirect_uv names."""
     mi = mi_scalar
-    from blendify_mitsuba._translate import environment_dict
-
     from blendify_core.ir.lights import equirect_uv
 
     h, w = 64, 128
@@ -152,7 +148,7 @@ def test_environment_map_follows_equirect_uv(mi_scalar):
     img = np.dstack([jj, ii, np.zeros_like(jj)]).astype(np.float32)  # R = u, G = v (v up)
     scene = bf.Scene()
     scene.lights.set_environment_map(img, strength=1.0, rotation_mode="eulerXYZ", rotation=(0, 0, 30))
-    env = mi.load_dict(environment_dict(scene.lights.environment))
+    env = mi.load_dict(_handle(scene.lights.environment, scene=scene))
     rng = np.random.default_rng(3)
     dirs = rng.normal(size=(40, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
@@ -168,22 +164,20 @@ def test_environment_map_follows_equirect_uv(mi_scalar):
 
 
 def test_materials_map_to_the_documented_bsdfs(mi_scalar):
-    from blendify_mitsuba._translate import bsdf_dict
-
     col = {"type": "rgb", "value": [0.5, 0.5, 0.5]}
-    d, kind = bsdf_dict(DiffuseMaterial(), col)
-    assert kind == "diffuse" and d["type"] == "twosided" and d["bsdf"]["type"] == "diffuse"
-    d, kind = bsdf_dict(PrincipledBSDFMaterial(specular_ior=0.0, roughness=0.5), col)
+    d = _handle(DiffuseMaterial(), col)
+    assert d["type"] == "twosided" and d["bsdf"]["type"] == "diffuse"
+    d = _handle(PrincipledBSDFMaterial(specular_ior=0.0, roughness=0.5), col)
     assert d["bsdf"]["type"] == "diffuse"  # no specular layer: exact Lambert
-    d, kind = bsdf_dict(GlossyBSDFMaterial(roughness=0.3), col)
-    assert kind == "glossy" and d["bsdf"]["type"] == "roughconductor"
+    d = _handle(GlossyBSDFMaterial(roughness=0.3), col)
+    assert d["type"] == "twosided" and d["bsdf"]["type"] == "roughconductor"
     assert d["bsdf"]["alpha"] == pytest.approx(0.09)
-    d, _ = bsdf_dict(GlossyBSDFMaterial(roughness=0.0), col)
+    d = _handle(GlossyBSDFMaterial(roughness=0.0), col)
     assert d["bsdf"]["type"] == "conductor"
-    d, kind = bsdf_dict(MetalMaterial(), col)
-    assert kind == "principled" and d["bsdf"]["metallic"] == pytest.approx(0.9)
+    d = _handle(MetalMaterial(), col)
+    assert d["bsdf"]["type"] == "principled" and d["bsdf"]["metallic"] == pytest.approx(0.9)
     # Specular IOR Level 0.5 leaves the IOR unchanged
-    d, _ = bsdf_dict(PrincipledBSDFMaterial(ior=1.5, specular_ior=0.5), col)
+    d = _handle(PrincipledBSDFMaterial(ior=1.5, specular_ior=0.5), col)
     assert d["bsdf"]["eta"] == pytest.approx(1.5)
 
 
@@ -257,23 +251,26 @@ def test_emission_builds_an_emitter_and_compositing_scenes(mi_scalar):
     assert shape["emitter"]["radiance"]["value"] == pytest.approx(list(expected))
     assert tr.coverage_dict is None  # no sky: no compositing needed
     scene.lights.set_background_light(0.5)
-    from blendify_mitsuba._translate import translate_scene
-
-    tr = translate_scene(scene, FILM, SAMPLER, INTEGRATOR, 10, composite=True)
+    tr = _translate(scene, mi_scalar, 10, resolve_settings(samples=4, transparent_background=True))
     assert tr.coverage_dict["integrator"]["max_depth"] == 2 and "background" not in tr.coverage_dict
     assert "r00000_sphere" in tr.coverage_dict
     assert "background" in tr.background_dict and "r00000_sphere" not in tr.background_dict
 
 
-def test_settings_drive_integrator(scalar_backend):
+def test_settings_drive_integrator(mi_scalar):
+    def integrator_for(scene, settings):
+        tr = _translate(scene, mi_scalar, settings=settings)
+        assert tr.scene_dict["integrator"] is tr.integrator
+        return tr.integrator, tr.effects
+
     scene = testing.plane_scene("sun")
-    integ, eff = scalar_backend.integrator_for(scene, resolve_settings(max_bounces=5))
+    integ, eff = integrator_for(scene, resolve_settings(max_bounces=5))
     assert integ["max_depth"] == 2 and not eff.indirect_diffuse  # one convex plane: direct light only
-    integ, _ = scalar_backend.integrator_for(scene, resolve_settings(max_bounces=5, effects=False))
+    integ, _ = integrator_for(scene, resolve_settings(max_bounces=5, effects=False))
     assert integ["max_depth"] == 7
-    integ, _ = scalar_backend.integrator_for(testing.plane_scene("area"), resolve_settings(max_bounces=5))
+    integ, _ = integrator_for(testing.plane_scene("area"), resolve_settings(max_bounces=5))
     assert integ["max_depth"] == 3  # camera rays may pass through the light's null surface
-    integ, _ = scalar_backend.integrator_for(testing.bunny_scene(), resolve_settings(max_bounces=5))
+    integ, _ = integrator_for(testing.bunny_scene(), resolve_settings(max_bounces=5))
     assert integ["max_depth"] == 7 and integ["hide_emitters"]
 
 

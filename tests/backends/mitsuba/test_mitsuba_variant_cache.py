@@ -15,7 +15,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from blendify_mitsuba import _variant
+from blendify_mitsuba import variant as _variant
 
 LLVM_TRACE = (
     "0x56095a451ec0: i64 = TargetConstantPool<float 0x3FEE666660000000> 0\n"

@@ -60,7 +60,7 @@ def test_llvm15_falls_back_instead_of_aborting():
     if lib is None:
         print("no LLVM 15 library on this machine: the abort case cannot be reproduced here")
         pytest.skip("no LLVM 15 library on this machine")
-    from blendify_mitsuba._variant import probe_variant
+    from blendify_mitsuba.variant import probe_variant
 
     ok, msg = probe_variant("llvm_ad_rgb", lib)
     print(f"probe of llvm_ad_rgb with {lib}: {ok} ({msg})")
@@ -70,7 +70,7 @@ def test_llvm15_falls_back_instead_of_aborting():
 
 
 def test_cuda_without_gpu_falls_back():
-    from blendify_mitsuba._variant import _gpu_present, choose_variant
+    from blendify_mitsuba.variant import _gpu_present, choose_variant
 
     if _gpu_present():
         pytest.skip("a GPU is present")
@@ -79,7 +79,7 @@ def test_cuda_without_gpu_falls_back():
 
 
 def test_llvm_variant_matches_scalar_geometry():
-    from blendify_mitsuba._variant import choose_variant
+    from blendify_mitsuba.variant import choose_variant
 
     choice = choose_variant("llvm_ad_rgb")
     if choice.variant != "llvm_ad_rgb":

@@ -1,0 +1,347 @@
+"""Rendering a translated scene into a RenderResult: the colour image with ``mi.render`` (composited for
+coverage alpha under a sky, shadow catchers emulated, non-square pixels resampled) and the geometric
+outputs (depth, normal, albedo, instance) from our own rays through the pixel centres (exact, not
+filtered).
+
+Mitsuba and Dr.Jit are imported inside the functions that use them; callers hold the session's engine
+(:meth:`blendify_mitsuba.session.MitsubaSession.engine`).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings
+
+from .aniso import resample_rows
+from .session import MitsubaNative, MitsubaSession
+from .translate import ShapeInfo
+
+__all__ = ["render_native", "render_rgba", "cast_outputs", "catch_shadows"]
+
+_MAX_PASS_THROUGH = 8  # light shapes (null BSDF) a geometric ray may pass through
+
+
+def render_native(
+    native: MitsubaNative, settings: RenderSettings, session: MitsubaSession, backend: str, engine_version: str | None
+) -> RenderResult:
+    """Render ``native`` (from :meth:`MitsubaSession.translate`) with ``settings``: the requested outputs and
+    the meta data of the render."""
+    if not isinstance(native, MitsubaNative):
+        raise InvalidSceneError(f"native: expected a MitsubaNative from translate(), got {type(native).__name__}")
+    timings: dict[str, float] = {}
+    out: dict[str, Any] = {}
+    with session.engine():
+        if settings.threads is not None:
+            import drjit as dr
+
+            dr.set_thread_count(int(settings.threads))
+        try:
+            if settings.wants("rgb"):
+                t0 = time.perf_counter()
+                rgba = render_rgba(native.scene, native.spp, settings.seed)
+                if native.coverage_scene is not None:
+                    # emissive surfaces + a sky: rendered with the sky visible; the coverage alpha comes
+                    # from a one-bounce pass of the shapes, the sky behind partly covered pixels is removed
+                    alpha = render_rgba(native.coverage_scene, native.spp, settings.seed)[..., 3]
+                    sky = render_rgba(native.sky_scene, native.spp, settings.seed)[..., :3]
+                    rgba[..., :3] -= (1.0 - alpha)[..., None] * sky
+                    rgba[..., :3] = np.maximum(rgba[..., :3], 0.0)
+                    rgba[..., 3] = alpha
+                if native.catcher_scene is not None:
+                    rgba = catch_shadows(native, rgba, settings)
+                if native.aniso is not None:
+                    cam = native.camera
+                    rgba = resample_rows(rgba, cam.width, cam.height, native.aniso.k, native.aniso.row_scale)
+                if not settings.transparent_background:
+                    rgba[..., 3] = 1.0
+                out["rgba"] = rgba
+                timings["render_rgb"] = time.perf_counter() - t0
+            geo = tuple(o for o in ("depth", "normal", "albedo", "instance") if settings.wants(o))
+            geo = tuple(o for o in geo if o not in out)
+            if geo:
+                t0 = time.perf_counter()
+                out.update(
+                    cast_outputs(
+                        native.scene,
+                        native.camera,
+                        native.shapes,
+                        geo,
+                        vectorised=not native.variant.startswith("scalar"),
+                        parallel=native.parallel_rays,
+                    )
+                )
+                timings["ray_cast"] = time.perf_counter() - t0
+        except BlendifyError:
+            raise
+        except Exception as exc:
+            raise RenderError(f"mitsuba: rendering failed: {type(exc).__name__}: {exc}") from exc
+    choice = session.variant_choice
+    meta = {
+        "backend": backend,
+        "engine_version": engine_version,
+        "variant": native.variant,
+        "variant_reason": choice.reason,
+        "libllvm": choice.libllvm,
+        "integrator": native.integrator["type"],
+        "max_depth": native.integrator["max_depth"],
+        "hide_emitters": native.integrator["hide_emitters"],
+        "spp": settings.samples,
+        "rendered_spp": _sampler_count(native),
+        "samples": settings.samples,
+        "sampler": session.sampler,
+        "seed": settings.seed,
+        "pixel_filter": settings.pixel_filter,
+        "alpha_compositing": native.coverage_scene is not None,
+        "shadow_catcher_emulated": native.catcher_scene is not None,
+        "analytic_spheres": native.n_analytic_spheres,
+        "translate_cached": native.translate_cached,
+        "timings": timings,
+    }
+    if native.effects is not None:
+        meta["effects"] = native.effects.to_dict()
+    if native.ignored:
+        meta["ignored"] = list(native.ignored)
+    if settings.denoise:
+        meta.setdefault("notes", []).append("denoise requested: Mitsuba's CPU build has no denoiser (not applied)")
+    if settings.adaptive or settings.time_limit or settings.target_error:
+        meta.setdefault("notes", []).append(
+            "adaptive / time_limit / target_error are not supported by Mitsuba: fixed spp rendered"
+        )
+    if settings.clamp_direct or settings.clamp_indirect:
+        meta.setdefault("notes", []).append("sample clamping is not supported by Mitsuba (unclamped)")
+    return RenderResult(
+        rgba=out.get("rgba"),
+        depth=out.get("depth"),
+        normal=out.get("normal"),
+        albedo=out.get("albedo"),
+        instance=out.get("instance"),
+        instance_tags=[],
+        meta=meta,
+    )
+
+
+def _sampler_count(native: MitsubaNative) -> int:
+    """Samples per pixel the loaded sensor really takes (stratified samplers round the request up)."""
+    try:
+        return int(native.scene.sensors()[0].sampler().sample_count())
+    except Exception:  # a scene without a sensor (never built by this backend): report the plan
+        return int(native.spp)
+
+
+def render_rgba(scene: Any, spp: int, seed: int) -> np.ndarray:
+    """(H, W, 4) float32 linear premultiplied RGBA."""
+    import mitsuba as mi
+
+    img = np.array(mi.render(scene, spp=int(spp), seed=int(seed)), dtype=np.float32)
+    if img.ndim == 3 and img.shape[2] == 3:
+        img = np.concatenate([img, np.ones(img.shape[:2] + (1,), np.float32)], axis=2)
+    return img[..., :4]
+
+
+def catch_shadows(native: MitsubaNative, rgba: np.ndarray, settings: RenderSettings) -> np.ndarray:
+    """Shadow-catcher emulation: where a pixel centre sees a catcher, the pixel becomes black with
+    alpha = (1 - shadowed / unshadowed radiance) x coverage; the unshadowed radiance comes from a
+    render of the catchers alone (same seed and samples)."""
+    free = render_rgba(native.catcher_scene, native.spp, settings.seed)
+    cam = native.camera if native.aniso is None else native.aniso.camera
+    inst = cast_outputs(
+        native.scene, cam, native.shapes, ("instance",), not native.variant.startswith("scalar"), native.parallel_rays
+    )
+    mask = np.isin(inst["instance"], native.catchers)
+    lum = np.array([0.2126, 0.7152, 0.0722], np.float32)
+    shadowed = rgba[..., :3] @ lum
+    unshadowed = free[..., :3] @ lum
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(unshadowed > 1e-8, shadowed / unshadowed, 1.0)
+    out = rgba.copy()
+    out[mask, :3] = 0.0
+    out[mask, 3] = np.clip(1.0 - ratio[mask], 0.0, 1.0) * free[mask, 3]
+    return out
+
+
+def _rays(camera: Any, parallel: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Pixel-centre rays clipped to [near, far] (planar): origins, directions, t_near, t_far, cos.
+    ``parallel``: every ray is along the view direction (orthographic cameras), cos = 1."""
+    o, d = camera.pixel_rays()
+    cos = d @ camera.viewdir
+    if parallel:
+        cos = np.ones(len(d))
+    tn = camera.near / cos
+    tf = camera.far / cos
+    return o, d, tn, tf, cos
+
+
+def cast_outputs(
+    scene: Any,
+    camera: Any,
+    shapes: dict[str, ShapeInfo],
+    outputs: tuple[str, ...],
+    vectorised: bool,
+    parallel: bool = False,
+) -> dict[str, np.ndarray]:
+    """Depth (planar z, +inf background), normal (world, shading, facing the camera), albedo (the
+    material colour input, linear) and instance (renderable index, -1 background) per pixel centre.
+    ``parallel``: the camera's rays are parallel (orthographic cameras, ``MitsubaNative.parallel_rays``)."""
+    o, d, tn, tf, cos = _rays(camera, parallel)
+    n = len(d)
+    shape_list = list(scene.shapes())
+    ids = [s.id() for s in shape_list]
+    hit_t = np.full(n, np.inf)
+    hit_shape = np.full(n, -1, dtype=np.int64)
+    normal = np.zeros((n, 3), np.float32)
+    albedo = np.zeros((n, 3), np.float32)
+    want_albedo = "albedo" in outputs
+    if vectorised:
+        _cast_vector(scene, shape_list, ids, shapes, o, d, tn, tf, hit_t, hit_shape, normal, albedo, want_albedo)
+    else:
+        _cast_scalar(scene, ids, shapes, o, d, tn, tf, hit_t, hit_shape, normal, albedo, want_albedo)
+    h, w = camera.height, camera.width
+    out: dict[str, np.ndarray] = {}
+    valid = hit_shape >= 0
+    if "depth" in outputs:
+        z = np.where(valid, hit_t * cos, np.inf)
+        out["depth"] = z.reshape(h, w).astype(np.float32)
+    if "normal" in outputs:
+        out["normal"] = normal.reshape(h, w, 3)
+    if "albedo" in outputs:
+        out["albedo"] = albedo.reshape(h, w, 3)
+    if "instance" in outputs:
+        table = np.array([shapes[i].renderable if i in shapes else -1 for i in ids] + [-1], dtype=np.int32)
+        out["instance"] = table[hit_shape].reshape(h, w)
+    return out
+
+
+def _cast_scalar(
+    scene: Any,
+    ids: list[str],
+    shapes: dict[str, ShapeInfo],
+    o: np.ndarray,
+    d: np.ndarray,
+    tn: np.ndarray,
+    tf: np.ndarray,
+    hit_t: np.ndarray,
+    hit_shape: np.ndarray,
+    normal: np.ndarray,
+    albedo: np.ndarray,
+    want_albedo: bool,
+) -> None:
+    import mitsuba as mi
+
+    index = {sid: i for i, sid in enumerate(ids)}
+    for k in range(len(d)):
+        start = float(tn[k])
+        dk = d[k]
+        for _ in range(_MAX_PASS_THROUGH):
+            ray = mi.Ray3f(o[k] + dk * start, dk)
+            ray.maxt = float(tf[k]) - start
+            si = scene.ray_intersect(ray)
+            if not si.is_valid():
+                break
+            sid = si.shape.id()
+            info = shapes.get(sid)
+            if info is None:  # an area light's null-BSDF shape: look through it
+                start += float(si.t) * (1.0 + 1e-6) + 1e-6
+                continue
+            hit_t[k] = start + float(si.t)
+            hit_shape[k] = index[sid]
+            nn = np.array(si.sh_frame.n, dtype=np.float64)
+            if nn @ dk > 0:
+                nn = -nn
+            normal[k] = nn
+            if want_albedo:
+                if info.albedo is not None:
+                    albedo[k] = info.albedo
+                else:
+                    albedo[k] = np.array(info.albedo_texture.eval(si), dtype=np.float32)[:3]
+            break
+
+
+def _cast_vector(
+    scene: Any,
+    shape_list: list[Any],
+    ids: list[str],
+    shapes: dict[str, ShapeInfo],
+    o: np.ndarray,
+    d: np.ndarray,
+    tn: np.ndarray,
+    tf: np.ndarray,
+    hit_t: np.ndarray,
+    hit_shape: np.ndarray,
+    normal: np.ndarray,
+    albedo: np.ndarray,
+    want_albedo: bool,
+) -> None:
+    import drjit as dr
+    import mitsuba as mi
+
+    # pointer id of every shape -> its index in scene.shapes()
+    ptr_ids = np.array(dr.reinterpret_array(mi.UInt32, scene.shapes_dr()), dtype=np.int64)
+    lookup = {int(p): i for i, p in enumerate(ptr_ids)}
+    is_light = np.array([sid not in shapes for sid in ids] + [False])
+    todo = np.arange(len(d))
+    start = tn.astype(np.float64).copy()
+    for _ in range(_MAX_PASS_THROUGH):
+        if len(todo) == 0:
+            break
+        si = _intersect(scene, o[todo], d[todo], start[todo], tf[todo])
+        valid = np.array(si.is_valid(), dtype=bool)
+        t = np.array(si.t, dtype=np.float64)
+        ptr = np.array(dr.reinterpret_array(mi.UInt32, si.shape), dtype=np.int64)
+        idx = np.array([lookup.get(int(p), len(ids)) for p in ptr], dtype=np.int64)
+        idx[~valid] = len(ids)
+        through = valid & is_light[idx]
+        done = valid & ~through
+        rows = todo[done]
+        hit_t[rows] = start[rows] + t[done]
+        hit_shape[rows] = idx[done]
+        nn = _vec3(si.sh_frame.n)
+        nn = nn[done]
+        flip = np.einsum("ij,ij->i", nn, d[rows]) > 0
+        nn[flip] *= -1
+        normal[rows] = nn
+        start[todo[through]] += t[through] * (1.0 + 1e-6) + 1e-6
+        todo = todo[through]
+    if not want_albedo:
+        return
+    hit = hit_shape >= 0
+    const = np.zeros((len(ids) + 1, 3), np.float32)
+    varying: list[int] = []
+    for i, sid in enumerate(ids):
+        info = shapes.get(sid)
+        if info is None:
+            continue
+        if info.albedo is not None:
+            const[i] = info.albedo
+        else:
+            varying.append(i)
+    albedo[hit] = const[hit_shape[hit]]
+    for i in varying:
+        rows = np.nonzero(hit_shape == i)[0]
+        if len(rows) == 0:
+            continue
+        si = _intersect(scene, o[rows], d[rows], tn[rows], tf[rows])
+        val = _vec3(shapes[ids[i]].albedo_texture.eval(si))
+        albedo[rows] = val
+
+
+def _vec3(v: Any) -> np.ndarray:
+    """(N, 3) numpy array from a vectorised 3-vector or colour."""
+    return np.stack([np.array(v[j], dtype=np.float64) for j in range(3)], axis=1)
+
+
+def _intersect(scene: Any, o: np.ndarray, d: np.ndarray, start: np.ndarray, tf: np.ndarray) -> Any:
+    import mitsuba as mi
+
+    oo = o + d * start[:, None]
+    ray = mi.Ray3f(
+        mi.Point3f(*(mi.Float(np.ascontiguousarray(oo[:, j], dtype=np.float32)) for j in range(3))),
+        mi.Vector3f(*(mi.Float(np.ascontiguousarray(d[:, j], dtype=np.float32)) for j in range(3))),
+    )
+    ray.maxt = mi.Float(np.ascontiguousarray(tf - start, dtype=np.float32))
+    return scene.ray_intersect(ray)

@@ -1,0 +1,200 @@
+"""The Mitsuba engine state that lives across renders: the variant, the engine lock and the last
+translated scene.
+
+The variant is chosen once per session by :mod:`blendify_mitsuba.variant` (JIT variants are probed in a
+subprocess first: an unsuitable libLLVM aborts the process that uses it). ``mi.set_variant`` is
+process-global: every use of the engine holds one process-wide lock with the session's variant set, and
+the previous variant (another backend's or the user's own) is restored afterwards.
+
+The last translation is kept and reused when nothing changed since it was made: the scene, as reported by
+the core's change detection (:class:`blendify_core.pipeline.changes.ChangeTracker`), and the settings the
+translation depends on (samples, pixel filter, bounces, effects, transparency, variant). A new seed, for
+example, renders the loaded scene again (``meta["translate_cached"]``); any change to the scene
+translates it again as a whole.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
+from blendify_core.ir.scene import Scene
+from blendify_core.pipeline.changes import ChangeTracker
+from blendify_core.pipeline.settings import RenderSettings
+
+from .aniso import SquarePixelPlan
+from .translate import MitsubaTranslator, ShapeInfo
+from .variant import VariantChoice, before_engine_import, choose_variant, quiet_engine_import
+
+__all__ = ["DEFAULT_MAX_ANALYTIC_SPHERES", "MitsubaNative", "MitsubaSession"]
+
+#: point clouds up to this many points become analytic spheres, larger ones one merged icosphere mesh.
+#: Measured (benchmarks/results/mitsuba_pointcloud_*.md): in scalar_rgb analytic spheres load and render
+#: faster than the merged mesh up to ~100k points (load_dict of the 1.6M-triangle mesh of 20k icospheres
+#: takes ~7 s); in the JIT variants one BSDF per sphere makes rendering slow (20k spheres: 22 s vs 1.2 s),
+#: the merged mesh wins from ~1000 points on.
+DEFAULT_MAX_ANALYTIC_SPHERES = {"scalar": 100_000, "jit": 500}
+
+# mi.set_variant is process-global: every use of the engine holds this lock and sets its variant
+_ENGINE_LOCK = threading.RLock()
+
+
+@dataclass
+class MitsubaNative:
+    """A translated scene: the loaded Mitsuba scene(s), the dictionary and what each shape stands for."""
+
+    variant: str
+    scene: Any
+    scene_dict: dict[str, Any]
+    shapes: dict[str, ShapeInfo]
+    camera: Any
+    spp: int = 1  # samples per rendered pixel (differs from settings.samples for fx != fy)
+    aniso: SquarePixelPlan | None = None  # the square-pixel plan for fx != fy (see aniso)
+    coverage_scene: Any = None  # shapes only: coverage alpha (when compositing)
+    sky_scene: Any = None  # background/environment only: what the sky adds behind partial pixels
+    catcher_scene: Any = None  # shadow catchers alone (unshadowed radiance)
+    catchers: list[int] = field(default_factory=list)  # renderable indices of the shadow catchers
+    integrator: dict[str, Any] = field(default_factory=dict)
+    effects: Any = None
+    n_analytic_spheres: int = 0
+    ignored: list[str] = field(default_factory=list)  # IR objects the translation ignored, and why
+    parallel_rays: bool = False  # the camera's rays are parallel (orthographic): planar depth = ray length
+    translate_cached: bool = False  # reused from the previous render (nothing changed)
+
+
+class MitsubaSession:
+    """One backend instance's engine state: its variant (resolved on first use), the engine lock and the
+    cached translation."""
+
+    def __init__(self, requested_variant: str | None, max_analytic_spheres: int | None, sampler: str) -> None:
+        self.requested_variant = requested_variant
+        self._max_analytic_spheres = max_analytic_spheres
+        self.sampler = sampler
+        self._choice: VariantChoice | None = None
+        self._tracker = ChangeTracker()
+        self._key: tuple[Any, ...] | None = None
+        self._native: MitsubaNative | None = None
+
+    # -- the variant and the engine ---------------------------------------------------------------------
+    @property
+    def variant_choice(self) -> VariantChoice:
+        """The resolved :class:`~blendify_mitsuba.variant.VariantChoice` (probes on first use)."""
+        if self._choice is None:
+            self._choice = choose_variant(self.requested_variant)
+        return self._choice
+
+    @property
+    def variant(self) -> str:
+        return self.variant_choice.variant
+
+    @property
+    def max_analytic_spheres(self) -> int:
+        """Point clouds up to this size become analytic spheres (default depends on the variant)."""
+        if self._max_analytic_spheres is not None:
+            return self._max_analytic_spheres
+        return DEFAULT_MAX_ANALYTIC_SPHERES["scalar" if self.variant.startswith("scalar") else "jit"]
+
+    def set_variant(self) -> Any:
+        """Import mitsuba (the first import chooses Dr.Jit's libLLVM) and set this session's variant."""
+        variant = self.variant  # resolve (and probe) before the first import of mitsuba/drjit
+        before_engine_import()
+        with quiet_engine_import(variant):
+            import mitsuba as mi
+
+        if mi.variant() != variant:
+            try:
+                mi.set_variant(variant)
+            except Exception as exc:  # e.g. a variant missing from this build
+                raise RenderError(f"mitsuba: cannot set variant {variant!r}: {exc}") from exc
+        return mi
+
+    @contextlib.contextmanager
+    def engine(self) -> Iterator[Any]:
+        """Hold the engine lock with this session's variant set; the previous variant (another backend's or
+        the user's own ``mi.set_variant``) is restored afterwards."""
+        with _ENGINE_LOCK:
+            previous = sys.modules["mitsuba"].variant() if "mitsuba" in sys.modules else None
+            mi = self.set_variant()
+            try:
+                yield mi
+            finally:
+                if previous is not None and previous != mi.variant():
+                    mi.set_variant(previous)
+
+    # -- translation ------------------------------------------------------------------------------------
+    def translate(self, scene: Any, settings: RenderSettings) -> MitsubaNative:
+        """The native scene of ``scene``: the previous one when neither the scene (core change detection)
+        nor the translation settings changed, else a new translation."""
+        if not isinstance(scene, Scene):
+            raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
+        if scene.camera is None:
+            raise InvalidSceneError("scene.camera: the scene has no camera")
+        key = (
+            settings.samples,
+            settings.pixel_filter,
+            settings.max_bounces,
+            settings.effects,
+            settings.transparent_background,
+            self.variant,
+        )
+        changes = self._tracker.update(scene)
+        if self._native is not None and key == self._key and not changes.any:
+            self._native.translate_cached = True
+            return self._native
+        self._native = self._key = None
+        try:
+            native = self._load(scene, settings)
+        except BaseException:
+            self._tracker.reset()  # the recorded state was never translated
+            raise
+        self._native, self._key = native, key
+        return native
+
+    def _load(self, scene: Scene, settings: RenderSettings) -> MitsubaNative:
+        """Translate ``scene`` and load its dictionaries (errors of the engine become RenderError)."""
+        translator = MitsubaTranslator(settings, max_analytic_spheres=self.max_analytic_spheres, sampler=self.sampler)
+        with self.engine() as mi:
+            try:
+                tr = translator.translate(scene)
+            except BlendifyError:
+                raise
+            except Exception as exc:
+                raise RenderError(f"mitsuba: translating the scene failed: {type(exc).__name__}: {exc}") from exc
+            try:
+                mi_scene = mi.load_dict(tr.scene_dict)
+                cov_scene = sky_scene = catcher_scene = None
+                if tr.catcher_dict is not None:
+                    catcher_scene = mi.load_dict(tr.catcher_dict)
+                if tr.coverage_dict is not None and tr.background_dict is not None:
+                    cov_scene = mi.load_dict(tr.coverage_dict)
+                    sky_scene = mi.load_dict(tr.background_dict)
+            except Exception as exc:
+                raise RenderError(f"mitsuba: mi.load_dict failed: {exc}") from exc
+        return MitsubaNative(
+            variant=self.variant,
+            scene=mi_scene,
+            scene_dict=tr.scene_dict,
+            shapes=tr.shapes,
+            camera=scene.camera,
+            spp=tr.spp,
+            aniso=tr.aniso,
+            coverage_scene=cov_scene,
+            sky_scene=sky_scene,
+            catcher_scene=catcher_scene,
+            catchers=tr.catchers,
+            integrator=tr.integrator,
+            effects=tr.effects,
+            n_analytic_spheres=tr.n_analytic_spheres,
+            ignored=tr.ignored,
+            parallel_rays=tr.parallel_rays,
+        )
+
+    def close(self) -> None:
+        """Drop the cached translation."""
+        self._native = self._key = None
+        self._tracker.reset()

@@ -1,0 +1,1128 @@
+"""IR -> Mitsuba 3 scene dictionary (for ``mi.load_dict``), built in memory: one handler per IR type.
+
+:class:`MitsubaTranslator` has one ``@handles`` method per IR type (a sphere is translated by
+:meth:`MitsubaTranslator.sphere`, a spot light by :meth:`MitsubaTranslator.spot_light`, ...) and declares
+beside each handler the capabilities of the features it implements; :meth:`MitsubaTranslator.translate`
+walks the scene through :meth:`~blendify_core.pipeline.translator.Translator.dispatch`.
+
+Conventions (measured, see shared/docs/CONVENTIONS.md): camera ``to_world = T_cv . diag(-1, -1, 1, 1)``,
+``fov`` along x from fx, principal-point offsets ``((W/2 - cx') / W, (H/2 - cy') / H)`` with
+``cx' = cx + 0.5``; orthographic principal points by translating the camera; lights in Blender's units
+converted to Mitsuba's radiometry (:mod:`blendify_core.ir.physics`); every BSDF wrapped in ``twosided``;
+texture ``v -> 1 - v``. Non-square pixels (fx != fy) are rendered through a square-pixel camera
+(:mod:`blendify_mitsuba.aniso`).
+
+Every renderable becomes one or more shapes whose dictionary keys start with ``r{index:05d}_`` so that
+hits can be mapped back to the renderable (instance output). Shapes never share a BSDF object, which
+keeps Mitsuba from merging them.
+
+Mitsuba is imported inside the functions that build engine objects, so importing this module loads no
+engine; the session (:mod:`blendify_mitsuba.session`) sets the variant before any translation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from blendify_core.errors import InvalidSceneError, UnsupportedFeatureError
+from blendify_core.ir.attachments import Attachment
+from blendify_core.ir.cameras import OrthographicCamera, PerspectiveCamera
+from blendify_core.ir.colors import FileTextureColors, TextureColors, UniformColors, VertexColors
+from blendify_core.ir.colorspace import srgb_to_linear
+from blendify_core.ir.geometry import TriMesh
+from blendify_core.ir.lights import AreaLight, BackgroundLight, EnvironmentMap, PointLight, SpotLight, SunLight
+from blendify_core.ir.materials import (
+    DiffuseMaterial,
+    GlossyBSDFMaterial,
+    MetalMaterial,
+    MetalWireframeMaterial,
+    PlasticMaterial,
+    PlasticWireframeMaterial,
+    PrincipledBSDFMaterial,
+    PrincipledBSDFWireframeMaterial,
+)
+from blendify_core.ir.physics import blend_normal_map, point_intensity, sphere_light_radiance, spot_cone
+from blendify_core.ir.renderables import (
+    CircleMesh,
+    CubeMesh,
+    CurveBezier,
+    CylinderMesh,
+    EllipsoidNURBS,
+    Mesh,
+    PlaneMesh,
+    PointCloud,
+    SphereNURBS,
+)
+from blendify_core.pipeline.capabilities import Capability
+from blendify_core.pipeline.effects import Effects, analyse_effects
+from blendify_core.pipeline.settings import RenderSettings, resolve_settings
+from blendify_core.pipeline.translator import EXACT, TranslationContext, Translator, approximate, handles, unsupported
+
+from .aniso import SquarePixelPlan, plan_square_pixels
+
+__all__ = [
+    "MitsubaContext",
+    "MitsubaTranslator",
+    "ShapeInfo",
+    "Translation",
+    "build_mesh",
+    "wire_tubes",
+]
+
+#: camera frame change OpenCV (+Z forward, +Y down, +X right) -> Mitsuba (+Z forward, +Y up, +X left)
+MI_FROM_CV = np.diag([-1.0, -1.0, 1.0, 1.0])
+#: Blender lights emit along local -Z; Mitsuba spots along local +Z: rotate 180 deg about X
+_FLIP_Z = np.diag([1.0, -1.0, -1.0, 1.0])
+
+#: 8-bit sRGB textures with linear interpolation: Cycles interpolates the *encoded* bytes and decodes
+#: afterwards (a texel boundary between bytes 30 and 230 gives decode(130) = 0.22, Mitsuba's linear-space
+#: interpolation 0.40). To match, such textures are upsampled in encoded space (exact bilinear at the
+#: new texel centres), decoded, and interpolated by Mitsuba between those: the residual error shrinks as
+#: 1/k^2. Only textures up to this many texels are upsampled (larger ones are usually minified).
+SRGB_UPSAMPLE_MAX_TEXELS = 1024 * 1024
+
+
+def _exact(note: str) -> Capability:
+    """An exact feature with a note on how it is done."""
+    return Capability("exact", note)
+
+
+def _mi() -> Any:
+    """The mitsuba module (its variant is set by the session before any translation)."""
+    import mitsuba
+
+    return mitsuba
+
+
+@dataclass
+class ShapeInfo:
+    """What a Mitsuba shape stands for: the renderable's index, its albedo (constant or a texture)."""
+
+    renderable: int
+    albedo: np.ndarray | None  # (3,) constant linear albedo, or None when ``albedo_texture`` varies
+    albedo_texture: Any = None  # a mitsuba Texture evaluated at hits (vertex colours, textures)
+
+
+@dataclass
+class Translation:
+    """The result of :meth:`MitsubaTranslator.translate`: the dictionaries to load and what they mean."""
+
+    scene_dict: dict[str, Any]
+    shapes: dict[str, ShapeInfo]
+    n_analytic_spheres: int = 0
+    #: for transparent films with emissive surfaces and a background/environment light (then
+    #: ``hide_emitters`` cannot be used): the shapes alone (coverage alpha) and the sky alone
+    coverage_dict: dict[str, Any] | None = None
+    background_dict: dict[str, Any] | None = None
+    #: shadow catchers: the scene with the catcher planes as the only renderables, and their indices
+    catcher_dict: dict[str, Any] | None = None
+    catchers: list[int] = field(default_factory=list)
+    integrator: dict[str, Any] = field(default_factory=dict)
+    effects: Effects | None = None
+    #: samples per rendered pixel (differs from settings.samples for fx != fy) and the square-pixel plan
+    spp: int = 1
+    aniso: SquarePixelPlan | None = None
+    ignored: list[str] = field(default_factory=list)
+    approximations: list[str] = field(default_factory=list)
+    #: the camera's rays are parallel (orthographic): the geometric outputs' planar depth is the ray length
+    parallel_rays: bool = False
+
+
+@dataclass
+class MitsubaContext(TranslationContext):
+    """One translation's state: the scene, the shapes built so far and what the handlers recorded."""
+
+    scene: Any = None
+    entries: dict[str, Any] = field(default_factory=dict)  # the renderables' scene-dictionary entries
+    shapes: dict[str, ShapeInfo] = field(default_factory=dict)
+    catchers: list[int] = field(default_factory=list)
+    n_analytic_spheres: int = 0
+    #: a camera ray may have to pass through a light's null surface (area lights, point lights with a radius)
+    null_light_surfaces: bool = False
+    bounds: Any = None  # the scene bounds (for point lights with a radius)
+    aniso: SquarePixelPlan | None = None
+    parallel_rays: bool = False  # set by the camera handler
+
+
+# ---------------------------------------------------------------------------------------------------
+# small helpers
+# ---------------------------------------------------------------------------------------------------
+
+
+def _mat(m: np.ndarray) -> Any:
+    return _mi().ScalarTransform4f(np.asarray(m, dtype=np.float64).tolist())
+
+
+def _rgb(c: Any) -> dict[str, Any]:
+    return {"type": "rgb", "value": [float(x) for x in np.asarray(c, dtype=np.float64)[:3]]}
+
+
+def _world(vertices: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    return np.asarray(vertices, dtype=np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def camera_to_world_cv(camera: Any) -> np.ndarray:
+    """``T_cv``: 4x4 camera-to-world of the OpenCV camera frame."""
+    r, t = camera.opencv_extrinsics()
+    m = np.eye(4)
+    m[:3, :3] = r.T
+    m[:3, 3] = -r.T @ t
+    return m
+
+
+def _effective_eta(ior: float, level: float) -> float:
+    """Blender's "Specular IOR Level" scales F0 by 2 * level; return the IOR with that F0."""
+    f0 = ((ior - 1.0) / (ior + 1.0)) ** 2 * 2.0 * level
+    f0 = min(max(f0, 1e-6), 0.99)
+    s = math.sqrt(f0)
+    return (1.0 + s) / (1.0 - s)
+
+
+def _data_texture(values: np.ndarray) -> dict[str, Any]:
+    """A raw (never colour-managed) single-channel bitmap; UVs are v-flipped like colour textures."""
+    data = np.ascontiguousarray(np.asarray(values, dtype=np.float32)[..., None])
+    return {"type": "bitmap", "data": _mi().TensorXf(data), "raw": True, "filter_type": "bilinear"}
+
+
+def _normal_texture(nmap: Any) -> dict[str, Any]:
+    """The tangent-space normal map for Mitsuba's ``normalmap`` BSDF, with Blender's ``strength`` baked in
+    (:func:`blendify_core.ir.physics.blend_normal_map`). Mitsuba's shading frame is (dp/du, n x dp/du),
+    Blender's tangent frame for UVs of the usual orientation; the v -> 1 - v flip of the UVs does not change
+    dp/du."""
+    n = blend_normal_map(nmap.normals(), float(nmap.strength))
+    data = np.ascontiguousarray(((n + 1.0) * 0.5).astype(np.float32))
+    return {"type": "bitmap", "data": _mi().TensorXf(data), "raw": True, "filter_type": "bilinear"}
+
+
+def _emission(material: Any) -> np.ndarray | None:
+    """The emitted radiance (3,) of an emissive material, or None."""
+    if not material.is_emissive:
+        return None
+    return material.linear("emission_color")[:3] * float(material.emission_strength)
+
+
+def _with_mask(bsdf: dict[str, Any], opacity: Any, needed: bool) -> dict[str, Any]:
+    """``bsdf`` wrapped in a ``mask`` of ``opacity`` when ``needed`` (alpha < 1 somewhere)."""
+    if not needed:
+        return bsdf
+    return {"type": "mask", "opacity": opacity, "bsdf": bsdf}
+
+
+def build_mesh(
+    name: str,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    normals: np.ndarray | None = None,
+    uv: np.ndarray | None = None,
+    attributes: dict[str, np.ndarray] | None = None,
+    bsdf: Any = None,
+    emitter: Any = None,
+) -> Any:
+    """A ``mi.Mesh`` from numpy buffers (world-space vertices; ``uv`` per vertex, already v-flipped)."""
+    mi = _mi()
+    props = mi.Properties()
+    if bsdf is not None:
+        props["bsdf"] = bsdf
+    if emitter is not None:
+        props["emitter"] = emitter
+    mesh = mi.Mesh(name, len(vertices), len(faces), props, normals is not None, uv is not None)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = np.ascontiguousarray(vertices, dtype=np.float32).ravel()
+    params["faces"] = np.ascontiguousarray(faces, dtype=np.uint32).ravel()
+    if normals is not None:
+        params["vertex_normals"] = np.ascontiguousarray(normals, dtype=np.float32).ravel()
+    if uv is not None:
+        params["vertex_texcoords"] = np.ascontiguousarray(uv, dtype=np.float32).ravel()
+    params.update()
+    for attr_name, values in (attributes or {}).items():
+        arr = np.ascontiguousarray(values, dtype=np.float32)
+        mesh.add_attribute(attr_name, 1 if arr.ndim == 1 else arr.shape[1], arr.ravel())
+    return mesh
+
+
+# ---------------------------------------------------------------------------------------------------
+# colour sources: what the colour handlers return
+# ---------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class ColorSource:
+    """A colour source as Mitsuba sees it (built by the colour handlers).
+
+    ``constant``: (4,) linear RGBA of a uniform colour, else None; ``per_vertex``: (N, 4) linear RGBA per
+    vertex or point, else None; ``needs_uv``: a texture (the mesh needs a UV map)."""
+
+    constant: np.ndarray | None = None
+    per_vertex: np.ndarray | None = None
+    has_alpha: bool = False
+    needs_uv: bool = False
+    texture: Any = None  # TextureColors / FileTextureColors
+    file_path: str | None = None  # a file Mitsuba may read itself
+
+    def reflectance(self) -> tuple[Any, np.ndarray | None, Any]:
+        """(Mitsuba reflectance value/texture, constant albedo or None, evaluable texture or None)."""
+        if self.constant is not None:
+            c = self.constant[:3]
+            return _rgb(c), c, None
+        mi = _mi()
+        if self.per_vertex is not None:
+            tex = mi.load_dict({"type": "mesh_attribute", "name": "vertex_color"})
+            return tex, None, tex
+        tex = mi.load_dict(_texture_dict(self.texture, "rgb", self.file_path))
+        return tex, None, tex
+
+    def opacity(self, alpha: float) -> tuple[Any, bool]:
+        """Opacity value or texture for a ``mask`` wrapper (material ``alpha`` x colour alpha), and whether
+        one is needed."""
+        if self.constant is not None:
+            a = alpha * float(self.constant[3])
+            return a, a < 1.0
+        if self.per_vertex is not None and self.has_alpha:
+            return {"type": "mesh_attribute", "name": "vertex_alpha", "scale": alpha}, True
+        if self.texture is not None and self.has_alpha:
+            d = _texture_dict(self.texture, "alpha")
+            if alpha < 1.0:
+                data = np.array(d["data"]) * np.float32(alpha)
+                d["data"] = _mi().TensorXf(data.astype(np.float32))
+            return d, True
+        return alpha, alpha < 1.0
+
+    def vertex_attributes(self, source: np.ndarray) -> dict[str, np.ndarray]:
+        """Mesh attributes for the mesh vertices taken from the renderable's vertices ``source``."""
+        if self.per_vertex is None:
+            return {}
+        rgba = self.per_vertex[source]
+        attrs = {"vertex_color": rgba[:, :3]}
+        if self.has_alpha:
+            attrs["vertex_alpha"] = rgba[:, 3]
+        return attrs
+
+
+def _texture_dict(colors: Any, channel: str = "rgb", file_path: str | None = None) -> dict[str, Any]:
+    """A ``bitmap`` for texture colours (``channel`` "rgb" or "alpha"); ``file_path``: the colours' file,
+    which Mitsuba reads itself when it decodes it as the IR does."""
+    mi = _mi()
+    filt = "nearest" if colors.interpolation == "closest" else "bilinear"
+    raw_img = colors.image()
+    srgb_bytes = raw_img.dtype == np.uint8 and colors.color_space == "srgb"
+    if channel == "rgb" and file_path is not None and (filt == "nearest" or not srgb_bytes):
+        suffix = Path(file_path).suffix.lower()
+        if suffix in (".png", ".jpg", ".jpeg") and raw_img.dtype == np.uint8:
+            # Mitsuba decodes 8-bit sRGB itself unless raw=True (same meaning as the IR's colour space)
+            return {
+                "type": "bitmap",
+                "filename": file_path,
+                "raw": colors.color_space == "linear",
+                "filter_type": filt,
+            }
+    if channel == "rgb" and filt == "bilinear" and srgb_bytes:
+        h, w = raw_img.shape[:2]
+        k = int(max(1, min(8, math.floor(math.sqrt(SRGB_UPSAMPLE_MAX_TEXELS / (h * w))))))
+        if k > 1:
+            enc = raw_img.astype(np.float32)[..., :3] / 255.0
+            if enc.shape[2] == 1:
+                enc = np.repeat(enc, 3, axis=2)
+            up = _upsample_bilinear_repeat(enc, k)
+            data = np.asarray(srgb_to_linear(up), dtype=np.float32)
+            return {"type": "bitmap", "data": mi.TensorXf(np.ascontiguousarray(data)), "raw": True, "filter_type": filt}
+    img = colors.linear_rgba_image()
+    data = img[..., :3] if channel == "rgb" else img[..., 3:4]
+    return {
+        "type": "bitmap",
+        "data": mi.TensorXf(np.ascontiguousarray(data, dtype=np.float32)),
+        "raw": True,
+        "filter_type": filt,
+    }
+
+
+def _linear_weights(n: int, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """1-D bilinear (texel centres at (i + 0.5) / n, repeat wrap) sampled at the k n new texel centres:
+    indices i0, i1 and the weight of i1."""
+    x = (np.arange(n * k) + 0.5) / k - 0.5
+    x0 = np.floor(x)
+    f = (x - x0).astype(np.float32)
+    i0 = x0.astype(np.int64) % n
+    return i0, (i0 + 1) % n, f
+
+
+def _upsample_bilinear_repeat(img: np.ndarray, k: int) -> np.ndarray:
+    """(H, W, C) -> (k H, k W, C): the bilinear interpolant of ``img`` at the centres of a k-times finer grid."""
+    h, w = img.shape[:2]
+    r0, r1, fr = _linear_weights(h, k)
+    rows = img[r0] * (1.0 - fr)[:, None, None] + img[r1] * fr[:, None, None]
+    c0, c1, fc = _linear_weights(w, k)
+    return rows[:, c0] * (1.0 - fc)[None, :, None] + rows[:, c1] * fc[None, :, None]
+
+
+# ---------------------------------------------------------------------------------------------------
+# geometry helpers
+# ---------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Part:
+    """One Mitsuba mesh (a material slot of a renderable), in world space."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray | None
+    uv: np.ndarray | None
+    source: np.ndarray  # index of each part vertex in the renderable's vertex array
+
+
+def _split(tm: TriMesh, matrix: np.ndarray, faces_material: np.ndarray | None, n_mat: int) -> list[Any]:
+    """Split a TriMesh by material; de-index per corner when UVs are per corner."""
+    rot = matrix[:3, :3]
+    v_world = _world(tm.vertices, matrix)
+    n_world = None if tm.normals is None or not tm.smooth else np.asarray(tm.normals, dtype=np.float64) @ rot.T
+    parts: list[Any] = []
+    for k in range(n_mat):
+        sel = np.arange(len(tm.faces)) if faces_material is None else np.nonzero(faces_material == k)[0]
+        if len(sel) == 0:
+            parts.append(None)
+            continue
+        f = np.asarray(tm.faces)[sel]
+        if tm.uv is not None:
+            # per-corner UVs: one vertex per corner
+            idx = f.ravel()
+            uv = np.asarray(tm.uv, dtype=np.float64)[sel].reshape(-1, 2).copy()
+            uv[:, 1] = 1.0 - uv[:, 1]
+            parts.append(
+                _Part(
+                    v_world[idx],
+                    np.arange(len(idx)).reshape(-1, 3),
+                    None if n_world is None else n_world[idx],
+                    uv,
+                    idx,
+                )
+            )
+        else:
+            used, inv = np.unique(f.ravel(), return_inverse=True)
+            parts.append(
+                _Part(
+                    v_world[used],
+                    inv.reshape(-1, 3),
+                    None if n_world is None else n_world[used],
+                    None,
+                    used,
+                )
+            )
+    return parts
+
+
+def wire_tubes(vertices: np.ndarray, faces: np.ndarray, thickness: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every distinct triangle edge as an open square tube of side ``thickness`` centred on the edge and
+    extended by thickness / 2 at both ends (so corners close): (V, 3) vertices and (F, 3) triangles."""
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [0, 2]]]), axis=1)
+    edges = np.unique(edges, axis=0)
+    p0, p1 = vertices[edges[:, 0]], vertices[edges[:, 1]]
+    axis = p1 - p0
+    length = np.linalg.norm(axis, axis=1)
+    ok = length > 0
+    p0, p1, axis, length = p0[ok], p1[ok], axis[ok], length[ok]
+    axis /= length[:, None]
+    half = thickness / 2.0
+    p0, p1 = p0 - axis * half, p1 + axis * half
+    ref = np.where(np.abs(axis[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    side = np.cross(axis, ref)
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    up = np.cross(axis, side)
+    offsets = np.stack([side + up, up - side, -side - up, side - up], axis=1) * half  # (E, 4, 3)
+    verts = np.concatenate([p0[:, None] + offsets, p1[:, None] + offsets], axis=1)  # (E, 8, 3)
+    a = np.arange(4)
+    b = (a + 1) % 4
+    quads = np.concatenate([np.stack([a, b, b + 4], 1), np.stack([a, b + 4, a + 4], 1)])  # (8, 3)
+    tris = quads[None] + (8 * np.arange(len(p0)))[:, None, None]
+    return verts.reshape(-1, 3), tris.reshape(-1, 3)
+
+
+# ---------------------------------------------------------------------------------------------------
+# the translator
+# ---------------------------------------------------------------------------------------------------
+
+_IR_TESSELLATION = _exact("IR tessellation")
+
+
+class MitsubaTranslator(Translator):
+    """The IR as a Mitsuba scene dictionary: one handler per IR type, capabilities declared beside them.
+
+    ``settings`` give the film (pixel filter), the samples and the integrator; ``max_analytic_spheres``
+    the largest point cloud made of analytic spheres; ``sampler`` Mitsuba's sampler plugin."""
+
+    backend = "mitsuba"
+
+    #: features not tied to one IR type: the geometric outputs come from pixel-centre ray casts
+    #: (blendify_mitsuba.render); per-object and per-light shadow switches are refused
+    extra_capabilities = {
+        "object.no_shadow": unsupported("Mitsuba has no per-object shadow visibility"),  # refused in translate()
+        "light.no_shadow": unsupported("Mitsuba lights always cast shadows"),
+        "output.rgb": EXACT,
+        "output.depth": _exact("planar z from pixel-centre ray casts"),
+        "output.normal": _exact("world shading normal (facing the camera) from pixel-centre ray casts"),
+        "output.albedo": _exact("the material colour input at the pixel centre"),
+        "output.instance": _exact("renderable index from pixel-centre ray casts"),
+    }
+
+    def __init__(
+        self,
+        settings: RenderSettings | None = None,
+        *,
+        max_analytic_spheres: int = 100_000,
+        sampler: str = "independent",
+    ) -> None:
+        self.settings = resolve_settings() if settings is None else settings
+        self.max_analytic_spheres = int(max_analytic_spheres)
+        self.sampler = sampler
+
+    # -- the walk ---------------------------------------------------------------------------------------
+    def translate(self, scene: Any) -> Translation:
+        """The ``mi.load_dict`` dictionaries of ``scene`` (and of the compositing/catcher passes it needs)."""
+        ctx = MitsubaContext(scene=scene)
+        effects = analyse_effects(scene)
+        sensor = self.sensor(ctx)
+        for ri, r in enumerate(scene.renderables):
+            if not r.emit_shadows:
+                raise UnsupportedFeatureError(
+                    f"renderable {r.tag!r}: emit_shadows=False has no Mitsuba equivalent",
+                    feature="object.no_shadow",
+                    backend="mitsuba",
+                )
+            self.dispatch(r, ctx, ri)
+        emitters = self.emitters(ctx)
+        for attachment in scene.attachments:
+            self.dispatch(attachment, ctx)
+        integrator = self.integrator(effects, ctx)
+        d: dict[str, Any] = {"type": "scene", "integrator": integrator, "sensor": sensor, **ctx.entries, **emitters}
+
+        coverage_dict = background_dict = None
+        sky = {k: v for k, v in d.items() if k in ("environment", "background")}
+        composite = bool(self.settings.transparent_background) and effects.emission
+        if composite and sky:
+            # max_depth 2: Mitsuba's path integrator records a hit in the alpha only once it decides to continue
+            # the path (with max_depth 1 only emitters count); the scene has no lights, so this stays cheap
+            two = {"type": "path", "max_depth": 2, "hide_emitters": False}
+            one = {"type": "path", "max_depth": 1, "hide_emitters": False}
+            coverage_dict = {"type": "scene", "integrator": two, "sensor": self.sensor(ctx), **ctx.entries}
+            sky_dict = {k: (self._environment_again(ctx) if k == "environment" else v) for k, v in sky.items()}
+            background_dict = {"type": "scene", "integrator": one, "sensor": self.sensor(ctx), **sky_dict}
+        catcher_dict = None
+        if ctx.catchers:
+            # the catchers alone under the same lights: the unshadowed radiance of the shadow-catcher emulation
+            own = tuple(f"r{ri:05d}_" for ri in ctx.catchers)
+            catcher_dict = {k: v for k, v in d.items() if not k.startswith("r") or k.startswith(own)}
+            if "environment" in catcher_dict:
+                catcher_dict["environment"] = self._environment_again(ctx)
+            catcher_dict["sensor"] = self.sensor(ctx)
+        return Translation(
+            d,
+            ctx.shapes,
+            ctx.n_analytic_spheres,
+            coverage_dict=coverage_dict,
+            background_dict=background_dict,
+            catcher_dict=catcher_dict,
+            catchers=ctx.catchers,
+            integrator=integrator,
+            effects=effects,
+            spp=ctx.aniso.spp if ctx.aniso is not None else int(self.settings.samples),
+            aniso=ctx.aniso,
+            ignored=ctx.ignored,
+            approximations=ctx.approximations,
+            parallel_rays=ctx.parallel_rays,
+        )
+
+    def integrator(self, effects: Effects, ctx: MitsubaContext) -> dict[str, Any]:
+        """The integrator dictionary: ``path`` with max_depth = max_bounces + 2, or max_depth 2 (direct
+        light only; 3 when a camera ray may have to pass through an area light's null surface) when
+        ``settings.effects`` and the effect analysis finds no indirect light. Call after the lights."""
+        s = self.settings
+        # hide_emitters gives a coverage alpha under a sky and hides area lights from the camera (as in
+        # Cycles), but in Mitsuba 3.9 it also skips emissive *surfaces* along camera rays: with emissive
+        # materials the alpha is recovered by compositing instead (see translate)
+        hide = bool(s.transparent_background) and not effects.emission
+        max_depth = s.max_bounces + 2
+        if s.effects and not (effects.indirect_diffuse or effects.glossy or effects.transmission or effects.caustics):
+            max_depth = min(max_depth, 3 if ctx.null_light_surfaces else 2)
+        return {"type": "path", "max_depth": int(max_depth), "hide_emitters": hide}
+
+    def emitters(self, ctx: MitsubaContext) -> dict[str, Any]:
+        """The emitters of the positioned lights (``light{i:04d}``), then of the world."""
+        out: dict[str, Any] = {}
+        ctx.bounds = ctx.scene.bounds()
+        for i, light in enumerate(ctx.scene.lights):
+            emitter = self.dispatch(light, ctx)
+            if emitter is not None:
+                out[f"light{i:04d}"] = emitter
+        out.update(self.world(ctx))
+        return out
+
+    def sensor(self, ctx: MitsubaContext) -> dict[str, Any]:
+        """The sensor of the scene's camera (a fresh dictionary at every call)."""
+        return self.dispatch(ctx.scene.camera, ctx)  # type: ignore[no-any-return]
+
+    def world(self, ctx: MitsubaContext) -> dict[str, Any]:
+        """The background light and the environment map. Mitsuba takes one environment emitter: a
+        background light is added to the map (as Cycles adds the two Background shaders)."""
+        lights = ctx.scene.lights
+        bg = None if lights.background is None else self.dispatch(lights.background, ctx)
+        env = None if lights.environment is None else self.dispatch(lights.environment, ctx)
+        if env is not None:
+            return {"environment": env}
+        if bg is not None:
+            return {"background": bg}
+        return {}
+
+    def _environment_again(self, ctx: MitsubaContext) -> dict[str, Any]:
+        """A second envmap for another scene of the same translation (emitters are not shared)."""
+        return self.dispatch(ctx.scene.lights.environment, ctx)  # type: ignore[no-any-return]
+
+    # -- cameras ----------------------------------------------------------------------------------------
+    def _film(self, camera: Any) -> dict[str, Any]:
+        return {
+            "type": "hdrfilm",
+            "width": int(camera.width),
+            "height": int(camera.height),
+            "pixel_format": "rgba",
+            "rfilter": {"type": "box"} if self.settings.pixel_filter == "box" else {"type": "gaussian"},
+        }
+
+    def _sampler(self, ctx: MitsubaContext) -> dict[str, Any]:
+        spp = ctx.aniso.spp if ctx.aniso is not None else int(self.settings.samples)
+        return {"type": self.sampler, "sample_count": spp}
+
+    @handles(
+        PerspectiveCamera,
+        features={
+            "camera.perspective": _exact("perspective sensor with principal-point offsets"),
+            "camera.anisotropic": approximate(
+                "fx != fy: colour rendered by a square-pixel camera (columns supersampled k <= 4 times, rows at "
+                "k fx/fy per pixel, same samples per target pixel) and box-resampled with exact row overlaps (only "
+                "boundary rows split); depth/normal/albedo/instance exact (cast through the target pixel centres)"
+            ),
+        },
+    )
+    def perspective_camera(self, camera: PerspectiveCamera, ctx: MitsubaContext) -> dict[str, Any]:
+        """A pinhole sensor. Mitsuba's pixels are square: for fx != fy the sensor is the square-pixel camera
+        of :func:`blendify_mitsuba.aniso.plan_square_pixels` (recorded in ``ctx.aniso``; the render resamples
+        its image)."""
+        if not math.isclose(camera.fx, camera.fy, rel_tol=1e-9):
+            ctx.aniso = plan_square_pixels(camera, int(self.settings.samples))
+            camera = ctx.aniso.camera
+        w, h = camera.width, camera.height
+        t_cv = camera_to_world_cv(camera)
+        cxp, cyp = camera.cx + 0.5, camera.cy + 0.5
+        return {
+            "type": "perspective",
+            "fov_axis": "x",
+            "fov": math.degrees(2.0 * math.atan(w / (2.0 * camera.fx))),
+            "principal_point_offset_x": (w / 2.0 - cxp) / w,
+            "principal_point_offset_y": (h / 2.0 - cyp) / h,
+            "near_clip": float(camera.near),
+            "far_clip": float(camera.far),
+            "to_world": _mat(t_cv @ MI_FROM_CV),
+            "film": self._film(camera),
+            "sampler": self._sampler(ctx),
+        }
+
+    @handles(
+        OrthographicCamera,
+        features={"camera.orthographic": _exact("orthographic sensor, principal point by translating the camera")},
+    )
+    def orthographic_camera(self, camera: OrthographicCamera, ctx: MitsubaContext) -> dict[str, Any]:
+        """An orthographic sensor scaled to ``ortho_scale``; the principal point moves the camera."""
+        ctx.parallel_rays = True
+        w, h = camera.width, camera.height
+        t_cv = camera_to_world_cv(camera)
+        cxp, cyp = camera.cx + 0.5, camera.cy + 0.5
+        s = camera.pixel_size
+        shift = np.array([(w / 2.0 - cxp) * s, (h / 2.0 - cyp) * s, 0.0])
+        m = t_cv.copy()
+        m[:3, 3] = m[:3, 3] + m[:3, :3] @ shift
+        half = camera.ortho_scale / 2.0
+        return {
+            "type": "orthographic",
+            "near_clip": float(camera.near),
+            "far_clip": float(camera.far),
+            "to_world": _mat(m @ MI_FROM_CV @ np.diag([half, half, 1.0, 1.0])),
+            "film": self._film(camera),
+            "sampler": self._sampler(ctx),
+        }
+
+    # -- renderables ------------------------------------------------------------------------------------
+    @handles(
+        Mesh,
+        features={
+            "mesh": EXACT,
+            "mesh.faces_material": _exact("one Mitsuba mesh per material slot"),
+            "mesh.smooth": _exact("vertex normals"),
+        },
+    )
+    def mesh(self, mesh: Mesh, ctx: MitsubaContext, index: int) -> None:
+        """A triangle mesh: one ``mi.Mesh`` per material slot, from numpy buffers."""
+        self._tessellated(mesh, ctx, index)
+
+    @handles(
+        CubeMesh,
+        CircleMesh,
+        CylinderMesh,
+        EllipsoidNURBS,
+        features={
+            "primitive.cube": _IR_TESSELLATION,
+            "primitive.circle": _IR_TESSELLATION,
+            "primitive.cylinder": _IR_TESSELLATION,
+            "primitive.ellipsoid": _IR_TESSELLATION,
+        },
+    )
+    def tessellated_primitive(self, primitive: Any, ctx: MitsubaContext, index: int) -> None:
+        """Mesh primitives and ellipsoids: the IR's tessellation."""
+        self._tessellated(primitive, ctx, index)
+
+    @handles(
+        PlaneMesh,
+        features={
+            "primitive.plane": _IR_TESSELLATION,
+            "shadow_catcher": approximate(
+                "emulated from two renders (with and without the other objects): where a pixel centre sees the "
+                "catcher, black with alpha = 1 - shadowed/unshadowed luminance; catcher edges against objects keep "
+                "the plane's colour; the catcher also reflects light onto objects"
+            ),
+        },
+    )
+    def plane(self, plane: PlaneMesh, ctx: MitsubaContext, index: int) -> None:
+        """A plane: the IR's tessellation. A shadow catcher is recorded for the emulation (the catchers-alone
+        scene built by :meth:`translate`, composited by :func:`blendify_mitsuba.render.catch_shadows`)."""
+        if plane.shadow_catcher:
+            ctx.catchers.append(index)
+        self._tessellated(plane, ctx, index)
+
+    @handles(CurveBezier, features={"primitive.curve": _exact("IR tessellation (tube along the polyline)")})
+    def curve(self, curve: CurveBezier, ctx: MitsubaContext, index: int) -> None:
+        """A curve: the IR's tube along the polyline."""
+        self._tessellated(curve, ctx, index)
+
+    @handles(SphereNURBS, features={"primitive.sphere": _exact("analytic sphere")})
+    def sphere(self, sphere: SphereNURBS, ctx: MitsubaContext, index: int) -> None:
+        """A sphere: Mitsuba's analytic ``sphere`` shape (centre and radius; no tessellation)."""
+        prefix = f"r{index:05d}"
+        mat = sphere.materials[0]
+        src = self.dispatch(sphere.colors_list[0], ctx)
+        refl, const, tex = src.reflectance()
+        bsdf = _with_mask(self.dispatch(mat, ctx, refl), *src.opacity(float(mat.alpha)))
+        key = f"{prefix}_sphere"
+        shape = {
+            "type": "sphere",
+            "center": [float(x) for x in sphere.translation],
+            "radius": float(sphere.radius),
+            "bsdf": bsdf,
+        }
+        em = _emission(mat)
+        if em is not None:
+            shape["emitter"] = {"type": "area", "radiance": _rgb(em)}
+        ctx.entries[key] = shape
+        ctx.shapes[key] = ShapeInfo(index, const, tex)
+
+    def _tessellated(self, r: Any, ctx: MitsubaContext, index: int) -> None:
+        """Meshes, mesh primitives, ellipsoids and curves: the IR's tessellation in world space, one Mitsuba
+        mesh per material slot, plus the wireframe tubes of wireframe materials."""
+        mi = _mi()
+        prefix = f"r{index:05d}"
+        tm = r.to_mesh()
+        if tm.is_empty:
+            return
+        fm = getattr(r, "faces_material", None)  # meshes and mesh primitives: per-triangle slots
+        parts = _split(tm, r.matrix_world, fm, len(r.materials))
+        for k, (mat, colors, part) in enumerate(zip(r.materials, r.colors_list, parts, strict=True)):
+            if part is None:
+                continue
+            key = f"{prefix}_m{k:03d}"
+            src = self.dispatch(colors, ctx)
+            refl, const, tex = src.reflectance()
+            if src.needs_uv and part.uv is None:
+                raise InvalidSceneError(f"renderable {r.tag!r}: texture colours need a UV map")
+            bsdf = mi.load_dict(_with_mask(self.dispatch(mat, ctx, refl), *src.opacity(float(mat.alpha))))
+            em = _emission(mat)
+            emitter = mi.load_dict({"type": "area", "radiance": _rgb(em)}) if em is not None else None
+            attrs = src.vertex_attributes(part.source)
+            ctx.entries[key] = build_mesh(key, part.vertices, part.faces, part.normals, part.uv, attrs, bsdf, emitter)
+            ctx.shapes[key] = ShapeInfo(index, const, tex)
+            if mat.has_wireframe:
+                self._wireframe(ctx, f"{prefix}_w{k:03d}", index, mat, part)
+
+    def _wireframe(self, ctx: MitsubaContext, key: str, index: int, material: Any, part: _Part) -> None:
+        """The wireframe overlay as geometry: square tubes along the edges, with the surface's BSDF in the
+        wireframe colour (as the Cycles backend mixes a second Principled in that colour along the edges)."""
+        thickness = float(material.wireframe_thickness)
+        if thickness <= 0 or len(part.faces) == 0:
+            return
+        verts, tris = wire_tubes(part.vertices, np.asarray(part.faces), thickness)
+        if len(tris) == 0:
+            return
+        wire = material.linear("wireframe_color")
+        bsdf_d = self.dispatch(material, ctx, _rgb(wire[:3]))
+        if wire[3] < 1.0:
+            bsdf_d = {"type": "mask", "opacity": float(wire[3]), "bsdf": bsdf_d}
+        ctx.entries[key] = build_mesh(key, verts, tris, bsdf=_mi().load_dict(bsdf_d))
+        ctx.shapes[key] = ShapeInfo(index, np.asarray(wire[:3], dtype=np.float64))
+
+    @handles(
+        PointCloud,
+        features={
+            "pointcloud": _exact(
+                "analytic spheres up to max_analytic_spheres points, beyond that the IR's merged icosphere mesh"
+            ),
+            "pointcloud.vertex_colors": EXACT,
+            "pointcloud.emission": approximate("area emitter on the spheres, front (outer) side only"),
+        },
+    )
+    def pointcloud(self, r: PointCloud, ctx: MitsubaContext, index: int) -> None:
+        """Analytic spheres (one shape and BSDF per point) up to ``max_analytic_spheres`` points, else one
+        merged icosphere mesh with per-vertex colours."""
+        mi = _mi()
+        prefix = f"r{index:05d}"
+        matrix = r.matrix_world
+        mat = r.materials[0]
+        src = self.dispatch(r.colors_list[0], ctx)
+        centres = _world(r.vertices, matrix)
+        radii = r.radii()
+        n = len(centres)
+        if n == 0:
+            return
+        per_point = src.per_vertex[:, :3] if src.per_vertex is not None else None
+        uniform = None if per_point is not None else src.constant[:3]
+        strength = r.particle_emission_strength
+        alpha = float(mat.alpha)
+        if n <= self.max_analytic_spheres:
+            for i in range(n):
+                c = per_point[i] if per_point is not None else uniform
+                bsdf = self.dispatch(mat, ctx, _rgb(c))
+                if per_point is not None:  # this point's alpha (linear RGBA: no decoding)
+                    own = ColorSource(constant=np.array([1.0, 1.0, 1.0, float(src.per_vertex[i, 3])]))
+                    bsdf = _with_mask(bsdf, *own.opacity(alpha))
+                else:
+                    bsdf = _with_mask(bsdf, *src.opacity(alpha))
+                key = f"{prefix}_p{i:07d}"
+                shape = {"type": "sphere", "center": centres[i].tolist(), "radius": float(radii[i]), "bsdf": bsdf}
+                em = _emission(mat)
+                if strength > 0:
+                    em = (em if em is not None else 0.0) + np.asarray(c) * strength
+                if em is not None:
+                    shape["emitter"] = {"type": "area", "radiance": _rgb(em)}
+                ctx.entries[key] = shape
+                ctx.shapes[key] = ShapeInfo(index, np.asarray(c, dtype=np.float64))
+            ctx.n_analytic_spheres += n
+            return
+        tm = r.to_mesh()
+        # to_mesh works in object space around the raw vertices: move to world space
+        verts = _world(tm.vertices, matrix)
+        normals = np.asarray(tm.normals, dtype=np.float64) @ matrix[:3, :3].T
+        nv = len(tm.vertices) // n
+        key = f"{prefix}_mesh"
+        attrs: dict[str, np.ndarray] = {}
+        if per_point is not None:
+            refl: Any = mi.load_dict({"type": "mesh_attribute", "name": "vertex_color"})
+            attrs["vertex_color"] = np.repeat(per_point, nv, axis=0)
+            if src.has_alpha:
+                attrs["vertex_alpha"] = np.repeat(src.per_vertex[:, 3], nv)
+            const, tex = None, refl
+        else:
+            refl, const, tex = _rgb(uniform), np.asarray(uniform, dtype=np.float64), None
+        bsdf = mi.load_dict(_with_mask(self.dispatch(mat, ctx, refl), *src.opacity(alpha)))
+        emitter = None
+        em = _emission(mat)
+        if strength > 0:
+            if per_point is not None:
+                rad: Any = {"type": "mesh_attribute", "name": "vertex_color", "scale": strength}
+                if em is not None:
+                    raise UnsupportedFeatureError(
+                        "pointcloud: material emission combined with per-point particle emission",
+                        feature="pointcloud.emission",
+                        backend="mitsuba",
+                    )
+            else:
+                rad = _rgb((em if em is not None else 0.0) + uniform * strength)
+            emitter = mi.load_dict({"type": "area", "radiance": rad})
+        elif em is not None:
+            emitter = mi.load_dict({"type": "area", "radiance": _rgb(em)})
+        ctx.entries[key] = build_mesh(key, verts, tm.faces, normals, None, attrs, bsdf, emitter)
+        ctx.shapes[key] = ShapeInfo(index, const, tex)
+
+    # -- materials: the (two-sided) BSDF for a material and its colour value/texture ---------------------
+    @handles(
+        PrincipledBSDFMaterial,
+        DiffuseMaterial,
+        MetalMaterial,
+        PlasticMaterial,
+        PrincipledBSDFWireframeMaterial,
+        PlasticWireframeMaterial,
+        MetalWireframeMaterial,
+        features={
+            "material.principled": approximate(
+                "Mitsuba 'principled' (Disney diffuse with retro-reflection, Schlick Fresnel, no diffuse/specular "
+                "energy coupling; eta from IOR and Specular IOR Level, alpha = roughness^2). Measured on a red "
+                "sphere under a sun vs Cycles: red channel +6-7 %, dark channels (specular) +40-65 %; roughplastic "
+                "was not closer"
+            ),
+            "material.diffuse_only": _exact("Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
+            "material.metallic": approximate("Mitsuba 'principled' metallic (measured 1.008 x Cycles on a sphere)"),
+            "material.transmission": approximate("principled spec_trans (one-sided, thin-surface differences)"),
+            "material.coat": approximate("principled clearcoat (different lobe from Blender's coat)"),
+            "material.sheen": approximate("principled sheen (different lobe)"),
+            "material.subsurface": unsupported("Mitsuba has no subsurface scattering in the principled BSDF"),
+            "material.roughness_map": approximate(
+                "raw bitmap driving principled roughness (the principled BSDF's differences)"
+            ),
+            "material.metallic_map": approximate(
+                "raw bitmap driving principled metallic (the principled BSDF's differences)"
+            ),
+            "material.normal_map": approximate(
+                "Mitsuba 'normalmap' (frame dp/du, n x dp/du; strength baked into the map); not compared with "
+                "Cycles yet"
+            ),
+            # applied where the shapes are built: _emission -> an area emitter, ColorSource.opacity -> a mask,
+            # MitsubaTranslator._wireframe -> tubes (these hold for the Glossy BSDF's alpha too)
+            "material.emission": approximate(
+                "area emitter on the surface: emits from the front side only; with a background/environment light "
+                "the coverage alpha is composited from two extra one-bounce passes"
+            ),
+            "material.alpha": _exact("mask BSDF with the material x colour alpha"),
+            "material.wireframe": approximate(
+                "triangle edges as square tubes of side wireframe_thickness (world units) with the surface's BSDF "
+                "in the wireframe colour: geometry instead of Blender's Wireframe shader (protrudes by half the "
+                "thickness, casts shadows, also draws the diagonals of triangulated quads)"
+            ),
+        },
+    )
+    def principled(self, material: PrincipledBSDFMaterial, ctx: MitsubaContext, color: Any) -> dict[str, Any]:
+        """The Principled family: Lambertian ``diffuse`` when the material has no specular layer (exact),
+        else Mitsuba's ``principled``; maps as raw bitmaps, the normal map through ``normalmap``."""
+        if material.is_diffuse_only:
+            inner: dict[str, Any] = {"type": "diffuse", "reflectance": color}
+        else:
+            rough: Any = float(material.roughness)
+            metal: Any = float(material.metallic)
+            if material.roughness_map is not None:
+                rough = _data_texture(material.roughness_map.values())
+            if material.metallic_map is not None:
+                metal = _data_texture(material.metallic_map.values())
+            eta = _effective_eta(float(material.ior), float(material.specular_ior))
+            inner = {
+                "type": "principled",
+                "base_color": color,
+                "metallic": metal,
+                "roughness": rough,
+                "eta": max(eta, 1.0001),
+                "anisotropic": float(material.anisotropic),
+                "spec_trans": float(material.transmission_weight),
+                "clearcoat": float(material.coat_weight),
+                "clearcoat_gloss": 1.0 - float(material.coat_roughness),
+                "sheen": float(material.sheen_weight),
+            }
+        if material.normal_map is not None:
+            inner = {"type": "normalmap", "normalmap": _normal_texture(material.normal_map), "bsdf": inner}
+        if float(material.transmission_weight) > 0:
+            return inner  # transmission needs both sides to be distinct
+        return {"type": "twosided", "bsdf": inner}
+
+    @handles(
+        GlossyBSDFMaterial,
+        features={"material.glossy": approximate("roughconductor with a perfect-mirror Fresnel tinted by the colour")},
+    )
+    def glossy(self, material: GlossyBSDFMaterial, ctx: MitsubaContext, color: Any) -> dict[str, Any]:
+        """Blender's Glossy BSDF: a (rough) conductor with a perfect-mirror Fresnel, tinted by the colour."""
+        r = float(material.roughness)
+        inner: dict[str, Any] = {"type": "conductor", "material": "none", "specular_reflectance": color}
+        if r > 0:
+            inner = {
+                "type": "roughconductor",
+                "material": "none",
+                "distribution": "beckmann" if material.distribution == "BECKMANN" else "ggx",
+                "alpha": max(r * r, 1e-4),
+                "specular_reflectance": color,
+            }
+        return {"type": "twosided", "bsdf": inner}
+
+    # -- colour sources ---------------------------------------------------------------------------------
+    @handles(UniformColors)
+    def uniform_colors(self, colors: UniformColors, ctx: MitsubaContext) -> ColorSource:
+        """One linear RGB value (alpha through a ``mask``)."""
+        return ColorSource(constant=colors.linear_rgba)
+
+    @handles(
+        VertexColors,
+        features={"mesh.vertex_colors": _exact("mesh attribute 'vertex_color' (linear, interpolated like Cycles)")},
+    )
+    def vertex_colors(self, colors: VertexColors, ctx: MitsubaContext) -> ColorSource:
+        """Per-vertex (per-point) colours: mesh attributes ``vertex_color`` and ``vertex_alpha``."""
+        return ColorSource(per_vertex=colors.linear_rgba, has_alpha=colors.has_alpha)
+
+    @handles(
+        TextureColors,
+        features={
+            "mesh.texture": _exact(
+                "in-memory bitmap, v -> 1 - v; 8-bit sRGB textures with linear interpolation are upsampled in "
+                "encoded space (Cycles interpolates before decoding), up to 1M texels"
+            )
+        },
+    )
+    def texture_colors(self, colors: TextureColors, ctx: MitsubaContext) -> ColorSource:
+        """An in-memory texture: a ``bitmap`` of linear data (see :data:`SRGB_UPSAMPLE_MAX_TEXELS`)."""
+        return ColorSource(has_alpha=colors.has_alpha, needs_uv=True, texture=colors)
+
+    @handles(
+        FileTextureColors,
+        features={
+            "mesh.file_texture": _exact("read by Mitsuba (8-bit PNG/JPEG, nearest or linear data) or through the IR")
+        },
+    )
+    def file_texture_colors(self, colors: FileTextureColors, ctx: MitsubaContext) -> ColorSource:
+        """A texture file: read by Mitsuba when it decodes it as the IR does, else as in-memory data."""
+        return ColorSource(has_alpha=colors.has_alpha, needs_uv=True, texture=colors, file_path=colors.texture_path)
+
+    # -- lights (None: a light of strength 0 adds no emitter) ---------------------------------------------
+    @handles(
+        PointLight,
+        features={
+            "light.point": _exact("point, intensity = P / (4 pi)"),
+            "light.point.soft": approximate(
+                "point lights: a sphere emitter of radiance P / (4 pi^2 r^2) (Blender's sphere light with soft "
+                "falloff off); spot lights: delta (radius ignored). The light's null surface also blocks other "
+                "lights' shadow rays"
+            ),
+        },
+    )
+    def point_light(self, light: PointLight, ctx: MitsubaContext) -> dict[str, Any] | None:
+        """A ``point`` emitter, or for a radius > 0 a ``sphere`` with a null BSDF and an area emitter."""
+        if light.strength <= 0:
+            return None
+        col = light.linear_color
+        r = float(light.shadow_soft_size)
+        if r > 0:
+            ctx.null_light_surfaces = True
+        if r > 0 and ctx.bounds is not None:
+            # a sphere far from everything it lights (radius < 1e-3 of the distance) is a point light
+            # to within 0.1 %; Mitsuba's float32 sphere-emitter sampling breaks down there (a 0.25 m
+            # sphere 1 km away came out 1.9x too bright, 3 km away black)
+            nearest = np.clip(light.translation, ctx.bounds[0], ctx.bounds[1])
+            if r < 1e-3 * float(np.linalg.norm(light.translation - nearest)):
+                r = 0.0
+        if r > 0:
+            # Blender's sphere light (soft falloff off): a sphere emitter of radiance P / (4 pi^2 r^2)
+            return {
+                "type": "sphere",
+                "center": [float(x) for x in light.translation],
+                "radius": r,
+                "bsdf": {"type": "null"},
+                "emitter": {"type": "area", "radiance": _rgb(col * sphere_light_radiance(light.strength, r))},
+            }
+        return {
+            "type": "point",
+            "intensity": _rgb(col * point_intensity(light.strength)),
+            "position": [float(x) for x in light.translation],
+        }
+
+    @handles(
+        SunLight,
+        features={
+            "light.sun": _exact("directional, irradiance = strength"),
+            "light.sun.soft": approximate("delta directional light (angular diameter ignored: hard shadows)"),
+        },
+    )
+    def sun_light(self, light: SunLight, ctx: MitsubaContext) -> dict[str, Any] | None:
+        """A ``directional`` emitter of irradiance = strength."""
+        if light.strength <= 0:
+            return None
+        return {
+            "type": "directional",
+            "irradiance": _rgb(light.linear_color * light.strength),
+            "direction": [float(x) for x in light.direction],
+        }
+
+    @handles(
+        SpotLight,
+        features={
+            "light.spot": _exact("spot, intensity = P / (4 pi), cutoff = spot_size / 2"),
+            "light.spot.blend": approximate("Mitsuba's falloff is linear in angle, Blender's a smoothstep"),
+        },
+    )
+    def spot_light(self, light: SpotLight, ctx: MitsubaContext) -> dict[str, Any] | None:
+        """A ``spot`` emitter (delta: the radius is ignored) turned to emit along Blender's local -Z."""
+        if light.strength <= 0:
+            return None
+        half, beam = spot_cone(light.spot_size, light.spot_blend)
+        return {
+            "type": "spot",
+            "intensity": _rgb(light.linear_color * point_intensity(light.strength)),
+            "cutoff_angle": math.degrees(half),
+            "beam_width": max(math.degrees(beam), 1e-4),
+            "to_world": _mat(light.matrix_world @ _FLIP_Z),
+        }
+
+    @handles(
+        AreaLight,
+        features={
+            "light.area": _exact(
+                "rectangle with radiance P / (pi A), one-sided, hidden from the camera (visible from its emitting "
+                "side only in scenes with emissive materials)"
+            ),
+            "light.area.disk": _exact("disk with radiance P / (pi A), one-sided, hidden from the camera as light.area"),
+        },
+    )
+    def area_light(self, light: AreaLight, ctx: MitsubaContext) -> dict[str, Any] | None:
+        """A one-sided ``rectangle`` or ``disk`` (``flip_normals``: it emits along local -Z) with a null BSDF."""
+        if light.strength <= 0:
+            return None
+        ctx.null_light_surfaces = True
+        a, b = light.size
+        disk = light.shape in ("circle", "ellipse")
+        return {
+            "type": "disk" if disk else "rectangle",
+            "to_world": _mat(light.matrix_world @ np.diag([a / 2.0, b / 2.0, 1.0, 1.0])),
+            "flip_normals": True,
+            "bsdf": {"type": "null"},
+            "emitter": {"type": "area", "radiance": _rgb(light.radiance)},
+        }
+
+    # -- the world --------------------------------------------------------------------------------------
+    @handles(BackgroundLight, features={"light.background": _exact("constant emitter")})
+    def background_light(self, light: BackgroundLight, ctx: MitsubaContext) -> dict[str, Any] | None:
+        """A ``constant`` emitter (unused when an environment map is present: it is added to the map)."""
+        if light.strength <= 0:
+            return None
+        return {"type": "constant", "radiance": _rgb(light.radiance)}
+
+    @handles(
+        EnvironmentMap, features={"light.environment": _exact("envmap rotated to Blender's equirectangular mapping")}
+    )
+    def environment_map(self, env: EnvironmentMap, ctx: MitsubaContext) -> dict[str, Any] | None:
+        """An ``envmap`` reproducing :func:`blendify_core.ir.lights.equirect_uv`, with the background
+        light's radiance added.
+
+        Mitsuba's envmap looks up the local direction d at u = atan2(d_x, -d_z) / (2 pi) (mod 1),
+        v = acos(d_y) / pi (v = 0 at the top row). Blender's mapping of a world direction w is
+        u = 0.5 - atan2(w_y, w_x) / (2 pi), v_top = acos(w_z) / pi. With local = (w_y, w_z, w_x) both agree
+        (atan2(w_y, -w_x) = pi - atan2(w_y, w_x)): to_world maps local x -> world y, y -> z, z -> x (a
+        proper rotation), composed with the map's own rotation."""
+        if env.strength <= 0:
+            return None
+        img = env.linear_rgb_image().astype(np.float32) * np.float32(env.strength)
+        bg = ctx.scene.lights.background if ctx.scene is not None else None
+        if bg is not None and bg.strength > 0:
+            img = img + np.asarray(bg.radiance, dtype=np.float32)[None, None, :3]
+        local_to_world = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        m = np.eye(4)
+        m[:3, :3] = env.rotation_matrix @ local_to_world
+        return {
+            "type": "envmap",
+            "bitmap": _mi().Bitmap(np.ascontiguousarray(img)),
+            "to_world": _mat(m),
+        }
+
+    # -- files of other engines -------------------------------------------------------------------------
+    @handles(Attachment)
+    def attachment(self, attachment: Attachment, ctx: MitsubaContext) -> None:
+        """Attached engine files (.blend) are the Cycles backend's: Mitsuba renders the IR only."""
+        ctx.ignore(attachment, f"attached .{attachment.format} files are read by the Cycles backend only")
