@@ -3,6 +3,11 @@
 Importing this package does not import pyrender or OpenGL: the OpenGL platform is chosen when the first
 frame is rendered (see :mod:`blendify_pyrender._platform`), so ``probe()`` and the registry stay cheap.
 
+Where things live: ``translate.py`` (PyrenderTranslator: one handler per IR type, the capabilities declared
+beside each), ``capabilities.py`` (the table, from the translator), ``session.py`` (the GL context, the
+cached pyrender scene and the core's change tracker), ``render.py`` (the frame passes, anti-aliasing and
+the shadow-catcher composite), ``_platform.py`` (EGL/OSMesa choice, one shared EGL display).
+
 Usage::
 
     import blendify_core as bf
@@ -41,13 +46,15 @@ import threading
 from typing import Any
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import Capability
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
 from blendify_core.registry import BackendStatus
 
-from ._capabilities import capability_table
+from .capabilities import capability_table
+from .translate import PyrenderTranslator
 
 __all__ = ["PyrenderBackend", "ANTIALIAS_MODES"]
 
@@ -66,6 +73,7 @@ class PyrenderBackend(Backend):
     name = "pyrender"
     engine = "pyrender"
     qualities = ("preview",)
+    translator_class = PyrenderTranslator
 
     def __init__(
         self,
@@ -107,22 +115,22 @@ class PyrenderBackend(Backend):
     # -- engine ------------------------------------------------------------------------------------
     @property
     def engine_instance(self) -> Any:
-        """The live :class:`~blendify_pyrender._engine.Engine` (created on first use)."""
+        """The live :class:`~blendify_pyrender.session.Engine` (created on first use)."""
         if self._closed:
             raise BackendUnavailableError(f"{self.name}: this backend instance was closed")
         if self._engine is None:
-            from ._engine import Engine
+            from .session import Engine
 
             self._engine = Engine(self.platform, self.device)
         return self._engine
 
     def antialiasing(self, settings: RenderSettings) -> Any:
-        """The :class:`~blendify_pyrender._engine.AntiAliasing` used for ``settings``."""
-        from ._engine import COVERAGE_SUPERSAMPLE, AntiAliasing
+        """The :class:`~blendify_pyrender.render.AntiAliasing` used for ``settings``."""
+        eng = self.engine_instance  # render.py imports OpenGL: only once the platform is chosen
+        from .render import COVERAGE_SUPERSAMPLE, AntiAliasing
 
         if settings.samples <= 1:
             return AntiAliasing("none")
-        eng = self.engine_instance
         msaa = min(self.msaa, eng.renderer.max_samples) if eng.msaa_supported else 0
         mode = self.antialias
         if mode == "auto":
@@ -136,16 +144,21 @@ class PyrenderBackend(Backend):
         return AntiAliasing("msaa", msaa, 1)
 
     # -- Backend API -------------------------------------------------------------------------------
-    def translate(self, scene: Any, settings: RenderSettings) -> Any:
-        """Update the cached pyrender scene from ``scene`` (only what changed) and return the frame."""
+    def translate(self, scene: Scene, settings: RenderSettings) -> Any:
+        """Update the cached pyrender scene from ``scene`` (only what changed) and return the frame
+        (:class:`~blendify_pyrender.session.Frame`)."""
         if scene.camera is None:
             raise InvalidSceneError("scene.camera: the scene has no camera")
         with self._lock:
             return self.engine_instance.sync(scene)
 
     def render(self, native: Any, settings: RenderSettings) -> RenderResult:
+        """Render a frame returned by :meth:`translate` (:func:`blendify_pyrender.render.render_frame`)."""
         with self._lock:
-            return self.engine_instance.render(native, settings, self.antialiasing(settings))
+            eng = self.engine_instance
+            from .render import render_frame
+
+            return render_frame(eng, native, settings, self.antialiasing(settings))
 
     def close(self) -> None:
         with self._lock:

@@ -270,7 +270,7 @@ def test_pointcloud_scene_renders(pyr):
 
 
 def test_large_point_cloud_uses_gl_points(pyr, monkeypatch):
-    from blendify_pyrender import _translate as tr
+    from blendify_pyrender import translate as tr
 
     monkeypatch.setattr(tr, "point_lod", lambda n: tr._LOD_LARGE)  # the >100k level on a small cloud
     scene = testing.pointcloud_scene(n=3000, resolution=(64, 64), point_size=0.05)
@@ -283,11 +283,11 @@ def test_large_point_cloud_uses_gl_points(pyr, monkeypatch):
 
 
 def test_dense_gl_point_clouds_are_thinned(pyr, monkeypatch):
-    from blendify_pyrender import _engine
-    from blendify_pyrender import _translate as tr
+    from blendify_pyrender import render as rd
+    from blendify_pyrender import translate as tr
 
     monkeypatch.setattr(tr, "point_lod", lambda n: tr._LOD_LARGE)
-    monkeypatch.setattr(_engine, "POINTS_MIN_DRAWN", 100)
+    monkeypatch.setattr(rd, "POINTS_MIN_DRAWN", 100)
     scene = testing.pointcloud_scene(n=20000, resolution=(64, 64), point_size=0.05)
     first = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))  # uploads every point
     again = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))

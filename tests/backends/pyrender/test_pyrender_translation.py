@@ -81,32 +81,38 @@ def test_node_poses_place_vertices_in_world(pyr):
 
 
 def test_material_factors():
-    from blendify_pyrender import _translate as tr
+    from blendify_pyrender.translate import PyrenderTranslator
 
-    notes: list[str] = []
-    surf = tr.surface_of(UniformColors((0.5, 0.25, 0.1), color_space="linear"))
-    pm, albedo = tr.pbr_material(DiffuseMaterial(), surf, False, notes)
+    from blendify_core.pipeline.translator import TranslationContext
+
+    tr, ctx = PyrenderTranslator(), TranslationContext()
+    surf = tr.dispatch(UniformColors((0.5, 0.25, 0.1), color_space="linear"), ctx)
+    pm, albedo = tr.pyrender_material(DiffuseMaterial(), surf, False, ctx)
     np.testing.assert_allclose(pm.baseColorFactor[:3], np.array([0.5, 0.25, 0.1]) / 0.96, rtol=1e-6)
     assert pm.metallicFactor == 0.0 and pm.roughnessFactor == 1.0 and pm.alphaMode == "OPAQUE"
     np.testing.assert_allclose(albedo[:3], [0.5, 0.25, 0.1])
 
     metal = PrincipledBSDFMaterial(metallic=1.0, roughness=0.3)
-    pm, _ = tr.pbr_material(metal, surf, False, notes)
+    pm, _ = tr.pyrender_material(metal, surf, False, ctx)
     np.testing.assert_allclose(pm.baseColorFactor[:3], [0.5, 0.25, 0.1], rtol=1e-6)  # no compensation
     assert pm.metallicFactor == 1.0 and abs(pm.roughnessFactor - 0.3) < 1e-9
 
-    pm, _ = tr.pbr_material(GlossyBSDFMaterial(roughness=0.2), surf, False, notes)
+    pm, _ = tr.pyrender_material(GlossyBSDFMaterial(roughness=0.2), surf, False, ctx)
     assert pm.metallicFactor == 1.0 and abs(pm.roughnessFactor - 0.2) < 1e-9
 
+    # the material's own roughness (the IR default 0.4), no private fallback
+    pm, _ = tr.pyrender_material(PrincipledBSDFMaterial(), surf, False, ctx)
+    assert abs(pm.roughnessFactor - 0.4) < 1e-9
+
     emissive = PrincipledBSDFMaterial(emission_color=(1.0, 0.5, 0.0), emission_strength=4.0, color_space="linear")
-    pm, _ = tr.pbr_material(emissive, surf, False, notes)
+    pm, _ = tr.pyrender_material(emissive, surf, False, ctx)
     np.testing.assert_allclose(pm.emissiveFactor**2, [4.0, 2.0, 0.0], rtol=1e-6)  # mesh.frag squares it
 
-    pm, _ = tr.pbr_material(PrincipledBSDFMaterial(alpha=0.5), surf, False, notes)
+    pm, _ = tr.pyrender_material(PrincipledBSDFMaterial(alpha=0.5), surf, False, ctx)
     assert pm.alphaMode == "BLEND" and abs(pm.baseColorFactor[3] - 0.5) < 1e-9
 
-    vsurf = tr.surface_of(VertexColors(np.full((3, 3), 0.5), color_space="linear"))
-    pm, albedo = tr.pbr_material(DiffuseMaterial(), vsurf, False, notes)
+    vsurf = tr.dispatch(VertexColors(np.full((3, 3), 0.5), color_space="linear"), ctx)
+    pm, albedo = tr.pyrender_material(DiffuseMaterial(), vsurf, False, ctx)
     np.testing.assert_allclose(pm.baseColorFactor[:3], 1 / 0.96)
     np.testing.assert_allclose(vsurf.vertex_rgba[:, :3], 0.5)
 
@@ -195,9 +201,11 @@ def test_cache_updates_only_what_changed(pyr):
 
 def test_indices_stay_exact_uint32():
     """pyrender's ``indices`` setter converts to float32 (inexact from 2^24 vertices): we keep uint32."""
-    from blendify_pyrender import _translate as tr
+    from blendify_pyrender import translate as tr
 
-    built = tr.build_renderable(testing.primitives_scene().renderables["sphere"])
+    from blendify_core.pipeline.translator import TranslationContext
+
+    built = tr.PyrenderTranslator().dispatch(testing.primitives_scene().renderables["sphere"], TranslationContext())
     for prim in built.mesh.primitives:
         assert prim.indices.dtype == np.uint32
     big = np.array([[2**24 + 1, 2**24 + 2, 2**24 + 3]])
@@ -206,7 +214,7 @@ def test_indices_stay_exact_uint32():
 
 
 def test_point_cloud_lod_choice():
-    from blendify_pyrender import _translate as tr
+    from blendify_pyrender import translate as tr
 
     assert not tr.point_lod(1000).reduced and tr.point_lod(1000).subdivisions == 1
     assert tr.point_lod(50_000).reduced and tr.point_lod(50_000).subdivisions == 0
@@ -217,9 +225,9 @@ def test_point_cloud_lod_choice():
 def test_capability_table_declares_every_feature():
     caps = PyrenderBackend.capabilities()
     assert set(caps) == set(ALL_FEATURES)
-    from blendify_pyrender._capabilities import CAPABILITIES
+    from blendify_pyrender.translate import PyrenderTranslator
 
-    assert set(CAPABILITIES) == set(ALL_FEATURES), "declare new features explicitly"
+    assert set(PyrenderTranslator._declared) == set(ALL_FEATURES), "declare new features explicitly"
     for name, cap in caps.items():
         assert cap.level in ("exact", "approximate", "unsupported")
         if cap.level != "exact":

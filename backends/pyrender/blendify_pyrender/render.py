@@ -1,8 +1,11 @@
-"""The OpenGL side: a pyrender ``Renderer`` drawing into framebuffers chosen per frame.
+"""Rendering a translated frame into a RenderResult: the colour, G-buffer and coverage passes, the
+anti-aliasing schemes and the shadow-catcher composite, on a pyrender ``Renderer`` drawing into
+framebuffers chosen per frame.
 
-Import this module only after :func:`blendify_pyrender._platform.prepare_platform` (it imports OpenGL).
+Import this module only after :func:`blendify_pyrender._platform.prepare_platform` (it imports OpenGL);
+the session imports it once its context exists.
 
-Differences from pyrender's stock renderer (0.1.45):
+Differences of :class:`FrameRenderer` from pyrender's stock renderer (0.1.45):
 
 - colour pass into an RGBA8 framebuffer with ``samples`` MSAA samples (0 = none), alpha = coverage;
   depth is not read back (geometric outputs come from the G-buffer pass);
@@ -12,6 +15,10 @@ Differences from pyrender's stock renderer (0.1.45):
 - pyrender's ``mesh.frag`` is used with one patch: back faces are shaded with the flipped normal
   (two-sided shading, as Cycles);
 - shadow maps skip objects that cast no shadow and lights that cast none.
+
+The colour pass is pyrender's 8-bit output (gamma 1/2.2), linearised by :func:`linearise_rgba8`;
+anti-aliasing (:class:`AntiAliasing`) is "msaa" (multisampled lit pass), "coverage" (plain lit pass plus a
+supersampled coverage pass, :func:`apply_coverage`), "ssaa" (supersampled, :func:`box_downsample`) or none.
 """
 
 from __future__ import annotations
@@ -21,8 +28,10 @@ import ctypes
 import os
 import shutil
 import tempfile
+import time
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyrender
@@ -97,8 +106,32 @@ from OpenGL.GL import (
 from pyrender.constants import GLTF, BufFlags, RenderFlags
 
 from blendify_core.errors import RenderError
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import RenderSettings
 
-__all__ = ["FrameRenderer", "GBuffer"]
+if TYPE_CHECKING:
+    from .session import Engine, Frame
+
+__all__ = [
+    "render_frame",
+    "AntiAliasing",
+    "FrameRenderer",
+    "GBuffer",
+    "MatrixCamera",
+    "linearise_rgba8",
+    "apply_coverage",
+    "box_downsample",
+    "COVERAGE_SUPERSAMPLE",
+]
+
+_GAMMA = 2.2
+#: dense GL-point clouds are thinned to this many points per covered pixel (never below POINTS_MIN_DRAWN)
+POINTS_PER_PIXEL = 8
+POINTS_MIN_DRAWN = 100_000
+#: the coverage pass of the "coverage" anti-aliasing is rendered at 3x the resolution (9 samples/pixel)
+COVERAGE_SUPERSAMPLE = 3
+_LIN8 = ((np.arange(256, dtype=np.float64) / 255.0) ** _GAMMA).astype(np.float32)
+_ALPHA8 = (np.arange(256, dtype=np.float64) / 255.0).astype(np.float32)
 
 _SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 _TWO_SIDED_ANCHOR = "vec3 n = normalize(get_normal());"
@@ -445,3 +478,290 @@ class FrameRenderer(pyrender.Renderer):
         buf = glReadPixels(0, 0, width, height, GL_RED, GL_UNSIGNED_BYTE)
         glBindFramebuffer(GL_FRAMEBUFFER, 0)
         return np.frombuffer(buf, dtype=np.uint8).reshape(height, width)[::-1].astype(np.float32) / 255.0
+
+
+class MatrixCamera(pyrender.Camera):
+    """A pyrender camera with an explicit OpenGL projection matrix (see ``CameraBuild`` in translate.py).
+    The matrix does not depend on the viewport size as long as the viewport is the camera resolution
+    times an integer (supersampling)."""
+
+    def __init__(self, projection: np.ndarray, znear: float, zfar: float) -> None:
+        super().__init__(znear=znear, zfar=zfar)
+        self.projection = np.asarray(projection, dtype=np.float64)
+
+    def get_projection_matrix(self, width: int | None = None, height: int | None = None) -> np.ndarray:
+        return self.projection
+
+
+# ---------------------------------------------------------------------------------------------------
+# pixels: linearisation, coverage, downsampling
+# ---------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class AntiAliasing:
+    """How the colour pass is anti-aliased: ``mode`` "none", "coverage" (plain shading + multisampled
+    coverage), "msaa" (multisampled shading) or "ssaa" (supersampling by ``supersample``)."""
+
+    mode: str
+    msaa: int = 0
+    supersample: int = 1
+
+    def describe(self) -> dict[str, Any]:
+        return {"mode": self.mode, "msaa": self.msaa, "supersample": self.supersample}
+
+
+def linearise_rgba8(img: np.ndarray) -> np.ndarray:
+    """pyrender's 8-bit colour (gamma 1/2.2, premultiplied by coverage when multisampled) to linear
+    premultiplied float32: straight = C / A, linear = straight^2.2, times A (a table for opaque pixels)."""
+    h, w = img.shape[:2]
+    out = np.empty((h, w, 4), dtype=np.float32)
+    for c in range(3):
+        np.take(_LIN8, img[..., c], out=out[..., c])
+    np.take(_ALPHA8, img[..., 3], out=out[..., 3])
+    a8 = img[..., 3]
+    partial = (a8 > 0) & (a8 < 255)
+    if np.any(partial):
+        a = out[..., 3][partial][:, None]
+        c = img[..., :3][partial].astype(np.float32) / 255.0
+        straight = np.clip(c / a, 0.0, 1.0)
+        out[partial, :3] = (straight**_GAMMA) * a
+    return out
+
+
+def apply_coverage(rgba: np.ndarray, coverage: np.ndarray) -> np.ndarray:
+    """Anti-aliased silhouettes from a plain (one sample per pixel) colour pass and a supersampled
+    coverage. The plain pass gives each pixel's straight colour and opacity (alpha < 1 only for
+    translucent materials); pixels whose centre missed every surface take the mean of their covered
+    8-neighbours; the output alpha is coverage x opacity (premultiplied colour)."""
+    opacity = rgba[..., 3].copy()
+    hit = opacity > 0
+    h, w = hit.shape
+    straight = np.zeros((h, w, 3), dtype=np.float32)
+    np.divide(rgba[..., :3], opacity[..., None], out=straight, where=hit[..., None])
+    cov = coverage.astype(np.float32, copy=True)
+    ys, xs = np.nonzero((~hit) & (cov > 0))
+    if len(ys):
+        acc = np.zeros((len(ys), 4), dtype=np.float32)
+        cnt = np.zeros(len(ys), dtype=np.float32)
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                if dy == 0 and dx == 0:
+                    continue
+                yy, xx = ys + dy, xs + dx
+                ok = (yy >= 0) & (yy < h) & (xx >= 0) & (xx < w)
+                yy, xx = np.clip(yy, 0, h - 1), np.clip(xx, 0, w - 1)
+                m = ok & hit[yy, xx]
+                acc[m, :3] += straight[yy[m], xx[m]]
+                acc[m, 3] += opacity[yy[m], xx[m]]
+                cnt += m
+        mean = acc / np.maximum(cnt, 1.0)[:, None]
+        straight[ys, xs] = mean[:, :3]
+        opacity[ys, xs] = mean[:, 3]
+    alpha = cov * opacity
+    out = np.empty_like(rgba)
+    out[..., :3] = straight * alpha[..., None]
+    out[..., 3] = alpha
+    return out
+
+
+def box_downsample(img: np.ndarray, k: int) -> np.ndarray:
+    if k == 1:
+        return img
+    h, w = img.shape[0] // k, img.shape[1] // k
+    return img.reshape(h, k, w, k, *img.shape[2:]).mean(axis=(1, 3), dtype=np.float64).astype(np.float32)
+
+
+# ---------------------------------------------------------------------------------------------------
+# one frame
+# ---------------------------------------------------------------------------------------------------
+
+
+def _shadow_flags(frame: Frame) -> int:
+    """pyrender's shadow flags for the lights that cast shadows (when some object casts one)."""
+    casters = any(e.casts_shadow and e.node is not None for e in frame.entries)
+    flags = 0
+    if not casters:
+        return flags
+    for node, _light, casts in frame.light_nodes:
+        if not casts:
+            continue
+        if isinstance(node.light, pyrender.DirectionalLight):
+            flags |= RenderFlags.SHADOWS_DIRECTIONAL
+        elif isinstance(node.light, pyrender.SpotLight):
+            flags |= RenderFlags.SHADOWS_SPOT
+    return flags
+
+
+def _point_pixels(scene: Any, frame: Frame) -> tuple[float, list[str]]:
+    """Pixel size (at the camera resolution) of clouds drawn as GL points: the projected diameter at the
+    cloud centre's planar depth (the largest over such clouds; 1 if there are none), and the notes. Also
+    chooses how many points of each such cloud are drawn: at most ``POINTS_PER_PIXEL`` points per covered
+    pixel (a prefix of the randomly ordered points), all of them when the cloud is not that dense."""
+    cam = frame.camera
+    best = 1.0
+    notes: list[str] = []
+    for node in frame.nodes:
+        if node is None:
+            continue
+        for prim in node.mesh.primitives:
+            d = getattr(prim, "point_diameter", None)
+            if d is None:
+                continue
+            centre = scene.get_pose(node)[:3, 3]
+            px, extent_px = cam.screen_size(d, centre), cam.screen_size(prim.point_extent, centre)
+            best = max(best, px)
+            n = len(prim.point_all_indices)
+            area = min(np.pi * extent_px**2, float(cam.width * cam.height))
+            m = int(min(n, max(POINTS_MIN_DRAWN, np.ceil(POINTS_PER_PIXEL * area / max(px, 1.0) ** 2))))
+            if not prim._in_context():
+                m = n  # the element buffer is uploaded from the current indices: upload all of them
+            prim._indices = prim.point_all_indices[:m]  # the element buffer holds all; draw a prefix
+            if m < n:
+                notes.append(
+                    f"pointcloud LOD: {m} of {n} points drawn (a random subset: about {POINTS_PER_PIXEL} "
+                    "points per covered pixel at this view)"
+                )
+    return best, notes
+
+
+def _color(engine: Engine, frame: Frame, w: int, h: int, aa: AntiAliasing, flags: int) -> np.ndarray:
+    """Linear premultiplied (H, W, 4) colour with the anti-aliasing scheme ``aa``."""
+    r, scene = engine.renderer, engine.pscene
+    px, _ = _point_pixels(scene, frame)
+    if aa.mode in ("none", "coverage"):
+        r.point_size = px
+        rgba = linearise_rgba8(r.render_color(scene, w, h, 0, flags))
+        if aa.mode == "coverage":
+            ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
+            # supersampled, not multisampled: llvmpipe's MSAA is 4x slower even for a trivial shader
+            k = COVERAGE_SUPERSAMPLE
+            r.point_size = px * k
+            cov = box_downsample(r.render_coverage(scene, w * k, h * k, 0, ids), k)
+            rgba = apply_coverage(rgba, cov)
+        return rgba
+    if aa.mode == "msaa":
+        r.point_size = px
+        return linearise_rgba8(r.render_color(scene, w, h, aa.msaa, flags))
+    k = max(1, aa.supersample)  # "ssaa"
+    r.point_size = px * k
+    return box_downsample(linearise_rgba8(r.render_color(scene, w * k, h * k, 0, flags)), k)
+
+
+def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: AntiAliasing) -> RenderResult:
+    """Render the frame the session translated (``frame``) with the anti-aliasing ``aa``."""
+    w, h = frame.camera.width, frame.camera.height
+    timings: dict[str, float] = {"sync": frame.sync_seconds}
+    approximations = list(frame.notes)
+    engine.context.make_current()
+    renderer, scene = engine.renderer, engine.pscene
+    renderer.no_shadow_nodes = {e.node for e in frame.entries if not e.casts_shadow}
+    renderer.no_shadow_lights = {node for node, _, casts in frame.light_nodes if not casts}
+    point_px, point_notes = _point_pixels(scene, frame)
+    counts = tuple(
+        len(p.indices) for n in frame.nodes if n is not None for p in n.mesh.primitives if hasattr(p, "point_diameter")
+    )
+    approximations += point_notes
+    renderer.shadow_key = (frame.shadow_key, "all", counts, round(point_px, 3))
+    catchers = [(i, e.node) for i, e in enumerate(frame.entries) if e.node is not None and e.catcher]
+    want = set(settings.outputs)
+    kinds = [type(node.light).__name__ for node, _, _ in frame.light_nodes]
+    if any(kinds.count(k) > 4 for k in set(kinds)):
+        approximations.append("lights: pyrender shades at most 4 lights of each type (the nearest are used)")
+    if "rgb" in want and aa.mode == "coverage":
+        approximations.append(
+            "anti-aliasing: coverage scheme (silhouettes against the background are anti-aliased from a "
+            "supersampled coverage pass; edges between objects are not)"
+        )
+    result = RenderResult(instance_tags=list(frame.tags))
+    flags = _shadow_flags(frame)
+    gbuf = None
+    try:
+        if want & {"depth", "normal", "albedo", "instance"} or catchers:
+            t0 = time.perf_counter()
+            ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
+            renderer.point_size = _point_pixels(scene, frame)[0]
+            gbuf = renderer.render_gbuffer(scene, w, h, ids)
+            timings["gbuffer"] = time.perf_counter() - t0
+        if "rgb" in want:
+            t0 = time.perf_counter()
+            rgba = _color(engine, frame, w, h, aa, flags)
+            timings["color"] = time.perf_counter() - t0
+            if catchers:
+                t0 = time.perf_counter()
+                rgba = _apply_catchers(engine, frame, rgba, gbuf, catchers, w, h, aa, flags)
+                timings["shadow_catcher"] = time.perf_counter() - t0
+            if not settings.transparent_background:
+                bg = np.clip(frame.ambient, 0, None).astype(np.float32)
+                rgba[..., :3] += (1.0 - rgba[..., 3:4]) * bg
+                rgba[..., 3] = 1.0
+            result.rgba = rgba
+    except RenderError:
+        raise
+    except Exception as exc:
+        raise RenderError(f"pyrender: rendering failed ({type(exc).__name__}: {exc})") from exc
+    if gbuf is not None:
+        if "depth" in want:
+            result.depth = gbuf.depth
+        if "normal" in want:
+            result.normal = gbuf.normal
+        if "albedo" in want:
+            result.albedo = gbuf.albedo
+        if "instance" in want:
+            result.instance = gbuf.instance
+    result.meta.update(
+        backend="pyrender",
+        platform=engine.context.platform,
+        gl_renderer=renderer.gl_renderer,
+        antialiasing=aa.describe() if "rgb" in want else None,
+        approximations=sorted(set(approximations)),
+        timings=timings,
+        rebuilt_renderables=frame.rebuilt,
+    )
+    if frame.ignored:
+        result.meta["ignored"] = sorted(set(frame.ignored))
+    return result
+
+
+def _apply_catchers(
+    engine: Engine,
+    frame: Frame,
+    rgba: np.ndarray,
+    gbuf: Any,
+    catchers: list[tuple[int, Any]],
+    w: int,
+    h: int,
+    aa: AntiAliasing,
+    flags: int,
+) -> np.ndarray:
+    """Shadow catchers: render the catchers alone (unoccluded light), then replace catcher pixels by
+    black with alpha = 1 - shadowed / unshadowed luminance (Cycles' shadow-catcher compositing)."""
+    catcher_nodes = {node for _, node in catchers}
+    hidden = [n for n in engine.pscene.mesh_nodes if n not in catcher_nodes and n.mesh.is_visible]
+    for n in hidden:
+        n.mesh.is_visible = False
+    key = engine.renderer.shadow_key
+    engine.renderer.shadow_key = (key, "catchers")
+    try:
+        alone = _color(engine, frame, w, h, aa, flags)
+    finally:
+        for n in hidden:
+            n.mesh.is_visible = True
+        engine.renderer.shadow_key = key
+    lum_w = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    inst = gbuf.instance
+    catcher_ids = [i for i, _ in catchers]
+    in_front = (inst >= 0) & ~np.isin(inst, catcher_ids)  # another object is the first hit
+    region = (alone[..., 3] > 0) & ~in_front  # catcher pixels, including its anti-aliased edges
+
+    def luminance(img: np.ndarray) -> np.ndarray:
+        straight = np.divide(img[..., :3], img[..., 3:4], out=np.zeros_like(img[..., :3]), where=img[..., 3:4] > 0)
+        return straight @ lum_w
+
+    with_occ, without = luminance(rgba), luminance(alone)
+    ratio = np.divide(with_occ, without, out=np.ones_like(with_occ), where=without > 1e-6)
+    shadow_alpha = np.clip(1.0 - ratio, 0.0, 1.0) * alone[..., 3]
+    out = rgba.copy()
+    out[region, :3] = 0.0
+    out[region, 3] = shadow_alpha[region]
+    return out
