@@ -105,12 +105,17 @@ def test_dispatch_refuses_an_unregistered_subclass(obj):
     assert "subclass of" in str(e.value)
 
 
-def test_attachments_are_recorded_as_ignored(mi_scalar, tmp_path):
+def test_attachments_are_recorded_as_ignored(mi_scalar, scalar_backend, tmp_path):
     scene = _scene()
+    plain = bf.render(scene, backend=scalar_backend, samples=1)
+    assert "ignored" not in plain.meta
     scene.attachments.append(Attachment("blend", str(tmp_path / "x.blend")))
     tr = MitsubaTranslator(resolve_settings(samples=1)).translate(scene)
-    assert tr.ignored == ["Attachment: attached .blend files are read by the Cycles backend only"]
+    why = "Attachment: attached .blend files are read by the Cycles backend only"
+    assert tr.ignored == [why]
     assert not any(k.startswith("attach") for k in tr.scene_dict)
+    r = bf.render(scene, backend=scalar_backend, samples=1)
+    assert r.meta["ignored"] == [why] and np.array_equal(r.rgba, plain.rgba)
 
 
 def test_the_translation_is_reused_only_while_nothing_changes():
