@@ -385,3 +385,35 @@ def test_equal_materials_with_uniform_colours_are_shared(cycles, bpy):
         _obj(bpy, "a0").material_slots[0].material.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value
         == 1.0
     )
+
+
+def test_render_translates_again_when_another_translation_ran_in_between(cycles):
+    """translate(a), translate(b), render(a) renders a (as when another thread translates in between)."""
+    a = testing.plane_scene("sun", resolution=(8, 8))
+    b = testing.pointcloud_scene(n=50, resolution=(8, 8))
+    settings = resolve_settings(samples=1)
+    ref = cycles.render(cycles.translate(a, settings), settings)
+    native_a = cycles.translate(a, settings)
+    assert not cycles._session.last_stats["new_scene"]
+    cycles.translate(b, settings)
+    r = cycles.render(native_a, settings)
+    assert r.meta["translation"]["new_scene"]  # a was built again
+    assert np.array_equal(r.rgba, ref.rgba)
+
+
+def test_lights_world_and_environment_changes_rebuild_only_them(cycles, bpy):
+    scene = testing.plane_scene("sun", resolution=(8, 8))
+    env = scene.lights.set_environment_map(np.full((8, 16, 3), 0.5, np.float32))
+    cycles.translate(scene, resolve_settings())
+    mapping = next(n for n in bpy.context.scene.world.node_tree.nodes if n.bl_idname == "ShaderNodeMapping")
+    assert tuple(mapping.inputs["Rotation"].default_value) == pytest.approx((0, 0, 0), abs=1e-6)
+    env.quaternion = (np.cos(0.25), 0.0, 0.0, np.sin(0.25))  # 0.5 rad about z
+    cycles.translate(scene, resolve_settings())
+    st = cycles._session.last_stats
+    assert (st["built"], st["lights_rebuilt"], st.get("world_rebuilt")) == (0, False, True)
+    mapping = next(n for n in bpy.context.scene.world.node_tree.nodes if n.bl_idname == "ShaderNodeMapping")
+    assert mapping.inputs["Rotation"].default_value[2] == pytest.approx(-0.5, abs=1e-5)
+    next(iter(scene.lights)).strength = 5.0
+    cycles.translate(scene, resolve_settings())
+    st = cycles._session.last_stats
+    assert (st["built"], st["lights_rebuilt"], st.get("world_rebuilt")) == (0, True, None)
