@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import abc
 import logging
+import os
 import time
 from importlib import metadata
 from typing import Any, ClassVar
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError, UnsupportedFeatureError
+from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
@@ -87,15 +89,19 @@ class Backend(abc.ABC):
 
     # -- work ---------------------------------------------------------------------------------------
     @abc.abstractmethod
-    def translate(self, scene: Any, settings: RenderSettings) -> Any:
-        """Build (or update) the engine's native scene from the IR."""
+    def translate(self, scene: Scene, settings: RenderSettings) -> Any:
+        """Build (or update) the engine's native scene from the IR (its type is the backend's own)."""
 
     @abc.abstractmethod
     def render(self, native: Any, settings: RenderSettings) -> RenderResult:
-        """Render a native scene built by :meth:`translate`."""
+        """Render a native scene built by :meth:`translate`. ``result.meta`` holds keys documented in
+        :class:`~blendify_core.pipeline.meta.RenderMeta`; timings under the common names of
+        :data:`~blendify_core.pipeline.meta.COMMON_TIMINGS` (``render``, ``read_back``) plus any finer
+        phases of the backend's own."""
 
-    def render_scene(self, scene: Any, settings: RenderSettings) -> RenderResult:
-        """Translate and render; records ``meta["timings"]`` (seconds) for both phases."""
+    def render_scene(self, scene: Scene, settings: RenderSettings) -> RenderResult:
+        """Translate and render; records ``meta["timings"]["translate"]`` and ``["render"]`` (seconds)
+        unless :meth:`render` reported them. A backend that overrides this reports them itself."""
         if self._closed:
             raise BackendUnavailableError(f"{self.name}: this backend instance was closed")
         t0 = time.perf_counter()
@@ -109,14 +115,14 @@ class Backend(abc.ABC):
         return result
 
     @classmethod
-    def export_file(cls, scene: Any, file_format: str, path: Any, **kwargs: Any) -> Any:
+    def export_file(cls, scene: Scene, file_format: str, path: str | os.PathLike[str], **kwargs: Any) -> object:
         """Write ``scene`` as a ``file_format`` file (only for formats in :attr:`file_formats`)."""
         raise UnsupportedFeatureError(
             f"backend {cls.name!r} cannot export .{file_format} files", feature=f"file.{file_format}", backend=cls.name
         )
 
     @classmethod
-    def attach_file(cls, scene: Any, file_format: str, path: Any, **kwargs: Any) -> Any:
+    def attach_file(cls, scene: Scene, file_format: str, path: str | os.PathLike[str], **kwargs: Any) -> object:
         """Import a ``file_format`` file into ``scene`` (only for formats in :attr:`file_formats`)."""
         raise UnsupportedFeatureError(
             f"backend {cls.name!r} cannot attach .{file_format} files", feature=f"file.{file_format}", backend=cls.name

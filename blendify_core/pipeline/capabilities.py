@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.cameras import PerspectiveCamera
 from blendify_core.ir.colors import FileTextureColors, TextureColors, VertexColors
 from blendify_core.ir.lights import AreaLight, PointLight, SpotLight, SunLight
 from blendify_core.ir.physics import material_lobes
@@ -28,6 +29,7 @@ from blendify_core.ir.renderables import (
     PointCloud,
     SphereNURBS,
 )
+from blendify_core.ir.scene import Scene
 
 __all__ = ["Capability", "ALL_FEATURES", "scene_features"]
 
@@ -98,7 +100,7 @@ class Capability:
             raise InvalidSceneError(f"Capability.level: expected exact/approximate/unsupported, got {self.level!r}")
 
 
-def scene_features(scene, outputs: tuple[str, ...] = ("rgb",)) -> dict[str, str]:  # type: ignore[no-untyped-def]
+def scene_features(scene: Scene, outputs: tuple[str, ...] = ("rgb",)) -> dict[str, str]:
     """The features a scene (and the requested outputs) use: feature name -> the first object using it."""
     used: dict[str, str] = {}
 
@@ -199,7 +201,7 @@ def scene_features(scene, outputs: tuple[str, ...] = ("rgb",)) -> dict[str, str]
     cam = scene.camera
     if cam is not None:
         add(f"camera.{cam.kind}", "camera")
-        if cam.kind == "perspective" and not np.isclose(cam.fx, cam.fy, rtol=1e-9):
+        if isinstance(cam, PerspectiveCamera) and not np.isclose(cam.fx, cam.fy, rtol=1e-9):
             add("camera.anisotropic", "camera")
     for o in outputs:
         add(f"output.{o}", "outputs")

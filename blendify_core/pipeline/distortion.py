@@ -7,13 +7,15 @@ import numpy as np
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.cameras import PerspectiveCamera
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.typing import AnyArray, Float64Array
 
 __all__ = ["undistort_points", "distort_points", "margin_camera", "remap_result"]
 
 MAX_GROWTH = 3.0
 
 
-def distort_points(xy: np.ndarray, d: np.ndarray) -> np.ndarray:
+def distort_points(xy: Float64Array, d: Float64Array) -> Float64Array:
     """Apply OpenCV distortion (k1, k2, p1, p2, k3) to normalised image coordinates (N, 2)."""
     k1, k2, p1, p2, k3 = d
     x, y = xy[:, 0], xy[:, 1]
@@ -24,7 +26,7 @@ def distort_points(xy: np.ndarray, d: np.ndarray) -> np.ndarray:
     return np.stack([xd, yd], axis=1)
 
 
-def undistort_points(xy_d: np.ndarray, d: np.ndarray, iterations: int = 30) -> np.ndarray:
+def undistort_points(xy_d: Float64Array, d: Float64Array, iterations: int = 30) -> Float64Array:
     """Invert :func:`distort_points` by fixed-point iteration (as OpenCV's undistortPoints)."""
     k1, k2, p1, p2, k3 = d
     x, y = xy_d[:, 0].copy(), xy_d[:, 1].copy()
@@ -39,13 +41,13 @@ def undistort_points(xy_d: np.ndarray, d: np.ndarray, iterations: int = 30) -> n
     return np.stack([x, y], axis=1)
 
 
-def _source_coords(cam: PerspectiveCamera) -> np.ndarray:
+def _source_coords(cam: PerspectiveCamera, d: Float64Array) -> Float64Array:
     """Undistorted normalised coordinates seen by every output pixel (H*W, 2)."""
     vv, uu = np.mgrid[0 : cam.height, 0 : cam.width]
     xy_d = np.stack([(uu.ravel() - cam.cx) / cam.fx, (vv.ravel() - cam.cy) / cam.fy], axis=1)
     with np.errstate(all="ignore"):
-        xy = undistort_points(xy_d, cam.distortion)  # type: ignore[arg-type]
-        back = distort_points(xy, cam.distortion)  # type: ignore[arg-type]
+        xy = undistort_points(xy_d, d)
+        back = distort_points(xy, d)
     # the fixed-point inversion diverges (NaN) or settles on a wrong point where the model folds over
     err_px = float(np.max(np.abs(back - xy_d)) * max(cam.fx, cam.fy)) if np.all(np.isfinite(back)) else np.inf
     if not err_px < 0.01:
@@ -56,10 +58,12 @@ def _source_coords(cam: PerspectiveCamera) -> np.ndarray:
     return xy
 
 
-def margin_camera(cam: PerspectiveCamera) -> tuple[PerspectiveCamera, np.ndarray]:
+def margin_camera(cam: PerspectiveCamera) -> tuple[PerspectiveCamera, Float64Array]:
     """A pinhole camera (same pose and focal lengths) whose image covers every ray of the distorted
     camera, and the (H*W, 2) pixel coordinates in it that each output pixel samples."""
-    xy = _source_coords(cam)
+    if cam.distortion is None:
+        raise InvalidSceneError("camera.distortion: margin_camera needs a camera with lens distortion")
+    xy = _source_coords(cam, cam.distortion)
     u = xy[:, 0] * cam.fx
     v = xy[:, 1] * cam.fy
     pad = 2.0
@@ -82,7 +86,7 @@ def margin_camera(cam: PerspectiveCamera) -> tuple[PerspectiveCamera, np.ndarray
     return render_cam, src
 
 
-def _bilinear(img: np.ndarray, src: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+def _bilinear(img: AnyArray, src: Float64Array, shape: tuple[int, int]) -> AnyArray:
     h, w = img.shape[:2]
     x = np.clip(src[:, 0], 0, w - 1)
     y = np.clip(src[:, 1], 0, h - 1)
@@ -92,7 +96,7 @@ def _bilinear(img: np.ndarray, src: np.ndarray, shape: tuple[int, int]) -> np.nd
     y1 = np.minimum(y0 + 1, h - 1)
     fx = (x - x0)[:, None] if img.ndim == 3 else (x - x0)
     fy = (y - y0)[:, None] if img.ndim == 3 else (y - y0)
-    out = (
+    out: AnyArray = (
         img[y0, x0] * (1 - fx) * (1 - fy)
         + img[y0, x1] * fx * (1 - fy)
         + img[y1, x0] * (1 - fx) * fy
@@ -101,14 +105,17 @@ def _bilinear(img: np.ndarray, src: np.ndarray, shape: tuple[int, int]) -> np.nd
     return out.reshape(shape + img.shape[2:]).astype(img.dtype)
 
 
-def _nearest(img: np.ndarray, src: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+def _nearest(img: AnyArray, src: Float64Array, shape: tuple[int, int]) -> AnyArray:
     h, w = img.shape[:2]
     x = np.clip(np.round(src[:, 0]).astype(int), 0, w - 1)
     y = np.clip(np.round(src[:, 1]).astype(int), 0, h - 1)
-    return img[y, x].reshape(shape + img.shape[2:])
+    picked: AnyArray = img[y, x]
+    return picked.reshape(shape + img.shape[2:])
 
 
-def remap_result(result, src: np.ndarray, out_cam: PerspectiveCamera, render_cam: PerspectiveCamera):  # type: ignore[no-untyped-def]
+def remap_result(
+    result: RenderResult, src: Float64Array, out_cam: PerspectiveCamera, render_cam: PerspectiveCamera
+) -> RenderResult:
     """Resample every output of a pinhole render into the distorted image (in place)."""
     shape = (out_cam.height, out_cam.width)
     if result.rgba is not None:

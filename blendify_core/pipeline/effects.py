@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 from blendify_core.ir.physics import material_lobes
 from blendify_core.ir.renderables import CircleMesh, CubeMesh, EllipsoidNURBS, PlaneMesh, PointCloud, SphereNURBS
+from blendify_core.ir.scene import Scene
 
 __all__ = ["Effects", "analyse_effects"]
 
@@ -37,7 +37,8 @@ class Effects:
     background: bool = True
     reasons: dict[str, str] = field(default_factory=dict, compare=False)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, bool | dict[str, str]]:
+        """Each effect's flag plus ``reasons`` (effect -> why), as recorded in ``meta["effects"]``."""
         return {**{f: getattr(self, f) for f in _FIELDS}, "reasons": dict(self.reasons)}
 
     @classmethod
@@ -45,7 +46,7 @@ class Effects:
         return cls(reasons={f: "full simulation requested" for f in _FIELDS})
 
 
-def analyse_effects(scene: Any) -> Effects:
+def analyse_effects(scene: Scene) -> Effects:
     """Analyse a scene: shadows, indirect diffuse, glossy, transmission, caustics, transparency, emission
     and background light, each with the reason."""
     r: dict[str, str] = {}
@@ -128,8 +129,8 @@ def analyse_effects(scene: Any) -> Effects:
     has_light = bool(lights) or background or emission
     caustics = pair is not None and has_light
     r["caustics"] = (
-        f"specular {pair[0]!r} can focus light onto {pair[1]!r}"  # type: ignore[index]
-        if caustics
+        f"specular {pair[0]!r} can focus light onto {pair[1]!r}"
+        if caustics and pair is not None
         else "no glossy or refractive surface between a light and a diffuse one (no sharp specular either)"
     )
     if not has_light and not catchers:  # a shadow catcher keeps its reason (and its compositing path)

@@ -14,27 +14,50 @@ the scene, so small camera moves keep it).
 from __future__ import annotations
 
 import copy
-from typing import Any
+import enum
+from collections.abc import Hashable
+from typing import Literal, TypeVar
 
 import numpy as np
 
 from blendify_core._memo import magnitude_memo
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.cameras import Camera
 from blendify_core.ir.lights import LightsCollection
 from blendify_core.ir.renderables import RenderablesCollection, _column_bounds
+from blendify_core.ir.scene import Scene
+from blendify_core.ir.transforms import Positionable
+from blendify_core.typing import Float64Array, FloatArray
 
-__all__ = ["needs_recentring", "recentred_view"]
+__all__ = ["needs_recentring", "recentred_view", "Bounds", "FAR_RATIO"]
 
 #: re-centre when coordinates exceed this many times the scene's size
 FAR_RATIO = 1e3
 
+#: world-space axis-aligned bounds (lo, hi) of a scene's renderables, as ``Scene.bounds()`` returns them
+Bounds = tuple[Float64Array, Float64Array]
 
-_BOUNDS_UNKNOWN: Any = object()
+_P = TypeVar("_P", bound=Positionable)
 
 
-def _scene_scale(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> tuple[float, float]:
+class _Unknown(enum.Enum):
+    BOUNDS = "not computed yet"
+
+
+_BOUNDS_UNKNOWN = _Unknown.BOUNDS
+_MaybeBounds = Bounds | None | Literal[_Unknown.BOUNDS]
+
+
+def _camera(scene: Scene) -> Camera:
+    if scene.camera is None:
+        raise InvalidSceneError("scene.camera: the scene has no camera")
+    return scene.camera
+
+
+def _scene_scale(scene: Scene, bounds: _MaybeBounds = _BOUNDS_UNKNOWN) -> tuple[float, float]:
     """(largest coordinate magnitude, scene size) from the camera position and the bounds
     (``bounds``: ``scene.bounds()`` when the caller has it already)."""
-    cam = scene.camera
+    cam = _camera(scene)
     magnitude = float(np.abs(cam.translation).max())
     if bounds is _BOUNDS_UNKNOWN:
         bounds = scene.bounds()
@@ -47,20 +70,23 @@ def _scene_scale(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> tuple[float, floa
     return magnitude, size
 
 
-def _magnitude_and_size(v: np.ndarray) -> tuple[float, float]:
+def _magnitude_and_size(v: FloatArray) -> tuple[float, float]:
     lo, hi = _column_bounds(v)
     return float(max(np.abs(lo).max(), np.abs(hi).max())), float(np.linalg.norm(hi - lo))
 
 
-def _vertex_magnitude(r: Any) -> tuple[float, float]:
+def _vertex_magnitude(r: Positionable) -> tuple[float, float]:
     for attr in ("_vertices", "keypoints"):
         v = getattr(r, attr, None)
         if v is not None and len(v):
-            return magnitude_memo(v, _magnitude_and_size)
+            magnitude, size = magnitude_memo(v, _magnitude_and_size)
+            return float(magnitude), float(size)
     return 0.0, 1.0
 
 
-def needs_recentring(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> bool:
+def needs_recentring(scene: Scene, bounds: _MaybeBounds = _BOUNDS_UNKNOWN) -> bool:
+    """True when the scene's coordinates are so large relative to its size that float32 engines would
+    lose precision (see :func:`recentred_view`)."""
     magnitude, size = _scene_scale(scene, bounds)
     if magnitude > FAR_RATIO * size:
         return True
@@ -71,19 +97,20 @@ def needs_recentring(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> bool:
     return False
 
 
-def _snap(x: np.ndarray, grid: float) -> np.ndarray:
-    return np.round(x / grid) * grid
+def _snap(x: Float64Array, grid: float) -> Float64Array:
+    snapped: Float64Array = np.round(x / grid) * grid
+    return snapped
 
 
 class _Revisions:
     """Revisions of a view object: the original's, tagged with the view's origin."""
 
-    def __init__(self, original: Any, key: Any, geometry_key: Any = None):
+    def __init__(self, original: Positionable, key: Hashable, geometry_key: Hashable = None) -> None:
         self._original = original
         self._key = key
         self._geometry_key = geometry_key
 
-    def __call__(self, kind: str) -> Any:
+    def __call__(self, kind: str) -> Hashable:
         base = self._original.revision(kind)
         if kind == "transform":
             return (base, self._key)
@@ -92,7 +119,7 @@ class _Revisions:
         return base
 
 
-def _shift_object(obj: Any, origin: np.ndarray, key: Any) -> Any:
+def _shift_object(obj: _P, origin: Float64Array, key: Hashable) -> _P:
     view = copy.copy(obj)
     geometry_key = None
     rot = obj.rotation_matrix
@@ -113,17 +140,18 @@ def _shift_object(obj: Any, origin: np.ndarray, key: Any) -> Any:
             geometry_key = ("shift", tuple(c.tolist()))
     view._translation = translation
     view._translation.flags.writeable = False
-    view.revision = _Revisions(obj, key, geometry_key)
+    view.__dict__["revision"] = _Revisions(obj, key, geometry_key)  # the instance's revision(kind)
     return view
 
 
-def recentred_view(scene: Any, bounds: Any = _BOUNDS_UNKNOWN) -> tuple[Any, np.ndarray]:
+def recentred_view(scene: Scene, bounds: _MaybeBounds = _BOUNDS_UNKNOWN) -> tuple[Scene, Float64Array]:
     """A view of ``scene`` translated by ``-origin`` (float64) and the origin used."""
     magnitude, size = _scene_scale(scene, bounds)
-    grid = 2.0 ** np.ceil(np.log2(max(size, 1e-300)))
-    origin = _snap(scene.camera.translation, grid)
+    grid = float(2.0 ** np.ceil(np.log2(max(size, 1e-300))))
+    cam = _camera(scene)
+    origin = _snap(cam.translation, grid)
     key = ("recentred", tuple(origin.tolist()))
-    view = scene.with_camera(_shift_object(scene.camera, origin, key))
+    view = scene.with_camera(_shift_object(cam, origin, key))
     renderables = RenderablesCollection()
     for r in scene.renderables:
         renderables._items[r.tag] = _shift_object(r, origin, key)

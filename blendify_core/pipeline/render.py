@@ -6,21 +6,26 @@ import dataclasses
 import logging
 import time
 import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
+from blendify_core.ir.cameras import Camera, OrthographicCamera, PerspectiveCamera
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import scene_features
 from blendify_core.pipeline.distortion import margin_camera, remap_result
-from blendify_core.pipeline.effects import analyse_effects
-from blendify_core.pipeline.recentre import _scene_scale, needs_recentring, recentred_view
+from blendify_core.pipeline.effects import Effects, analyse_effects
+from blendify_core.pipeline.meta import RenderMeta, Simulated, complete_timings
+from blendify_core.pipeline.recentre import Bounds, _scene_scale, needs_recentring, recentred_view
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings, resolve_settings
 from blendify_core.pipeline.translator import check_handlers
 from blendify_core.registry import available_backends, shared_backend
+from blendify_core.typing import Float64Array, FloatArray
 
 __all__ = ["render", "check_capabilities", "choose_backend"]
 
@@ -38,7 +43,7 @@ _SETTING_NAMES = {f.name for f in dataclasses.fields(RenderSettings)} - {"extra"
 def choose_backend(quality: str) -> tuple[str, list[str]]:
     """The best available backend for ``quality`` and the reasons the better ones were skipped."""
     status = available_backends()
-    skipped = []
+    skipped: list[str] = []
     order = list(_PREFERENCE.get(quality, _PREFERENCE["final"]))
     order += [n for n in sorted(status) if n not in order]
     for name in order:
@@ -51,12 +56,12 @@ def choose_backend(quality: str) -> tuple[str, list[str]]:
     raise BackendUnavailableError("no backend is available: " + "; ".join(skipped or ["none registered"]))
 
 
-def check_capabilities(backend: Backend, scene: Any, settings: RenderSettings) -> list[str]:
+def check_capabilities(backend: Backend, scene: Scene, settings: RenderSettings) -> list[str]:
     """Check the scene's features against the backend's capability table; return the approximations."""
     if backend.translator_class is not None:
         check_handlers(backend.translator_class, scene)
     caps = backend.capabilities()
-    approximations = []
+    approximations: list[str] = []
     for feature, where in scene_features(scene, settings.outputs).items():
         cap = caps.get(feature)
         if cap is None or cap.level == "unsupported":
@@ -79,26 +84,55 @@ def check_capabilities(backend: Backend, scene: Any, settings: RenderSettings) -
     return approximations
 
 
-_OUTPUT_FIELDS = {
+_OUTPUT_FIELDS: dict[str, tuple[str, tuple[int, ...], type[np.generic]]] = {
     "rgb": ("rgba", (4,), np.float32),
     "depth": ("depth", (), np.float32),
     "normal": ("normal", (3,), np.float32),
     "albedo": ("albedo", (3,), np.float32),
     "instance": ("instance", (), np.int32),
 }
+_ARRAYS = ("rgba", "depth", "normal", "albedo", "instance")
 
 
-def _padded_camera(cam: Any, width: int, height: int) -> Any:
+@dataclass(frozen=True)
+class _ViewPlan:
+    """What the backend renders and how its result becomes the requested picture."""
+
+    #: the camera the result is for (``resolution_percentage`` applied)
+    out_cam: Camera
+    #: the camera the backend renders (a distortion margin, padding up to the engine's minimum size)
+    render_cam: Camera
+    #: the scene handed to the backend (``render_cam``; re-centred when far from the origin)
+    view: Scene
+    #: where each output pixel samples the undistorted render (distorted cameras only)
+    src: Float64Array | None
+    #: (height, width) to crop a padded render to
+    crop: tuple[int, int] | None
+    #: the world origin of a re-centred view
+    origin: Float64Array | None
+
+
+@dataclass(frozen=True)
+class _Preflight:
+    """What bf.render learnt before calling the backend (recorded in ``meta``)."""
+
+    approximations: list[str]
+    effects: Effects
+    fallback_notes: list[str]
+    #: warnings already issued that also go to ``meta["warnings"]``
+    warnings: list[str] = field(default_factory=list)
+
+
+def _padded_camera(cam: Camera, width: int, height: int) -> Camera:
     """A copy of ``cam`` with a larger image whose extra pixels extend right and down (same intrinsics)."""
     padded = cam.copy()
-    pixel = getattr(cam, "pixel_size", None)
     padded._resolution = (width, height)
-    if pixel is not None:
-        padded._ortho_scale = pixel * width  # same pixel size over the wider image
+    if isinstance(cam, OrthographicCamera) and isinstance(padded, OrthographicCamera):
+        padded._ortho_scale = cam.pixel_size * width  # same pixel size over the wider image
     return padded
 
 
-def _check_outputs(result: Any, settings: RenderSettings, cam: Any, backend_name: str) -> None:
+def _check_outputs(result: object, settings: RenderSettings, cam: Camera, backend_name: str) -> RenderResult:
     """Hold a backend to the RenderResult contract: every requested output present with the camera's
     shape (cast to the canonical dtype), every other output None."""
     if not isinstance(result, RenderResult):
@@ -118,15 +152,16 @@ def _check_outputs(result: Any, settings: RenderSettings, cam: Any, backend_name
                 f"expected {shape + channels}"
             )
         setattr(result, attr, data if data.dtype == dtype else data.astype(dtype))
+    return result
 
 
 def render(
-    scene: Any,
+    scene: Scene,
     backend: str | Backend | None = None,
     quality: str = "final",
     samples: int | None = None,
     seed: int = 0,
-    outputs: Any = ("rgb",),
+    outputs: str | Sequence[str] = ("rgb",),
     threads: int | None = None,
     strict: bool = False,
     **kwargs: Any,
@@ -138,6 +173,7 @@ def render(
     next available backend with a logged reason. Keyword arguments that name a :class:`RenderSettings`
     field (``denoise``, ``max_bounces``, ``time_limit``, ``target_error``, ``pixel_filter``, ...) override
     the quality preset; all others are backend options (e.g. ``platform="egl"``, ``variant="scalar_rgb"``).
+    ``result.meta`` holds the keys documented in :class:`~blendify_core.pipeline.meta.RenderMeta`.
     """
     t_start = time.perf_counter()
     if not isinstance(scene, Scene):
@@ -152,25 +188,54 @@ def render(
             "scene.camera: the scene has no camera; call scene.set_perspective_camera(...) "
             "or scene.set_orthographic_camera(...) first"
         )
-    fallback_notes: list[str] = []
+    inst, fallback_notes = _backend_instance(backend, settings.quality, options)
+    bounds = scene.bounds()  # once per render: the clip, precision and re-centring checks share it
+    preflight = _preflight(scene, inst, settings, bounds, fallback_notes)
+    plan = _plan_view(scene, scene.camera, inst, bounds)
+    precision_warning = _precision_check(scene, bounds)
+    if precision_warning:
+        warnings.warn(precision_warning, stacklevel=2)
+        preflight.warnings.append(precision_warning)
+
+    t_call = time.perf_counter()
+    result = _call_backend(inst, plan.view, settings)
+    _finish_outputs(result, settings, plan, inst.name)
+    _record_meta(result, scene, inst, settings, preflight, plan)
+    complete_timings(result.meta.setdefault("timings", {}), time.perf_counter() - t_call)
+    result.meta["timings"]["total"] = time.perf_counter() - t_start
+    return result
+
+
+def _backend_instance(
+    backend: str | Backend | None, quality: str, options: dict[str, Any]
+) -> tuple[Backend, list[str]]:
+    """The backend instance to render with, and the reasons better backends were skipped (``backend=None``)."""
     if isinstance(backend, Backend):
-        inst = backend
         if options:
             raise InvalidSceneError(
                 f"render: backend options {sorted(options)} cannot be applied to an existing "
                 "backend instance; pass them when creating it"
             )
+        return backend, []
+    fallback_notes: list[str] = []
+    if backend is None:
+        name, fallback_notes = choose_backend(quality)
+        for note in fallback_notes:
+            log.info("blendify: skipped backend %s", note)
+    elif isinstance(backend, str):
+        name = backend
     else:
-        if backend is None:
-            name, fallback_notes = choose_backend(settings.quality)
-            for note in fallback_notes:
-                log.info("blendify: skipped backend %s", note)
-        elif isinstance(backend, str):
-            name = backend
-        else:
-            raise InvalidSceneError(f"backend: expected a backend name or instance, got {type(backend).__name__}")
-        inst = shared_backend(name, **options)
+        raise InvalidSceneError(f"backend: expected a backend name or instance, got {type(backend).__name__}")
+    inst = shared_backend(name, **options)
+    if not isinstance(inst, Backend):
+        raise BackendUnavailableError(f"backend {name!r}: the registry returned {type(inst).__name__}, not a Backend")
+    return inst, fallback_notes
 
+
+def _preflight(
+    scene: Scene, inst: Backend, settings: RenderSettings, bounds: Bounds | None, fallback_notes: list[str]
+) -> _Preflight:
+    """Warn about a black or empty picture, check the backend can render the scene, analyse its effects."""
     if (
         "rgb" in settings.outputs
         and not len(scene.lights)
@@ -179,22 +244,27 @@ def render(
         and not any(m.is_emissive for r in scene.renderables for m in r.materials)
     ):
         warnings.warn(
-            "scene has no lights, no background and no emissive material: the colour image will be black", stacklevel=2
+            "scene has no lights, no background and no emissive material: the colour image will be black", stacklevel=3
         )
-    bounds = scene.bounds()  # once per render: the clip, precision and re-centring checks share it
+    recorded = []
     clip_warning = _clip_check(scene, bounds)
     if clip_warning:
-        warnings.warn(clip_warning, stacklevel=2)
+        warnings.warn(clip_warning, stacklevel=3)
+        recorded.append(clip_warning)
     approximations = check_capabilities(inst, scene, settings)
-    effects = analyse_effects(scene)
+    return _Preflight(approximations, analyse_effects(scene), fallback_notes, recorded)
 
-    cam = scene.camera
+
+def _plan_view(scene: Scene, cam: Camera, inst: Backend, bounds: Bounds | None) -> _ViewPlan:
+    """The camera and scene view the backend renders: resolution percentage, a margin for lens
+    distortion, padding to the engine's minimum image size, re-centring of far scenes."""
     out_cam = cam._scaled(cam.resolution_percentage / 100.0) if cam.resolution_percentage != 100 else cam
-    render_cam, src = out_cam, None
-    if getattr(out_cam, "distortion", None) is not None:
-        render_cam, src = margin_camera(out_cam)  # type: ignore[arg-type]
+    render_cam: Camera = out_cam
+    src = None
+    if isinstance(out_cam, PerspectiveCamera) and out_cam.distortion is not None:
+        render_cam, src = margin_camera(out_cam)
     crop = None
-    min_w, min_h = getattr(inst, "min_resolution", (1, 1))
+    min_w, min_h = inst.min_resolution
     if render_cam.width < min_w or render_cam.height < min_h:
         # engines with a minimum image size render a larger image with the same pixels at the top left
         crop = (render_cam.height, render_cam.width)
@@ -203,58 +273,68 @@ def render(
     origin = None
     if needs_recentring(view, bounds):
         view, origin = recentred_view(view, bounds)
-    precision_warning = _precision_check(scene, bounds)
-    if precision_warning:
-        warnings.warn(precision_warning, stacklevel=2)
+    return _ViewPlan(out_cam, render_cam, view, src, crop, origin)
 
-    t_call = time.perf_counter()
-    if settings.target_error is not None and getattr(inst, "path_tracer", False):
-        result = render_to_target(inst, view, settings)
-    else:
-        result = inst.render_scene(view, settings)
-        if settings.target_error is not None:
-            result.meta.setdefault("warnings", []).append(
-                f"target_error: backend {inst.name!r} is not a path tracer; rendered once (its error is bias, "
-                "not noise)"
-            )
-    _check_outputs(result, settings, render_cam, inst.name)
-    if crop is not None:
-        for attr in ("rgba", "depth", "normal", "albedo", "instance"):
+
+def _call_backend(inst: Backend, view: Scene, settings: RenderSettings) -> RenderResult:
+    """One render of ``view``, or independent passes until ``target_error`` for a path tracer."""
+    if settings.target_error is not None and inst.path_tracer:
+        return render_to_target(inst, view, settings)
+    result = inst.render_scene(view, settings)
+    if settings.target_error is not None and isinstance(result, RenderResult):
+        result.meta.setdefault("warnings", []).append(
+            f"target_error: backend {inst.name!r} is not a path tracer; rendered once (its error is bias, not noise)"
+        )
+    return result
+
+
+def _finish_outputs(result: RenderResult, settings: RenderSettings, plan: _ViewPlan, backend_name: str) -> None:
+    """Check the backend's outputs, crop a padded render, remap a distorted camera's outputs."""
+    _check_outputs(result, settings, plan.render_cam, backend_name)
+    if plan.crop is not None:
+        height, width = plan.crop
+        for attr in _ARRAYS:
             data = getattr(result, attr)
             if data is not None:
-                setattr(result, attr, np.ascontiguousarray(data[: crop[0], : crop[1]]))
-
-    if src is not None:
+                setattr(result, attr, np.ascontiguousarray(data[:height, :width]))
+    # a distorted camera is perspective, and so is its margin camera (padded or not)
+    if (
+        plan.src is not None
+        and isinstance(plan.out_cam, PerspectiveCamera)
+        and isinstance(plan.render_cam, PerspectiveCamera)
+    ):
         t0 = time.perf_counter()
-        remap_result(result, src, out_cam, render_cam)  # type: ignore[arg-type]
+        remap_result(result, plan.src, plan.out_cam, plan.render_cam)
         result.meta.setdefault("timings", {})["distortion"] = time.perf_counter() - t0
+
+
+def _record_meta(
+    result: RenderResult, scene: Scene, inst: Backend, settings: RenderSettings, pre: _Preflight, plan: _ViewPlan
+) -> None:
+    """The core's keys of ``result.meta`` (see :class:`RenderMeta`); a backend's own values are kept
+    where it set them (``backend``, ``engine_version``, ``effects``, ``samples``)."""
     meta = result.meta
     meta.setdefault("backend", inst.name)
     meta.setdefault("engine_version", inst.engine_version())
     meta["settings"] = settings.to_dict()
-    meta.setdefault("effects", effects.to_dict())
-    meta["simulated"] = _simulated(settings, effects)
-    meta["approximations"] = sorted(set(approximations) | set(meta.get("approximations", [])))
-    if fallback_notes:
-        meta["backend_fallback"] = fallback_notes
+    meta.setdefault("effects", pre.effects.to_dict())
+    meta["simulated"] = _simulated(settings, pre.effects)
+    meta["approximations"] = sorted(set(pre.approximations) | set(meta.get("approximations", [])))
+    if pre.fallback_notes:
+        meta["backend_fallback"] = pre.fallback_notes
     meta.setdefault("samples", settings.samples)
-    if origin is not None:
-        meta["recentred_origin"] = origin.tolist()
-    if clip_warning:
-        meta.setdefault("warnings", []).append(clip_warning)
-    if precision_warning:
-        meta.setdefault("warnings", []).append(precision_warning)
+    if plan.origin is not None:
+        meta["recentred_origin"] = [float(x) for x in plan.origin]
+    if pre.warnings:
+        meta.setdefault("warnings", []).extend(pre.warnings)
     meta["scene_fingerprint"] = scene.fingerprint()
     if not result.instance_tags:
         result.instance_tags = [r.tag for r in scene.renderables]
     meta["path_tracer"] = bool(inst.path_tracer)
     _error_meta(meta, settings, meta["path_tracer"])
-    _normalise_timings(meta.setdefault("timings", {}), time.perf_counter() - t_call)
-    meta["timings"]["total"] = time.perf_counter() - t_start
-    return result
 
 
-def _simulated(settings: RenderSettings, effects: Any) -> dict[str, Any]:
+def _simulated(settings: RenderSettings, effects: Effects) -> Simulated:
     """What light transport was simulated and why (``meta["simulated"]``)."""
     if "rgb" not in settings.outputs:
         return {"lighting": False, "why": "only geometric outputs requested: no lighting needed"}
@@ -264,7 +344,7 @@ def _simulated(settings: RenderSettings, effects: Any) -> dict[str, Any]:
     return {"lighting": True, "effects": on, "why": "effects=True: only what analyse_effects found is simulated"}
 
 
-def _error_meta(meta: dict[str, Any], settings: RenderSettings, path_tracer: bool) -> None:
+def _error_meta(meta: RenderMeta, settings: RenderSettings, path_tracer: bool) -> None:
     """Every result says whether its error was estimated (``estimated_error`` is None when not)."""
     if meta.get("estimated_error") is not None:
         return
@@ -278,31 +358,10 @@ def _error_meta(meta: dict[str, Any], settings: RenderSettings, path_tracer: boo
     meta["estimated_error_kind"] = why
 
 
-# backend-specific phase names folded into the common keys translate / render / read_back
-_TRANSLATE_KEYS = ("translate", "sync")
-_RENDER_KEYS = ("gbuffer", "color", "shadow_catcher", "render_rgb", "ray_cast", "cycles", "passes_setup")
-_READ_BACK_KEYS = ("read_back", "read_outputs")
-
-
-def _normalise_timings(t: dict[str, Any], call: float) -> None:
-    """Make ``meta["timings"]`` always carry ``translate`` and ``render`` (seconds; ``total`` is added by
-    the caller), plus ``read_back`` when the backend measures it separately (Cycles' EXR read; the others
-    read back inside their render phase). The backend's own finer keys are kept."""
-    if "translate" not in t:
-        t["translate"] = next((float(t[k]) for k in _TRANSLATE_KEYS if k in t), 0.0)
-    if "render" not in t:
-        parts = [float(t[k]) for k in _RENDER_KEYS if k in t]
-        t["render"] = sum(parts) if parts else max(0.0, call - float(t["translate"]))
-    if "read_back" not in t:
-        read_back = next((float(t[k]) for k in _READ_BACK_KEYS if k in t), None)
-        if read_back is not None:
-            t["read_back"] = read_back
-
-
-def _clip_check(scene: Any, bounds: Any) -> str | None:
+def _clip_check(scene: Scene, bounds: Bounds | None) -> str | None:
     """A warning when the scene's geometry (``bounds``) lies entirely outside the camera's [near, far]."""
     cam = scene.camera
-    if bounds is None:
+    if cam is None or bounds is None:
         return None
     lo, hi = bounds
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
@@ -320,7 +379,7 @@ def _clip_check(scene: Any, bounds: Any) -> str | None:
     return None
 
 
-def relative_error_estimate(passes: np.ndarray, samples: np.ndarray | None = None) -> float:
+def relative_error_estimate(passes: FloatArray, samples: FloatArray | None = None) -> float:
     """Estimated relative RMS error of the sample-weighted mean of independent passes (K, H, W, C), K >= 2.
 
     With ``samples`` n_i per pass (default: equal), the per pixel-channel variance of one sample is
@@ -341,7 +400,7 @@ MAX_PASSES = 24
 MAX_SAMPLES = 1 << 16
 
 
-def render_to_target(inst: Backend, scene: Any, settings: RenderSettings) -> RenderResult:
+def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> RenderResult:
     """Render independent passes (different seeds) until the estimated relative RMS error of their
     sample-weighted mean is <= ``settings.target_error``, the ``time_limit`` is reached, or the pass or
     sample cap is hit.
@@ -350,7 +409,9 @@ def render_to_target(inst: Backend, scene: Any, settings: RenderSettings) -> Ren
     (error falls as 1/sqrt(samples)). Geometric outputs come from the first pass. ``meta`` records the
     estimate, the passes, the total samples and whether the target was reached."""
     t0 = time.perf_counter()
-    target = float(settings.target_error)  # type: ignore[arg-type]
+    if settings.target_error is None:
+        raise InvalidSceneError("target_error: render_to_target needs settings.target_error (a positive number)")
+    target = float(settings.target_error)
     base = settings.samples
     pass_settings = settings.replace(target_error=None, time_limit=None, denoise=False)
     first = inst.render_scene(scene, pass_settings)
@@ -374,8 +435,10 @@ def render_to_target(inst: Backend, scene: Any, settings: RenderSettings) -> Ren
             n = base
         seed = (settings.seed + 7919 * len(colours)) % (2**31 - 1)
         r = inst.render_scene(scene, pass_settings.replace(seed=seed, samples=max(1, n)))
-        colours.append(r.rgba[..., :3].astype(np.float64))  # type: ignore[index]
-        alphas.append(r.rgba[..., 3:4].astype(np.float64))  # type: ignore[index]
+        if r.rgba is None:
+            raise RenderError(f"backend {inst.name!r} returned no 'rgb' output for pass {len(colours) + 1}")
+        colours.append(r.rgba[..., :3].astype(np.float64))
+        alphas.append(r.rgba[..., 3:4].astype(np.float64))
         counts.append(max(1, n))
     n_arr = np.array(counts, dtype=np.float64)
     w = (n_arr / n_arr.sum()).reshape(-1, 1, 1, 1)
@@ -401,7 +464,7 @@ def render_to_target(inst: Backend, scene: Any, settings: RenderSettings) -> Ren
 PRECISION_RATIO = 1e12
 
 
-def _precision_check(scene: Any, bounds: Any) -> str | None:
+def _precision_check(scene: Scene, bounds: Bounds | None) -> str | None:
     """A warning when coordinates are so large relative to the scene's size that float64 itself loses it."""
     if bounds is None:
         return None

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -14,11 +14,15 @@ from blendify_core.errors import InvalidSceneError
 from blendify_core.io.output import atomic_write
 from blendify_core.io.paths import as_path
 from blendify_core.ir.colorspace import linear_to_srgb
+from blendify_core.pipeline.meta import RenderMeta
+from blendify_core.typing import AnyArray, BoolArray, Float32Array, Int32Array, UInt8Array
 
 __all__ = ["RenderResult"]
 
 
-def _jsonable(value: Any) -> Any:
+def _jsonable(value: object) -> object:
+    """``value`` with numpy values as Python ones, non-finite floats as strings and unknown objects as
+    their repr: something ``json.dumps`` writes."""
     if isinstance(value, dict):
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -43,27 +47,29 @@ class RenderResult:
     - ``normal``: (H, W, 3) float32 world-space unit normals, 0 where nothing was hit
     - ``albedo``: (H, W, 3) float32 linear base colour of the visible material, 0 where nothing was hit
     - ``instance``: (H, W) int32 index into ``instance_tags``, -1 for background
-    - ``meta``: backend, engine version, settings, effects, approximations, timings, samples, ...
+    - ``meta``: backend, engine version, settings, effects, approximations, timings, samples, ...: the
+      keys documented in :class:`~blendify_core.pipeline.meta.RenderMeta` (a plain dict at run time)
     """
 
-    rgba: np.ndarray | None = None
-    depth: np.ndarray | None = None
-    normal: np.ndarray | None = None
-    albedo: np.ndarray | None = None
-    instance: np.ndarray | None = None
+    rgba: Float32Array | None = None
+    depth: Float32Array | None = None
+    normal: Float32Array | None = None
+    albedo: Float32Array | None = None
+    instance: Int32Array | None = None
     instance_tags: list[str] = field(default_factory=list)
-    meta: dict[str, Any] = field(default_factory=dict)
+    meta: RenderMeta = field(default_factory=lambda: RenderMeta())
 
     # -- derived ---------------------------------------------------------------------------------
     @property
     def resolution(self) -> tuple[int, int] | None:
+        a: AnyArray | None
         for a in (self.rgba, self.depth, self.normal, self.albedo, self.instance):
             if a is not None:
                 return (a.shape[1], a.shape[0])
         return None
 
     @property
-    def mask(self) -> np.ndarray | None:
+    def mask(self) -> BoolArray | None:
         """(H, W) bool: where a surface was hit (from depth or instance when present, else alpha > 0)."""
         if self.depth is not None:
             return np.isfinite(self.depth)
@@ -74,19 +80,20 @@ class RenderResult:
         return None
 
     @property
-    def rgb(self) -> np.ndarray | None:
+    def rgb(self) -> Float32Array | None:
         """(H, W, 3) premultiplied linear colour (over black)."""
         return None if self.rgba is None else self.rgba[..., :3]
 
-    def straight_rgba(self) -> np.ndarray:
+    def straight_rgba(self) -> Float32Array:
         """(H, W, 4) float32 linear colour with straight (un-premultiplied) alpha."""
         if self.rgba is None:
             raise InvalidSceneError("outputs: this result has no 'rgb' output")
         a = self.rgba[..., 3:4]
-        rgb = np.divide(self.rgba[..., :3], a, out=np.zeros_like(self.rgba[..., :3]), where=a > 0)
-        return np.concatenate([rgb, a], axis=-1).astype(np.float32)
+        rgb: Float32Array = np.divide(self.rgba[..., :3], a, out=np.zeros_like(self.rgba[..., :3]), where=a > 0)
+        out: Float32Array = np.concatenate([rgb, a], axis=-1).astype(np.float32)
+        return out
 
-    def to_srgb8(self) -> np.ndarray:
+    def to_srgb8(self) -> UInt8Array:
         """(H, W, 4) uint8: sRGB-encoded ("Standard" view transform) colour with straight alpha."""
         # a NaN/inf pixel (an engine's firefly) must not turn into an undefined byte or a cast warning
         s = np.nan_to_num(self.straight_rgba(), nan=0.0, posinf=1.0, neginf=0.0)
@@ -95,9 +102,10 @@ class RenderResult:
         out[..., 3] = np.round(np.clip(s[..., 3], 0, 1) * 255.0)
         return out
 
-    def provenance(self) -> dict[str, Any]:
+    def provenance(self) -> dict[str, object]:
         keys = ("backend", "engine_version", "scene_fingerprint", "settings", "samples", "variant")
-        return {k: self.meta[k] for k in keys if k in self.meta}
+        meta: Mapping[str, object] = self.meta
+        return {k: meta[k] for k in keys if k in meta}
 
     # -- saving ----------------------------------------------------------------------------------
     def save(self, path: str | os.PathLike[str], output: str = "rgb") -> Path:
@@ -156,9 +164,11 @@ class RenderResult:
 
         return atomic_write(p, write_exr)
 
-    def _output_image(self, output: str, suffix: str) -> np.ndarray:
+    def _output_image(self, output: str, suffix: str) -> AnyArray:
         name = "rgba" if output in ("rgb", "rgba") else output
-        data = getattr(self, name, None) if name in ("rgba", "depth", "normal", "albedo", "instance") else None
+        data: AnyArray | None = (
+            getattr(self, name, None) if name in ("rgba", "depth", "normal", "albedo", "instance") else None
+        )
         if data is None:
             raise InvalidSceneError(
                 f"output: this result has no {output!r} output (it has "
@@ -168,10 +178,13 @@ class RenderResult:
             return data.astype(np.float32) if name != "instance" else data.astype(np.float32)
         if name == "rgba":
             return self.to_srgb8()
+        encoded: UInt8Array
         if name == "albedo":
-            return np.round(linear_to_srgb(data) * 255).astype(np.uint8)
+            encoded = np.round(linear_to_srgb(data) * 255).astype(np.uint8)
+            return encoded
         if name == "normal":
-            return np.round(np.clip(data * 0.5 + 0.5, 0, 1) * 255).astype(np.uint8)
+            encoded = np.round(np.clip(data * 0.5 + 0.5, 0, 1) * 255).astype(np.uint8)
+            return encoded
         if name == "depth":
             return depth_to_image(data)
         return instance_to_image(data)
@@ -192,7 +205,7 @@ class RenderResult:
         return f"RenderResult({self.resolution}, outputs={have}, backend={self.meta.get('backend')!r})"
 
 
-def depth_to_image(depth: np.ndarray) -> np.ndarray:
+def depth_to_image(depth: Float32Array) -> UInt8Array:
     """8-bit visualisation of a depth map: near = bright, background = black."""
     finite = np.isfinite(depth)
     out = np.zeros(depth.shape, dtype=np.uint8)
@@ -203,7 +216,7 @@ def depth_to_image(depth: np.ndarray) -> np.ndarray:
     return out
 
 
-def instance_to_image(instance: np.ndarray) -> np.ndarray:
+def instance_to_image(instance: Int32Array) -> UInt8Array:
     """RGB visualisation of an instance map (a fixed colour per id, black background)."""
     rng = np.random.default_rng(12345)
     n = int(instance.max()) + 1 if instance.size else 0

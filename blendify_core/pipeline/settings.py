@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypedDict
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.validate import as_bool, as_choice, as_float, as_int
@@ -14,12 +15,19 @@ __all__ = ["RenderSettings", "QUALITIES", "OUTPUTS", "resolve_settings"]
 QUALITIES = ("preview", "draft", "final")
 OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
 
+
 # Presets are backend-independent. A path tracer asked for a preview renders few samples, denoised.
 # "final" = unbiased path tracing (no denoiser, no clamp, no adaptive stop) at a fixed 256 samples per pixel:
 # its accuracy is stated by measurement (benchmarks/results/accuracy_vs_time.md: relative MSE against a
 # converged reference), not estimated per render; pass ``target_error=`` for a per-render estimate and a
 # guaranteed bound (independent passes until the estimated relative RMS error is below it).
-_PRESETS: dict[str, dict[str, Any]] = {
+class _Preset(TypedDict):
+    samples: int
+    denoise: bool
+    max_bounces: int
+
+
+_PRESETS: dict[str, _Preset] = {
     "preview": {"samples": 8, "denoise": True, "max_bounces": 4},
     "draft": {"samples": 32, "denoise": True, "max_bounces": 8},
     "final": {"samples": 256, "denoise": False, "max_bounces": 12},
@@ -52,7 +60,7 @@ class RenderSettings:
     transparent_background: bool = True
     effects: bool = True
     strict: bool = False
-    extra: dict[str, Any] = field(default_factory=dict, compare=False)
+    extra: dict[str, object] = field(default_factory=dict, compare=False)
 
     def replace(self, **changes: Any) -> RenderSettings:
         return dataclasses.replace(self, **changes)
@@ -66,7 +74,7 @@ class RenderSettings:
         return output in self.outputs
 
 
-def _outputs(value: Any) -> tuple[str, ...]:
+def _outputs(value: object) -> tuple[str, ...]:
     if isinstance(value, str):
         value = (value,)
     if not isinstance(value, (tuple, list)) or not value:
@@ -86,7 +94,7 @@ def resolve_settings(
     samples: int | None = None,
     seed: int = 0,
     threads: int | None = None,
-    outputs: Any = ("rgb",),
+    outputs: str | Sequence[str] = ("rgb",),
     denoise: bool | None = None,
     max_bounces: int | None = None,
     time_limit: float | None = None,
