@@ -221,7 +221,11 @@ def pool_main(conn: Any) -> None:
             if payload is None:
                 break
             index = payload.get("index")
-            info = run_job(payload, on_start=lambda index=index: conn.send(("start", index)))
+
+            def started(index: object = index) -> None:
+                conn.send(("start", index))
+
+            info = run_job(payload, on_start=started)
             try:
                 conn.send(("result", index, info))
             except (BrokenPipeError, OSError):

@@ -19,7 +19,8 @@ from batch_fake_backend import FAKE, TARGET, expected_red, tiny_scene
 from PIL import Image
 
 import blendify_core as bf
-from blendify_core.batch.run import MANIFEST_NAME, _Manifest, read_jobs
+from blendify_core.batch.jobs import read_jobs
+from blendify_core.batch.manifest import MANIFEST_NAME, Manifest
 from blendify_core.errors import BlendifyError, InvalidSceneError
 from blendify_core.registry import register_backend, unregister_backend
 
@@ -340,15 +341,15 @@ def test_json_manifest_and_no_manifest(tmp_path):
 def test_manifest_is_locked_and_survives_a_torn_line(tmp_path):
     path = tmp_path / "m.jsonl"
     path.write_text('{"key": "a", "status": "done", "files": []}\n{"key": "b", "sta')  # killed mid-write
-    m = _Manifest(path)
+    m = Manifest(path)
     try:
         assert set(m.records) == {"a"}
         with pytest.raises(BlendifyError, match="in use by another render_many"):
-            _Manifest(path)
+            Manifest(path)
         m.add({"key": "c", "status": "failed"})
     finally:
         m.close()
-    m2 = _Manifest(path)
+    m2 = Manifest(path)
     assert set(m2.records) == {"a", "c"}
     m2.close()
 

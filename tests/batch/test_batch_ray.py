@@ -12,7 +12,7 @@ import pytest
 from batch_fake_backend import FAKE, TARGET, tiny_scene
 
 import blendify_core as bf
-from blendify_core.batch.run import MANIFEST_NAME
+from blendify_core.batch.manifest import MANIFEST_NAME
 from blendify_core.registry import register_backend, unregister_backend
 
 # workers must use this interpreter, not `uv run` in a packaged copy of the checkout
