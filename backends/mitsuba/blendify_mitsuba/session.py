@@ -9,8 +9,10 @@ the previous variant (another backend's or the user's own) is restored afterward
 The last translation is kept and reused when nothing changed since it was made: the scene, as reported by
 the core's change detection (:class:`blendify_core.pipeline.changes.ChangeTracker`), and the settings the
 translation depends on (samples, pixel filter, bounces, effects, transparency, variant). A new seed, for
-example, renders the loaded scene again (``meta["translate_cached"]``); any change to the scene
-translates it again as a whole.
+example, renders the loaded scene again (``meta["translate_cached"]``). When only the camera changed, its
+sensor is translated again and the loaded scene is kept if the sensor is the same (``bf.render`` hands the
+backend a copy of the camera for resolution percentages, lens distortion and re-centred scenes); any other
+change translates the whole scene again.
 """
 
 from __future__ import annotations
@@ -22,13 +24,15 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.changes import ChangeTracker
 from blendify_core.pipeline.settings import RenderSettings
 
 from .aniso import SquarePixelPlan
-from .translate import MitsubaTranslator, ShapeInfo
+from .translate import MitsubaContext, MitsubaTranslator, ShapeInfo
 from .variant import VariantChoice, before_engine_import, choose_variant, quiet_engine_import
 
 __all__ = ["DEFAULT_MAX_ANALYTIC_SPHERES", "MitsubaNative", "MitsubaSession"]
@@ -129,7 +133,8 @@ class MitsubaSession:
     # -- translation ------------------------------------------------------------------------------------
     def translate(self, scene: Any, settings: RenderSettings) -> MitsubaNative:
         """The native scene of ``scene``: the previous one when neither the scene (core change detection)
-        nor the translation settings changed, else a new translation."""
+        nor the translation settings changed, or only the camera changed but not its sensor; else a new
+        translation."""
         if not isinstance(scene, Scene):
             raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
         if scene.camera is None:
@@ -143,21 +148,34 @@ class MitsubaSession:
             self.variant,
         )
         changes = self._tracker.update(scene)
-        if self._native is not None and key == self._key and not changes.any:
-            self._native.translate_cached = True
-            return self._native
-        self._native = self._key = None
+        cached, self._native = self._native, None
         try:
+            if cached is not None and key == self._key:
+                if not changes.any or (changes.geometry_only_camera and self._same_sensor(cached, scene, settings)):
+                    cached.camera = scene.camera
+                    cached.translate_cached = True
+                    self._native = cached
+                    return cached
             native = self._load(scene, settings)
         except BaseException:
+            self._key = None
             self._tracker.reset()  # the recorded state was never translated
             raise
         self._native, self._key = native, key
         return native
 
+    def _translator(self, settings: RenderSettings) -> MitsubaTranslator:
+        return MitsubaTranslator(settings, max_analytic_spheres=self.max_analytic_spheres, sampler=self.sampler)
+
+    def _same_sensor(self, native: MitsubaNative, scene: Scene, settings: RenderSettings) -> bool:
+        """Whether the camera of ``scene`` translates to the sensor ``native`` was loaded with."""
+        with self.engine():
+            sensor = self._translator(settings).sensor(MitsubaContext(scene=scene))
+        return _same_value(sensor, native.scene_dict["sensor"])
+
     def _load(self, scene: Scene, settings: RenderSettings) -> MitsubaNative:
         """Translate ``scene`` and load its dictionaries (errors of the engine become RenderError)."""
-        translator = MitsubaTranslator(settings, max_analytic_spheres=self.max_analytic_spheres, sampler=self.sampler)
+        translator = self._translator(settings)
         with self.engine() as mi:
             try:
                 tr = translator.translate(scene)
@@ -198,3 +216,14 @@ class MitsubaSession:
         """Drop the cached translation."""
         self._native = self._key = None
         self._tracker.reset()
+
+
+def _same_value(a: Any, b: Any) -> bool:
+    """Equality of two sensor dictionaries (nested dictionaries, numbers, strings and Mitsuba transforms)."""
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_same_value(a[k], b[k]) for k in a)
+    if type(a) is not type(b):
+        return False
+    if hasattr(a, "matrix"):  # mi.ScalarTransform4f
+        return bool(np.array_equal(np.array(a.matrix), np.array(b.matrix)))
+    return bool(a == b)

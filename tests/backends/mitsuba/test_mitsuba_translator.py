@@ -149,3 +149,28 @@ def test_a_failed_translation_is_not_reused(scalar_backend):
     scene.renderables["plane"].emit_shadows = True
     native = scalar_backend.translate(scene, settings)
     assert not native.translate_cached and scalar_backend.translate(scene, settings) is native
+
+
+@pytest.mark.parametrize("view", ["resolution_percentage", "recentred"])
+def test_a_camera_copy_with_the_same_sensor_keeps_the_translation(view):
+    """bf.render hands the backend a new camera object for these scenes at every render (the core reports a
+    camera change); the sensor is the same, so the loaded scene is reused, as with the scene fingerprint."""
+    scene = testing.bunny_scene((24, 24))
+    if view == "resolution_percentage":
+        scene.camera.resolution_percentage = 50
+    else:  # far from the origin: bf.render renders a re-centred view
+        far = np.array([1e6, -2e6, 5e5])
+        for obj in [scene.camera, *scene.renderables, *scene.lights]:
+            obj.set_position(translation=obj.translation + far, rotation_mode="quaternionWXYZ", rotation=obj.quaternion)
+    with MitsubaBackend(variant="scalar_rgb") as b:
+        first = bf.render(scene, backend=b, samples=2, outputs=("rgb", "depth"))
+        again = bf.render(scene, backend=b, samples=2, outputs=("rgb", "depth"))
+        assert not first.meta["translate_cached"] and again.meta["translate_cached"]
+        assert np.array_equal(first.rgba, again.rgba) and np.array_equal(first.depth, again.depth)
+        scene.camera.set_position(
+            translation=scene.camera.translation + 0.01,
+            rotation_mode="quaternionWXYZ",
+            rotation=scene.camera.quaternion,
+        )
+        moved = bf.render(scene, backend=b, samples=2, outputs=("rgb", "depth"))
+        assert not moved.meta["translate_cached"] and not np.array_equal(moved.depth, first.depth)
