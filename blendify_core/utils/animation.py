@@ -12,16 +12,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.io.output import AtomicOutput, atomic_write, ensure_folder, output_error
 from blendify_core.ir.scene import Scene
-from blendify_core.ir.validate import _describe, as_float
+from blendify_core.ir.validate import as_float
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.render import choose_backend
 from blendify_core.pipeline.render import render as bf_render
+from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.result import _jsonable as core_jsonable
 from blendify_core.registry import get_backend_class
+from blendify_core.typing import Float64Array
 from blendify_core.utils.image import _color3, blend_with_background, to_display_uint8
 from blendify_core.utils.trajectory import Pose, Trajectory, apply_pose
 
@@ -45,14 +49,14 @@ class FramesReport:
     rendered: list[int] = field(default_factory=list)
     skipped: list[int] = field(default_factory=list)
     seconds: list[float] = field(default_factory=list)
-    results: list[Any] = field(default_factory=list)
+    results: list[RenderResult] = field(default_factory=list)
     backend: str | None = None
 
     def __len__(self) -> int:
         return len(self.rendered) + len(self.skipped)
 
 
-def _jsonable(value: Any) -> Any:
+def _jsonable(value: object) -> object:
     return core_jsonable(value)
 
 
@@ -203,11 +207,18 @@ def write_video(
         raise
 
 
+#: what ``render_frames`` accepts as the sequence: a trajectory, a list of poses, or a per-frame callback
+FrameSource = Trajectory | Sequence[Pose | dict[str, Any]] | Callable[[Scene, int], object]
+
+
 def _frame_plan(
-    trajectory_or_callback: Any, fps: float, n_frames: int | None, interpolation: str, smoothness: float
-) -> tuple[list[Any] | None, Callable[[Any, int], Any] | None, int]:
+    trajectory_or_callback: FrameSource, fps: float, n_frames: int | None, interpolation: str, smoothness: float
+) -> tuple[list[Pose | dict[str, Any]] | None, Callable[[Scene, int], object] | None, int]:
+    """(poses, None, count) for a trajectory or a list of poses; (None, callback, count) for a callback."""
     if isinstance(trajectory_or_callback, Trajectory):
-        poses = trajectory_or_callback.refine(1.0 / fps, interpolation=interpolation, smoothness=smoothness)
+        poses: list[Pose | dict[str, Any]] = list(
+            trajectory_or_callback.refine(1.0 / fps, interpolation=interpolation, smoothness=smoothness)
+        )
         if n_frames is not None:
             poses = poses[:n_frames]
         return poses, None, len(poses)
@@ -231,9 +242,9 @@ def _frame_plan(
 
 
 def render_frames(
-    scene: Any,
-    trajectory_or_callback: Any,
-    backend: Any = None,
+    scene: Scene,
+    trajectory_or_callback: FrameSource,
+    backend: str | Backend | None = None,
     quality: str = "final",
     frames_dir: str | os.PathLike[str] | None = None,
     video_path: str | os.PathLike[str] | None = None,
@@ -243,11 +254,11 @@ def render_frames(
     n_frames: int | None = None,
     interpolation: str = "cubic",
     smoothness: float = 0.0,
-    background: Any = (1.0, 1.0, 1.0),
+    background: ArrayLike = (1.0, 1.0, 1.0),
     video_quality: float | None = 8.0,
     keep_results: bool = False,
     restore_camera: bool = True,
-    on_frame: Callable[[Any, int], Any] | None = None,
+    on_frame: Callable[[Scene, int], object] | None = None,
     **render_kwargs: Any,
 ) -> FramesReport:
     """Render a sequence of frames of ``scene`` with :func:`blendify_core.pipeline.render`.
@@ -283,11 +294,7 @@ def render_frames(
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {_describe(scene)}")
     fps = as_float("fps", fps, min_value=0.0, exclusive_min=True)
-    if n_frames is not None and (
-        isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or n_frames < 1
-    ):
-        raise InvalidSceneError(f"n_frames: expected a positive integer, got {n_frames!r}")
-    poses, callback, count = _frame_plan(trajectory_or_callback, fps, n_frames, interpolation, smoothness)
+    poses, callback, count = _checked_plan(trajectory_or_callback, fps, n_frames, interpolation, smoothness)
     if on_frame is not None and not callable(on_frame):
         raise InvalidSceneError(
             f"on_frame: expected a callable on_frame(scene, frame_index), got {_describe(on_frame)}"
@@ -295,27 +302,104 @@ def render_frames(
     if poses is not None and scene.camera is None:
         raise InvalidSceneError("scene.camera: a trajectory moves the scene camera; set a camera first")
     bg = _color3("background", background)
+    backend_name, backend_arg = _resolve_backend(backend, quality)
+    outputs = _requested_outputs(render_kwargs, video_path)
+    settings_key = _settings_key(backend, backend_name, quality, render_kwargs)
+    store = _FrameStore.open(frames_dir, resume, settings_key)
+    keep = keep_results or (store.folder is None and video_path is None)
 
-    # resolve the backend once (a name stays a name so bf.render reuses its shared instance)
+    report = FramesReport(backend=backend_name)
+    cam = scene.camera
+    saved_pose = None if cam is None else (cam.quaternion.copy(), cam.translation.copy())
+    writer = _VideoWriter(Path(video_path), fps, video_quality, "libx264") if video_path is not None else None
+    frames = _FrameRenderer(scene, backend_arg, quality, render_kwargs, outputs, store, writer, bg, keep, report)
+    try:
+        _run_frames(frames, poses, callback, on_frame, count, progress)
+        if writer is not None:
+            report.video = writer.finish()
+            writer = None
+    finally:
+        if writer is not None:
+            writer.abort()
+        if restore_camera and poses is not None and saved_pose is not None and cam is not None and scene.camera is cam:
+            cam.set_position(rotation_mode="quaternionWXYZ", rotation=saved_pose[0], translation=saved_pose[1])
+    return report
+
+
+def _run_frames(
+    frames: _FrameRenderer,
+    poses: list[Pose | dict[str, Any]] | None,
+    callback: Callable[[Scene, int], object] | None,
+    on_frame: Callable[[Scene, int], object] | None,
+    count: int,
+    progress: bool,
+) -> None:
+    """Pose (or update) the scene for each frame in order, then render or reuse it, with a progress bar."""
+    scene, report = frames.scene, frames.report
+    bar = _progress_bar(count) if progress else None
+    try:
+        for i in range(count):
+            if poses is not None:
+                if scene.camera is None:
+                    raise InvalidSceneError(f"scene.camera: removed before frame {i}; a trajectory moves the camera")
+                apply_pose(scene.camera, poses[i])
+            elif callback is not None:
+                callback(scene, i)
+            if on_frame is not None:
+                on_frame(scene, i)
+            frames.frame(i)
+            if bar is not None:
+                bar.set_postfix(rendered=len(report.rendered), skipped=len(report.skipped), refresh=False)
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _checked_plan(
+    trajectory_or_callback: FrameSource,
+    fps: float,
+    n_frames: int | None,
+    interpolation: str,
+    smoothness: float,
+) -> tuple[list[Pose | dict[str, Any]] | None, Callable[[Scene, int], object] | None, int]:
+    """:func:`_frame_plan` after checking ``n_frames``."""
+    if n_frames is not None and (
+        isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or n_frames < 1
+    ):
+        raise InvalidSceneError(f"n_frames: expected a positive integer, got {n_frames!r}")
+    return _frame_plan(trajectory_or_callback, fps, n_frames, interpolation, smoothness)
+
+
+def _resolve_backend(backend: object, quality: str) -> tuple[str, str | Backend]:
+    """The backend's name and what to pass to bf.render, resolved once (a name stays a name so bf.render
+    reuses its shared instance)."""
     if backend is None:
-        backend_name, _notes = choose_backend(quality)
-        backend_arg: Any = backend_name
-    elif isinstance(backend, Backend):
-        backend_name, backend_arg = backend.name, backend
-    elif isinstance(backend, str):
-        backend_name, backend_arg = backend, backend
-    else:
-        raise InvalidSceneError(f"backend: expected a backend name or instance, got {_describe(backend)}")
+        name, _notes = choose_backend(quality)
+        return name, name
+    if isinstance(backend, Backend):
+        return backend.name, backend
+    if isinstance(backend, str):
+        return backend, backend
+    raise InvalidSceneError(f"backend: expected a backend name or instance, got {_describe(backend)}")
 
+
+def _requested_outputs(render_kwargs: dict[str, Any], video_path: object) -> tuple[str, ...]:
+    """The outputs to write (``rgba`` spelled ``rgb``); a video needs ``rgb``."""
     outputs = render_kwargs.get("outputs", ("rgb",))
     outputs = (outputs,) if isinstance(outputs, str) else tuple(outputs)
     outputs = tuple("rgb" if o == "rgba" else o for o in outputs)
     if video_path is not None and "rgb" not in outputs:
         raise InvalidSceneError("video_path: a video needs the 'rgb' output; add 'rgb' to outputs")
+    return outputs
+
+
+def _settings_key(backend: object, backend_name: str, quality: str, render_kwargs: dict[str, Any]) -> object:
+    """What decides a frame besides the scene (a manifest entry must match it to be reused)."""
     engine_version = backend.engine_version() if isinstance(backend, Backend) else None
     if engine_version is None and not isinstance(backend, Backend):
         engine_version = get_backend_class(backend_name).engine_version()
-    settings_key = _jsonable(
+    return _jsonable(
         {
             "backend": backend_name,
             "engine_version": engine_version,
@@ -324,90 +408,102 @@ def render_frames(
         }
     )
 
-    fdir: Path | None = None
-    manifest: dict[str, dict[str, Any]] = {}
-    manifest_path: Path | None = None
-    if frames_dir is not None:
-        fdir = ensure_folder(frames_dir, arg="frames_dir")
-        manifest_path = fdir / MANIFEST_NAME
-        if resume:
-            manifest = _read_manifest(manifest_path)
+
+def _progress_bar(count: int) -> Any:
+    from tqdm.auto import tqdm
+
+    return tqdm(total=count, unit="frame", desc="render_frames", dynamic_ncols=True)
+
+
+@dataclass
+class _FrameStore:
+    """The frames folder and its manifest (frame key -> entry of the frame rendered there earlier)."""
+
+    folder: Path | None
+    manifest_path: Path | None
+    manifest: dict[str, dict[str, Any]]
+    settings_key: object
+    resume: bool
+
+    @classmethod
+    def open(cls, frames_dir: str | os.PathLike[str] | None, resume: bool, settings_key: object) -> _FrameStore:
+        if frames_dir is None:
+            return cls(None, None, {}, settings_key, resume)
+        folder = ensure_folder(frames_dir, arg="frames_dir")
+        manifest_path = folder / MANIFEST_NAME
+        manifest = _read_manifest(manifest_path) if resume else {}
         if manifest_path.exists():
             _rewrite_manifest(manifest_path, manifest)
-    keep = keep_results or (fdir is None and video_path is None)
+        return cls(folder, manifest_path, manifest, settings_key, resume)
 
-    report = FramesReport(backend=backend_name)
-    cam = scene.camera
-    saved_pose = None if cam is None else (cam.quaternion.copy(), cam.translation.copy())
-    writer = _VideoWriter(Path(video_path), fps, video_quality, "libx264") if video_path is not None else None
+    def is_done(self, i: int, names: dict[str, str], fingerprint: str) -> bool:
+        """True when frame ``i`` was rendered from the same scene and settings and its files exist."""
+        if self.folder is None:
+            return False
+        entry = self.manifest.get(f"{i:05d}")
+        folder = self.folder
+        return (
+            self.resume
+            and isinstance(entry, dict)
+            and entry.get("fingerprint") == fingerprint
+            and entry.get("settings") == self.settings_key
+            and all((folder / n).is_file() for n in names.values())
+        )
 
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
+    def save(
+        self, i: int, names: dict[str, str], fingerprint: str | None, seconds: float, result: RenderResult
+    ) -> None:
+        """Write frame ``i``'s files and append its manifest entry."""
+        if self.folder is None or self.manifest_path is None:
+            return
+        for o, n in names.items():
+            result.save(self.folder / n, output=o)
+        entry: dict[str, Any] = {
+            "version": _MANIFEST_VERSION,
+            "frame": f"{i:05d}",
+            "fingerprint": fingerprint,
+            "settings": self.settings_key,
+            "files": sorted(names.values()),
+            "seconds": seconds,
+            "backend": result.meta.get("backend"),
+            "engine_version": result.meta.get("engine_version"),
+        }
+        self.manifest[f"{i:05d}"] = entry
+        _append_manifest(self.manifest_path, entry)
 
-        bar = tqdm(total=count, unit="frame", desc="render_frames", dynamic_ncols=True)
-    try:
-        for i in range(count):
-            if poses is not None:
-                apply_pose(scene.camera, poses[i])
-            else:
-                callback(scene, i)  # type: ignore[misc]
-            if on_frame is not None:
-                on_frame(scene, i)
-            names = {o: (f"frame_{i:05d}.png" if o == "rgb" else f"{o}_{i:05d}.png") for o in outputs}
-            done = False
-            fingerprint = None
-            if fdir is not None:
-                fingerprint = scene.fingerprint()
-                entry = manifest.get(f"{i:05d}")
-                done = (
-                    resume
-                    and isinstance(entry, dict)
-                    and entry.get("fingerprint") == fingerprint
-                    and entry.get("settings") == settings_key
-                    and all((fdir / n).is_file() for n in names.values())
-                )
-            if done:
-                report.skipped.append(i)
-                if writer is not None:
-                    writer.append(_video_frame(fdir / names["rgb"], bg))  # type: ignore[operator]
-            else:
-                t0 = time.perf_counter()
-                result = bf_render(scene, backend=backend_arg, quality=quality, **render_kwargs)
-                report.seconds.append(time.perf_counter() - t0)
-                report.rendered.append(i)
-                if fdir is not None:
-                    for o, n in names.items():
-                        result.save(fdir / n, output=o)
-                    entry = {
-                        "version": _MANIFEST_VERSION,
-                        "frame": f"{i:05d}",
-                        "fingerprint": fingerprint,
-                        "settings": settings_key,
-                        "files": sorted(names.values()),
-                        "seconds": report.seconds[-1],
-                        "backend": result.meta.get("backend"),
-                        "engine_version": result.meta.get("engine_version"),
-                    }
-                    manifest[entry["frame"]] = entry
-                    _append_manifest(manifest_path, entry)  # type: ignore[arg-type]
-                if writer is not None:
-                    writer.append(_video_frame(result, bg))
-                if keep:
-                    report.results.append(result)
-            if fdir is not None:
-                report.frames.append(fdir / names.get("rgb", next(iter(names.values()))))
-            if bar is not None:
-                bar.set_postfix(rendered=len(report.rendered), skipped=len(report.skipped), refresh=False)
-                bar.update(1)
-        if writer is not None:
-            report.video = writer.finish()
-            writer = None
-    finally:
-        if bar is not None:
-            bar.close()
-        if writer is not None:
-            writer.abort()
-        if restore_camera and poses is not None and saved_pose is not None and scene.camera is cam:
-            cam.set_position(rotation_mode="quaternionWXYZ", rotation=saved_pose[0], translation=saved_pose[1])
-    return report
+
+@dataclass
+class _FrameRenderer:
+    """Renders (or reuses) one frame at a time into the store, the video and the report."""
+
+    scene: Scene
+    backend: str | Backend
+    quality: str
+    render_kwargs: dict[str, Any]
+    outputs: tuple[str, ...]
+    store: _FrameStore
+    writer: _VideoWriter | None
+    background: Float64Array
+    keep: bool
+    report: FramesReport
+
+    def frame(self, i: int) -> None:
+        names = {o: (f"frame_{i:05d}.png" if o == "rgb" else f"{o}_{i:05d}.png") for o in self.outputs}
+        store, report = self.store, self.report
+        fingerprint = self.scene.fingerprint() if store.folder is not None else None
+        if store.folder is not None and fingerprint is not None and store.is_done(i, names, fingerprint):
+            report.skipped.append(i)
+            if self.writer is not None:
+                self.writer.append(_video_frame(store.folder / names["rgb"], self.background))
+        else:
+            t0 = time.perf_counter()
+            result = bf_render(self.scene, backend=self.backend, quality=self.quality, **self.render_kwargs)
+            report.seconds.append(time.perf_counter() - t0)
+            report.rendered.append(i)
+            store.save(i, names, fingerprint, report.seconds[-1], result)
+            if self.writer is not None:
+                self.writer.append(_video_frame(result, self.background))
+            if self.keep:
+                report.results.append(result)
+        if store.folder is not None:
+            report.frames.append(store.folder / names.get("rgb", next(iter(names.values()))))
