@@ -1,6 +1,10 @@
 """Lights in Blender's units: point/spot/area power in watts, sun irradiance in W/m^2, background as
 colour x strength (radiance), environment maps as an HDR image x strength.
 
+Every parameter is declared once, below, as a :class:`~blendify_core.ir.params.Param`; constructors,
+``inspect.signature``, attribute validation, scene files, the ``add_*`` methods of
+:class:`LightsCollection` and ``docs/parameters.md`` come from these declarations.
+
 Spot, sun and area lights emit along their local -Z axis (rotate them with any rotation mode, e.g.
 ``rotation_mode="look_at", rotation=target``). Colours are sRGB-encoded unless ``color_space="linear"``;
 backends read ``linear_color``.
@@ -17,23 +21,20 @@ import numpy as np
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colors import COLOR_SPACES, _check_image, _to_linear, load_image
 from blendify_core.ir.colorspace import srgb8_to_linear
-from blendify_core.ir.transforms import Positionable, ValidatedParam, quaternion_from_rotation, quaternion_to_matrix
-from blendify_core.ir.validate import (
-    _describe,
-    as_array,
-    as_bool,
-    as_choice,
-    as_float,
-    check_tag,
-    frozen,
-    raw_array,
-    strict_arguments,
+from blendify_core.ir.facade import facade
+from blendify_core.ir.params import (
+    POSE,
+    REQUIRED,
+    ROTATION,
+    ROTATION_MODE,
+    TAG,
+    Declared,
+    Param,
+    Signature,
+    encode_params,
 )
-
-
-def _non_negative(obj: Any, name: str, value: Any) -> float:
-    return as_float(name, value, min_value=0.0)
-
+from blendify_core.ir.transforms import Positionable, ValidatedParam, quaternion_from_rotation, quaternion_to_matrix
+from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, check_tag, frozen, raw_array
 
 __all__ = [
     "Light",
@@ -48,73 +49,90 @@ __all__ = [
     "BackgroundLight",
     "EnvironmentMap",
     "LightsCollection",
+    "equirect_uv",
 ]
 
+# -- the declarations ---------------------------------------------------------------------------------
 
-def _quaternion(name: str, value: Any) -> np.ndarray:
-    return quaternion_from_rotation("quaternionWXYZ", value, name=name)
+COLOR_SPACE = Param(
+    "color_space", "srgb", "choice", choices=COLOR_SPACES, doc="Encoding of ``color``: 'srgb' or 'linear'"
+)
+COLOR = Param(
+    "color",
+    (1.0, 1.0, 1.0),
+    "color",
+    0.0,
+    1.0,
+    channels=(3, 4),
+    keep_channels=3,
+    doc="Colour of the light (sRGB unless color_space='linear')",
+)
+USE_SHADOW = Param("use_shadow", True, "bool", doc="Whether the light casts shadows")
+POWER = Param("strength", 100.0, "float", 0.0, None, unit="W", doc="Emitted power")
+SHADOW_SOFT_SIZE = Param(
+    "shadow_soft_size", 0.25, "float", 0.0, None, unit="m", doc="Emitter radius (soft shadows; 0 = a point)"
+)
+_LIGHT_TAIL = (COLOR_SPACE, TAG, *POSE)  # inputs every positioned light takes by keyword
 
 
-def _rgb(name: str, value: Any) -> tuple[float, float, float]:
-    arr = as_array(name, value, ndim=1, min_value=0.0, max_value=1.0)
-    if arr.shape[0] not in (3, 4):
-        raise InvalidSceneError(f"{name}: expected 3 (RGB) values (a 4th, alpha, is ignored), got {arr.shape[0]}")
-    return (float(arr[0]), float(arr[1]), float(arr[2]))
+def _area_size(obj: Any, name: str, value: Any) -> tuple[float, float]:
+    shape = obj._values["shape"]
+    if shape in ("square", "circle"):
+        if raw_array(name, value).ndim != 0:
+            raise InvalidSceneError(f"{name}: a {shape} area light takes one number, got {_describe(value)}")
+        s = as_float(name, value, min_value=0.0, exclusive_min=True)
+        return (s, s)
+    arr = as_array(name, value, shape=(2,), min_value=0.0)
+    if np.any(arr <= 0):
+        raise InvalidSceneError(f"{name}: expected two positive numbers, got {arr.tolist()}")
+    return (float(arr[0]), float(arr[1]))
 
 
-class Light(Positionable):
+def _area_size_json(obj: Any, value: tuple[float, float]) -> Any:
+    return value[0] if obj._values["shape"] in ("square", "circle") else list(value)
+
+
+def _auto_color_space(obj: Any, name: str, value: Any) -> str:
+    if value is not None:
+        return as_choice(name, value, COLOR_SPACES)
+    image = obj.__dict__.get("_image")
+    if image is not None:
+        return "srgb" if image.dtype == np.uint8 else "linear"
+    return "linear" if Path(str(obj.path)).suffix.lower() in (".exr", ".hdr") else "srgb"
+
+
+def _image_or_path(obj: Any, name: str, value: Any) -> Any:
+    return value  # checked by EnvironmentMap._setup (a path or an image array)
+
+
+# -- positioned lights ------------------------------------------------------------------------------------
+
+
+class Light(Positionable, Declared):
     """Base of positioned lights."""
 
+    _declared = (Param("strength", REQUIRED, "float", 0.0, None, unit="W or W/m^2", doc="Power"), COLOR, USE_SHADOW)
+    _declared += _LIGHT_TAIL
+    _signature = Signature(("strength", "color", "use_shadow", "color_space", "tag"), "pose")
     kind = "light"
     prefix = "Light"
+    strength: float
+    color: tuple[float, float, float]
+    use_shadow: bool
+    color_space: str
 
-    def __init__(
-        self,
-        strength: float,
-        color: Any = (1.0, 1.0, 1.0),
-        use_shadow: bool = True,
-        color_space: str = "srgb",
-        tag: str | None = None,
-        **pose: Any,
-    ):
-        self._tag = tag or ""
-        self._strength = as_float("strength", strength, min_value=0.0)
-        self._color = _rgb("color", color)
-        self._use_shadow = as_bool("use_shadow", use_shadow)
-        self.color_space = as_choice("color_space", color_space, COLOR_SPACES)
-        super().__init__(**pose)
+    def _setup(self, inputs: dict[str, Any]) -> None:
+        self._tag = inputs["tag"] or ""
+        self._init_values(inputs)
+        Positionable.__init__(self, inputs["rotation_mode"], inputs["rotation"], inputs["translation"])
 
-    @property
-    def strength(self) -> float:
-        return self._strength
-
-    @strength.setter
-    def strength(self, value: float) -> None:
-        self._strength = as_float("strength", value, min_value=0.0)
-        self._bump("appearance")
-
-    @property
-    def color(self) -> tuple[float, float, float]:
-        return self._color
-
-    @color.setter
-    def color(self, value: Any) -> None:
-        self._color = _rgb("color", value)
-        self._bump("appearance")
-
-    @property
-    def use_shadow(self) -> bool:
-        return self._use_shadow
-
-    @use_shadow.setter
-    def use_shadow(self, value: bool) -> None:
-        self._use_shadow = as_bool("use_shadow", value)
-        self._bump("appearance")
+    def _param_changed(self, param: Param) -> None:
+        self._bump(param.group)
 
     @property
     def linear_color(self) -> np.ndarray:
         """(3,) float64 linear RGB."""
-        return _to_linear(np.array(self._color), self.color_space)
+        return _to_linear(np.array(self.color), self.color_space)
 
     @property
     def direction(self) -> np.ndarray:
@@ -122,12 +140,8 @@ class Light(Positionable):
         return -self.rotation_matrix[:, 2]
 
     def _params(self) -> dict[str, Any]:
-        return {
-            "strength": self._strength,
-            "color": list(self._color),
-            "use_shadow": self._use_shadow,
-            "color_space": self.color_space,
-        }
+        """Every parameter as JSON (the scene file's ``params``)."""
+        return encode_params(self, {})
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -139,92 +153,54 @@ class Light(Positionable):
         }
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}(tag={self.tag!r}, strength={self._strength:g})"
+        return f"{type(self).__name__}(tag={self.tag!r}, strength={self.strength:g})"
 
 
 class PointLight(Light):
     """A point (spherical) light of power ``strength`` watts and radius ``shadow_soft_size`` metres."""
 
+    _declared = (POWER, SHADOW_SOFT_SIZE, COLOR, USE_SHADOW, *_LIGHT_TAIL)
+    _signature = Signature(("strength", "shadow_soft_size", "color", "use_shadow"), "kwargs")
     kind = "point"
     prefix = "Point"
-    shadow_soft_size = ValidatedParam(_non_negative, doc="Emitter radius in metres (soft shadows).")
-
-    def __init__(
-        self,
-        strength: float = 100.0,
-        shadow_soft_size: float = 0.25,
-        color: Any = (1.0, 1.0, 1.0),
-        use_shadow: bool = True,
-        **kwargs: Any,
-    ):
-        self.shadow_soft_size = shadow_soft_size
-        super().__init__(strength, color, use_shadow, **kwargs)
-
-    def _params(self) -> dict[str, Any]:
-        return {**super()._params(), "shadow_soft_size": self.shadow_soft_size}
+    shadow_soft_size: float
 
 
 class SunLight(Light):
     """A sun: irradiance ``strength`` W/m^2 on a surface facing it, ``angular_diameter`` radians."""
 
+    _declared = (
+        Param("strength", 10.0, "float", 0.0, None, unit="W/m^2", doc="Irradiance on a surface facing the sun"),
+        Param("angular_diameter", 0.00918043, "float", 0.0, np.pi, unit="rad", doc="Angular diameter of the disc"),
+        COLOR,
+        USE_SHADOW,
+        *_LIGHT_TAIL,
+    )
+    _signature = Signature(("strength", "angular_diameter", "color", "use_shadow"), "kwargs")
     kind = "sun"
     prefix = "Sun"
-    angular_diameter = ValidatedParam(
-        lambda obj, name, v: as_float(name, v, min_value=0.0, max_value=np.pi), doc="Angular diameter (radians)."
-    )
-
-    def __init__(
-        self,
-        strength: float = 10.0,
-        angular_diameter: float = 0.00918043,
-        color: Any = (1.0, 1.0, 1.0),
-        use_shadow: bool = True,
-        **kwargs: Any,
-    ):
-        self.angular_diameter = angular_diameter
-        super().__init__(strength, color, use_shadow, **kwargs)
-
-    def _params(self) -> dict[str, Any]:
-        return {**super()._params(), "angular_diameter": self.angular_diameter}
+    angular_diameter: float
 
 
 class SpotLight(Light):
     """A spot light: ``strength`` W (as the point light it would be without the cone), full cone angle
     ``spot_size`` radians in [1 deg, 180 deg], edge ``spot_blend`` in [0, 1]."""
 
+    _declared = (
+        POWER,
+        Param("spot_size", np.pi / 4, "float", float(np.deg2rad(1.0)), np.pi, unit="rad", doc="Full cone angle"),
+        Param("spot_blend", 0.15, "float", 0.0, 1.0, doc="Softness of the cone's edge"),
+        SHADOW_SOFT_SIZE,
+        COLOR,
+        USE_SHADOW,
+        *_LIGHT_TAIL,
+    )
+    _signature = Signature(("strength", "spot_size", "spot_blend", "shadow_soft_size", "color", "use_shadow"), "kwargs")
     kind = "spot"
     prefix = "Spot"
-    spot_size = ValidatedParam(
-        lambda obj, name, v: as_float(name, v, min_value=np.deg2rad(1.0), max_value=np.pi),
-        doc="Full cone angle (radians, 1 to 180 degrees).",
-    )
-    spot_blend = ValidatedParam(
-        lambda obj, name, v: as_float(name, v, min_value=0.0, max_value=1.0), doc="Soft cone edge, 0 to 1."
-    )
-    shadow_soft_size = ValidatedParam(_non_negative, doc="Emitter radius in metres (soft shadows).")
-
-    def __init__(
-        self,
-        strength: float = 100.0,
-        spot_size: float = np.pi / 4,
-        spot_blend: float = 0.15,
-        shadow_soft_size: float = 0.25,
-        color: Any = (1.0, 1.0, 1.0),
-        use_shadow: bool = True,
-        **kwargs: Any,
-    ):
-        self.spot_size = spot_size
-        self.spot_blend = spot_blend
-        self.shadow_soft_size = shadow_soft_size
-        super().__init__(strength, color, use_shadow, **kwargs)
-
-    def _params(self) -> dict[str, Any]:
-        return {
-            **super()._params(),
-            "spot_size": self.spot_size,
-            "spot_blend": self.spot_blend,
-            "shadow_soft_size": self.shadow_soft_size,
-        }
+    spot_size: float
+    spot_blend: float
+    shadow_soft_size: float
 
 
 class AreaLight(Light):
@@ -232,78 +208,60 @@ class AreaLight(Light):
     normalised area light). ``shape``: "square"/"circle" take a float ``size`` (edge / diameter),
     "rectangle"/"ellipse" a pair (size_x, size_y)."""
 
+    SHAPES = ("square", "circle", "rectangle", "ellipse")
+    _declared = (
+        Param("shape", REQUIRED, "choice", choices=SHAPES, fixed=True, doc="Outline of the emitter"),
+        Param(
+            "size",
+            REQUIRED,
+            "custom",
+            unit="m",
+            check_fn=_area_size,
+            encode_fn=_area_size_json,
+            type_text="float (square, circle) or (x, y) (rectangle, ellipse)",
+            doc="Edge or diameter; a pair for rectangle / ellipse (read back as (size_x, size_y))",
+        ),
+        POWER,
+        COLOR,
+        USE_SHADOW,
+        *_LIGHT_TAIL,
+    )
+    _signature = Signature(("shape", "size", "strength", "color", "use_shadow"), "kwargs")
     kind = "area"
     prefix = "Area"
-    SHAPES = ("square", "circle", "rectangle", "ellipse")
-
-    def __init__(
-        self,
-        shape: str,
-        size: Any,
-        strength: float = 100.0,
-        color: Any = (1.0, 1.0, 1.0),
-        use_shadow: bool = True,
-        **kwargs: Any,
-    ):
-        self._shape = as_choice("shape", shape, self.SHAPES)
-        self.size = size
-        super().__init__(strength, color, use_shadow, **kwargs)
-
-    def _check_size(self, name: str, size: Any) -> tuple[float, float]:
-        if self.shape in ("square", "circle"):
-            if raw_array(name, size).ndim != 0:
-                raise InvalidSceneError(f"{name}: a {self.shape} area light takes one number, got {_describe(size)}")
-            s = as_float(name, size, min_value=0.0, exclusive_min=True)
-            return (s, s)
-        arr = as_array(name, size, shape=(2,), min_value=0.0)
-        if np.any(arr <= 0):
-            raise InvalidSceneError(f"{name}: expected two positive numbers, got {arr.tolist()}")
-        return (float(arr[0]), float(arr[1]))
-
-    size = ValidatedParam(
-        lambda obj, name, v: obj._check_size(name, v),
-        doc="(size_x, size_y) in metres; set a number for square/circle lights, a pair for rectangle/ellipse.",
-    )
-
-    @property
-    def shape(self) -> str:
-        """The outline: square, circle, rectangle or ellipse (fixed at creation)."""
-        return self._shape
-
-    @shape.setter
-    def shape(self, value: Any) -> None:
-        raise InvalidSceneError(f"shape: fixed at creation (got {value!r}); add a new area light instead")
+    shape: str
+    size: tuple[float, float]
 
     @property
     def area(self) -> float:
         a, b = self.size
-        return a * b if self.shape in ("square", "rectangle") else np.pi * a * b / 4.0
+        return a * b if self.shape in ("square", "rectangle") else float(np.pi * a * b / 4.0)
 
     @property
     def radiance(self) -> np.ndarray:
         """(3,) linear emitted radiance P / (pi A) x colour (W / m^2 / sr)."""
         return self.linear_color * self.strength / (np.pi * self.area)
 
-    def _params(self) -> dict[str, Any]:
-        size: Any = self.size[0] if self.shape in ("square", "circle") else list(self.size)
-        return {**super()._params(), "shape": self.shape, "size": size}
-
 
 SquareAreaLight = CircleAreaLight = RectangleAreaLight = EllipseAreaLight = AreaLight
 
 
-class BackgroundLight:
+# -- world lights ---------------------------------------------------------------------------------------
+
+
+class BackgroundLight(Declared):
     """Uniform light from the whole sky: radiance = colour x strength (Blender's world Background)."""
 
+    _declared = (
+        Param("strength", 1.0, "float", 0.0, None, doc="Multiplies the colour (radiance = color x strength)"),
+        COLOR,
+        COLOR_SPACE,
+    )
+    _signature = Signature(None, None)
     kind = "background"
-    strength = ValidatedParam(_non_negative, doc="Strength (multiplies the colour).")
-    color = ValidatedParam(lambda obj, name, v: _rgb(name, v), doc="RGB colour.")
-    color_space = ValidatedParam(lambda obj, name, v: as_choice(name, v, COLOR_SPACES), doc="'srgb' or 'linear'.")
-
-    def __init__(self, strength: float = 1.0, color: Any = (1.0, 1.0, 1.0), color_space: str = "srgb"):
-        self.strength = as_float("strength", strength, min_value=0.0)
-        self.color = _rgb("color", color)
-        self.color_space = as_choice("color_space", color_space, COLOR_SPACES)
+    strength: float
+    color: tuple[float, float, float]
+    color_space: str
 
     @property
     def linear_color(self) -> np.ndarray:
@@ -314,10 +272,10 @@ class BackgroundLight:
         return self.linear_color * self.strength
 
     def to_dict(self) -> dict[str, Any]:
-        return {"strength": self.strength, "color": list(self.color), "color_space": self.color_space}
+        return encode_params(self, {})
 
 
-class EnvironmentMap:
+class EnvironmentMap(Declared):
     """Image-based lighting from an equirectangular (lat-long) image: a float HDR array (H, W, 3|4,
     linear, any non-negative value), a uint8 image (sRGB) or a file path (.exr, .hdr, .png, .jpg).
 
@@ -327,20 +285,40 @@ class EnvironmentMap:
     backend must reproduce this mapping.
     """
 
+    _declared = (
+        Param(
+            "image_or_path",
+            REQUIRED,
+            "custom",
+            stored=False,
+            check_fn=_image_or_path,
+            type_text="(H, W, 3|4) array or a path",
+            doc="The equirectangular image: float HDR (linear), uint8 (sRGB) or an image file",
+        ),
+        Param("strength", 1.0, "float", 0.0, None, doc="Multiplies the image"),
+        ROTATION_MODE,
+        ROTATION,
+        Param(
+            "color_space",
+            None,
+            "custom",
+            annotation="str | None",
+            check_fn=_auto_color_space,
+            type_text='"srgb" / "linear" or None',
+            doc="Encoding of the image; None: linear for float images and .exr/.hdr files, sRGB otherwise",
+        ),
+    )
+    _signature = Signature(None, None)
     kind = "environment"
-    strength = ValidatedParam(_non_negative, doc="Strength (multiplies the image).")
+    strength: float
+    color_space: str
     quaternion = ValidatedParam(
-        lambda obj, name, v: frozen(_quaternion(name, v)), doc="Rotation of the map (unit WXYZ quaternion)."
+        lambda obj, name, v: frozen(quaternion_from_rotation("quaternionWXYZ", v, name=name)),
+        doc="Rotation of the map (unit WXYZ quaternion).",
     )
 
-    def __init__(
-        self,
-        image_or_path: Any,
-        strength: float = 1.0,
-        rotation_mode: str = "quaternionWXYZ",
-        rotation: Any = None,
-        color_space: str | None = None,
-    ):
+    def _setup(self, inputs: dict[str, Any]) -> None:
+        image_or_path = inputs["image_or_path"]
         self.path: str | None = None
         self._image: np.ndarray | None = None
         if isinstance(image_or_path, (str, os.PathLike)):
@@ -350,13 +328,8 @@ class EnvironmentMap:
             self.path = str(p.resolve())
         else:
             self._image = _check_image("image_or_path", image_or_path, max_value=None)
-        self.strength = as_float("strength", strength, min_value=0.0)
-        self.quaternion = frozen(quaternion_from_rotation(rotation_mode, rotation))
-        if color_space is None:
-            color_space = "linear" if (self._image is not None and self._image.dtype != np.uint8) else "srgb"
-            if self.path and Path(self.path).suffix.lower() in (".exr", ".hdr"):
-                color_space = "linear"
-        self.color_space = as_choice("color_space", color_space, COLOR_SPACES)
+        self._init_values(inputs)
+        self.quaternion = frozen(quaternion_from_rotation(inputs["rotation_mode"], inputs["rotation"]))
 
     def image(self) -> np.ndarray:
         if self._image is None:
@@ -380,9 +353,8 @@ class EnvironmentMap:
 
     def to_dict(self, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
         d: dict[str, Any] = {
-            "strength": self.strength,
+            **encode_params(self, arrays),
             "quaternion": self.quaternion.tolist(),
-            "color_space": self.color_space,
             "path": self.path,
         }
         if self.path is None:
@@ -400,12 +372,30 @@ def equirect_uv(directions: np.ndarray) -> np.ndarray:
     return np.stack([u % 1.0, v], axis=-1)
 
 
-_LIGHT_CLASSES = {"point": PointLight, "sun": SunLight, "spot": SpotLight, "area": AreaLight}
+# -- the collection -------------------------------------------------------------------------------------
+
+
+def _add_light(lights: LightsCollection, cls: type, arguments: dict[str, Any]) -> Light:
+    tag = arguments.pop("tag")
+    return lights._add(cls(**arguments), tag)
+
+
+def _set_background(lights: LightsCollection, cls: type, arguments: dict[str, Any]) -> BackgroundLight:
+    lights.background = BackgroundLight(**arguments)
+    lights.revision += 1
+    return lights.background
+
+
+def _set_environment(lights: LightsCollection, cls: type, arguments: dict[str, Any]) -> EnvironmentMap:
+    lights.environment = EnvironmentMap(**arguments)
+    lights.revision += 1
+    return lights.environment
 
 
 class LightsCollection:
     """The lights of one scene: ``add_point``, ``add_sun``, ``add_spot``, ``add_area``,
-    ``set_background_light``, ``set_environment_map``; ``[tag]``, ``remove``, iteration, ``len``."""
+    ``set_background_light``, ``set_environment_map``; ``[tag]``, ``remove``, iteration, ``len``.
+    Each ``add_*`` takes its light's parameters (docs/parameters.md), the pose, ``tag`` and ``color_space``."""
 
     def __init__(self) -> None:
         self._lights: dict[str, Light] = {}
@@ -430,136 +420,30 @@ class LightsCollection:
         self.revision += 1
         return light
 
-    @strict_arguments
-    def add_point(
-        self,
-        strength: float = 100.0,
-        shadow_soft_size: float = 0.25,
-        color: Any = (1.0, 1.0, 1.0),
-        use_shadow: bool = True,
-        rotation_mode: str = "quaternionWXYZ",
-        rotation: Any = None,
-        translation: Any = (0, 0, 0),
-        tag: str | None = None,
-        color_space: str = "srgb",
-    ) -> PointLight:
-        light = PointLight(
-            strength,
-            shadow_soft_size,
-            color,
-            use_shadow,
-            rotation_mode=rotation_mode,
-            rotation=rotation,
-            translation=translation,
-            color_space=color_space,
-        )
-        return self._add(light, tag)  # type: ignore[return-value]
-
-    @strict_arguments
-    def add_sun(
-        self,
-        strength: float = 10.0,
-        angular_diameter: float = 0.00918043,
-        color: Any = (1.0, 1.0, 1.0),
-        use_shadow: bool = True,
-        rotation_mode: str = "quaternionWXYZ",
-        rotation: Any = None,
-        translation: Any = (0, 0, 0),
-        tag: str | None = None,
-        color_space: str = "srgb",
-    ) -> SunLight:
-        light = SunLight(
-            strength,
-            angular_diameter,
-            color,
-            use_shadow,
-            rotation_mode=rotation_mode,
-            rotation=rotation,
-            translation=translation,
-            color_space=color_space,
-        )
-        return self._add(light, tag)  # type: ignore[return-value]
-
-    @strict_arguments
-    def add_spot(
-        self,
-        strength: float = 100.0,
-        spot_size: float = np.pi / 4,
-        spot_blend: float = 0.15,
-        shadow_soft_size: float = 0.25,
-        color: Any = (1.0, 1.0, 1.0),
-        use_shadow: bool = True,
-        rotation_mode: str = "quaternionWXYZ",
-        rotation: Any = None,
-        translation: Any = (0, 0, 0),
-        tag: str | None = None,
-        color_space: str = "srgb",
-    ) -> SpotLight:
-        light = SpotLight(
-            strength,
-            spot_size,
-            spot_blend,
-            shadow_soft_size,
-            color,
-            use_shadow,
-            rotation_mode=rotation_mode,
-            rotation=rotation,
-            translation=translation,
-            color_space=color_space,
-        )
-        return self._add(light, tag)  # type: ignore[return-value]
-
-    @strict_arguments
-    def add_area(
-        self,
-        shape: str,
-        size: Any,
-        strength: float = 100.0,
-        color: Any = (1.0, 1.0, 1.0),
-        use_shadow: bool = True,
-        rotation_mode: str = "quaternionWXYZ",
-        rotation: Any = None,
-        translation: Any = (0, 0, 0),
-        tag: str | None = None,
-        color_space: str = "srgb",
-    ) -> AreaLight:
-        light = AreaLight(
-            shape,
-            size,
-            strength,
-            color,
-            use_shadow,
-            rotation_mode=rotation_mode,
-            rotation=rotation,
-            translation=translation,
-            color_space=color_space,
-        )
-        return self._add(light, tag)  # type: ignore[return-value]
-
-    @strict_arguments
-    def set_background_light(
-        self, strength: float = 1.0, color: Any = (1.0, 1.0, 1.0), color_space: str = "srgb"
-    ) -> BackgroundLight:
-        self.background = BackgroundLight(strength, color, color_space)
-        self.revision += 1
-        return self.background
+    add_point = facade(PointLight, "add_point", "LightsCollection", _add_light, trailing=(COLOR_SPACE,))
+    add_sun = facade(SunLight, "add_sun", "LightsCollection", _add_light, trailing=(COLOR_SPACE,))
+    add_spot = facade(SpotLight, "add_spot", "LightsCollection", _add_light, trailing=(COLOR_SPACE,))
+    add_area = facade(AreaLight, "add_area", "LightsCollection", _add_light, trailing=(COLOR_SPACE,))
+    set_background_light = facade(
+        BackgroundLight,
+        "set_background_light",
+        "LightsCollection",
+        _set_background,
+        pose=False,
+        doc="Set the uniform background light (replacing any) and return it.",
+    )
+    set_environment_map = facade(
+        EnvironmentMap,
+        "set_environment_map",
+        "LightsCollection",
+        _set_environment,
+        pose=False,
+        doc="Set the environment map (replacing any) and return it.",
+    )
 
     def remove_background_light(self) -> None:
         self.background = None
         self.revision += 1
-
-    @strict_arguments
-    def set_environment_map(
-        self,
-        image_or_path: Any,
-        strength: float = 1.0,
-        rotation_mode: str = "quaternionWXYZ",
-        rotation: Any = None,
-        color_space: str | None = None,
-    ) -> EnvironmentMap:
-        self.environment = EnvironmentMap(image_or_path, strength, rotation_mode, rotation, color_space)
-        self.revision += 1
-        return self.environment
 
     def remove_environment_map(self) -> None:
         self.environment = None
@@ -605,12 +489,3 @@ class LightsCollection:
         self.background = None
         self.environment = None
         self.revision += 1
-
-
-def light_from_dict(d: dict[str, Any]) -> Light:
-    cls = _LIGHT_CLASSES.get(d.get("kind", ""))
-    if cls is None:
-        raise InvalidSceneError(f"scene file: unknown light kind {d.get('kind')!r}")
-    light = cls(**d["params"], rotation=d["quaternion"], translation=d["translation"])
-    light._tag = d["tag"]
-    return light

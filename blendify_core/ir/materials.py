@@ -1,5 +1,11 @@
 """Materials: Blender's Principled BSDF parameter set (blendify's names and defaults) and friends.
 
+Every parameter is declared once, below, as a :class:`~blendify_core.ir.params.Param` (kind, default,
+valid range, unit, doc and Blender's clamp range where it has one); the constructors, their
+``inspect.signature``, attribute validation, scene files and ``docs/parameters.md`` all come from these
+declarations. Presets (MetalMaterial, PlasticMaterial, DiffuseMaterial, ...) declare only the defaults
+they change.
+
 The base colour of an object comes from its colour source (``colors=`` of ``add_*``), not from the
 material, as in blendify. Colour parameters of materials (``emission_color``, ``coat_tint``, ``sheen_tint``,
 ``specular_tint``, ``wireframe_color``) are sRGB-encoded unless the material is created with
@@ -11,15 +17,15 @@ Attributes are readable and settable (validated on every assignment); each chang
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
-from blendify_core.ir.colors import COLOR_SPACES, NormalMap, TextureMap, _to_linear
+from blendify_core.ir.colors import COLOR_SPACES, _to_linear
+from blendify_core.ir.params import Clamp, Declared, Param, Signature, encode_params
 from blendify_core.ir.physics import material_lobes
-from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, reject_unknown, strict_arguments
+from blendify_core.ir.validate import _describe
 
 __all__ = [
     "Material",
@@ -31,136 +37,175 @@ __all__ = [
     "PrincipledBSDFWireframeMaterial",
     "PlasticWireframeMaterial",
     "MetalWireframeMaterial",
-    "material_from_dict",
+    "check_material",
 ]
 
 
-@dataclass(frozen=True)
-class _Param:
-    name: str
-    default: Any
-    kind: str = "float"  # float | color | vec3 | texture | normal_map | choice
-    min_value: float | None = 0.0
-    max_value: float | None = 1.0
-    choices: tuple[str, ...] = ()
+def _factor(name: str, default: float, doc: str, **kw: Any) -> Param:
+    """A [0, 1] factor (Blender's FACTOR sockets)."""
+    return Param(name, default, "float", 0.0, 1.0, doc=doc, **kw)
 
 
-def _principled_params() -> list[_Param]:
-    inf = None
-    return [
-        _Param("alpha", 1.0),
-        _Param("anisotropic", 0.0),
-        _Param("anisotropic_rotation", 0.0),
-        _Param("coat_ior", 1.5, min_value=1.0, max_value=4.0),
-        _Param("coat_roughness", 0.0),
-        _Param("coat_tint", (1.0, 1.0, 1.0, 1.0), "color"),
-        _Param("coat_weight", 0.0),
-        _Param("diffuse_roughness", 0.0),
-        _Param("emission_color", (0.0, 0.0, 0.0, 0.0), "color"),
-        _Param("emission_strength", 0.0, max_value=inf),
-        _Param("ior", 1.45, min_value=1.0, max_value=1000.0),
-        _Param("metallic", 0.0),
-        _Param("roughness", 0.4),
-        _Param("sheen_weight", 0.0),
-        _Param("sheen_roughness", 0.5),
-        _Param("sheen_tint", (0.5, 0.5, 0.5, 1.0), "color"),
-        _Param("specular_ior", 0.3, max_value=inf),
-        _Param("specular_tint", (0.0, 0.0, 0.0, 1.0), "color"),
-        _Param("subsurface_anisotropy", 0.0, min_value=-1.0),
-        _Param("subsurface_radius", (1.0, 0.2, 1.0), "vec3", max_value=inf),
-        _Param("subsurface_scale", 0.05, max_value=inf),
-        _Param("subsurface_weight", 0.0),
-        _Param("thin_film_ior", 1.33, min_value=1.0, max_value=1000.0),
-        _Param("thin_film_thickness", 0.0, max_value=100000.0),
-        _Param("transmission_weight", 0.0),
-        _Param("roughness_map", None, "texture"),
-        _Param("metallic_map", None, "texture"),
-        _Param("normal_map", None, "normal_map"),
-    ]
+def _colour(name: str, default: tuple[float, ...], doc: str) -> Param:
+    return Param(name, default, "color", 0.0, 1.0, doc=doc + " (sRGB unless color_space='linear')")
 
 
-class Material:
-    """Base of all materials. Subclasses declare their parameters in ``_params``."""
+#: the colour encoding of a material's colour parameters; a constructor input, not a parameter
+MATERIAL_COLOR_SPACE = Param(
+    "color_space",
+    "srgb",
+    "choice",
+    choices=COLOR_SPACES,
+    stored=False,
+    doc="Encoding of the material's colour parameters: 'srgb' or 'linear' (fixed at creation)",
+)
+ROUGHNESS = _factor("roughness", 0.4, "Perceptual roughness of the specular lobes (GGX alpha = roughness^2)")
+ALPHA = _factor("alpha", 1.0, "Opacity: 1 opaque, 0 invisible (Blender's Transparent BSDF mix)")
 
-    _params: tuple[_Param, ...] = ()
+# Blender clamps (measured with bpy 5.0.1: renders of the clamped value and of the clamp target are
+# pixel-identical; Cycles' closure setup: coat IOR max(ior, 1), subsurface anisotropy clamp(a, 0, 0.9)).
+COAT_IOR_CLAMP = Clamp(0.0, 1.0, 1.0, high_open=True)
+SUBSURFACE_ANISOTROPY_CLAMPS = (Clamp(-1.0, 0.0, 0.0, high_open=True), Clamp(0.9, 1.0, 0.9, low_open=True))
+
+PRINCIPLED: tuple[Param, ...] = (
+    ALPHA,
+    _factor("anisotropic", 0.0, "Anisotropy of the specular highlight (0 = isotropic)"),
+    Param(
+        "anisotropic_rotation", 0.0, "float", 0.0, 1.0, unit="turns", doc="Rotation of the anisotropy direction"
+    ),
+    Param(
+        "coat_ior",
+        1.5,
+        "float",
+        1.0,
+        4.0,
+        doc="Index of refraction of the clear coat (blendify's 0 and other values below 1 render as 1)",
+        clamps=(COAT_IOR_CLAMP,),
+    ),
+    _factor("coat_roughness", 0.0, "Roughness of the clear coat"),
+    _colour("coat_tint", (1.0, 1.0, 1.0, 1.0), "Colour absorbed by the clear coat"),
+    _factor("coat_weight", 0.0, "Strength of the clear coat layer"),
+    _factor("diffuse_roughness", 0.0, "Oren-Nayar roughness of the diffuse lobe (0 = Lambertian)"),
+    _colour("emission_color", (0.0, 0.0, 0.0, 0.0), "Emitted colour"),
+    Param(
+        "emission_strength",
+        0.0,
+        "float",
+        0.0,
+        None,
+        unit="W/(m^2 sr)",
+        doc="Emitted radiance = emission_color x emission_strength",
+    ),
+    Param("ior", 1.45, "float", 1.0, 1000.0, doc="Index of refraction of the dielectric (specular and transmission)"),
+    _factor("metallic", 0.0, "Blend from dielectric (0) to metal (1)"),
+    ROUGHNESS,
+    _factor("sheen_weight", 0.0, "Strength of the sheen layer"),
+    _factor("sheen_roughness", 0.5, "Roughness of the sheen layer"),
+    _colour("sheen_tint", (0.5, 0.5, 0.5, 1.0), "Colour of the sheen"),
+    Param(
+        "specular_ior",
+        0.3,
+        "float",
+        0.0,
+        None,
+        doc="Blender's 'Specular IOR Level': 0.5 keeps the IOR, 0 removes the specular layer",
+    ),
+    _colour("specular_tint", (0.0, 0.0, 0.0, 1.0), "Tint of the dielectric specular reflection"),
+    Param(
+        "subsurface_anisotropy",
+        0.0,
+        "float",
+        0.0,
+        0.9,
+        doc="Forward scattering of the subsurface medium (Blender renders negative values as 0, above 0.9 as 0.9)",
+        clamps=SUBSURFACE_ANISOTROPY_CLAMPS,
+    ),
+    Param(
+        "subsurface_radius",
+        (1.0, 0.2, 1.0),
+        "vec3",
+        0.0,
+        None,
+        unit="m (x subsurface_scale)",
+        doc="Mean free path per RGB channel",
+    ),
+    Param("subsurface_scale", 0.05, "float", 0.0, None, unit="m", doc="Scale of subsurface_radius"),
+    _factor("subsurface_weight", 0.0, "Blend from diffuse to subsurface scattering"),
+    Param("thin_film_ior", 1.33, "float", 1.0, 1000.0, doc="Index of refraction of the thin film"),
+    Param("thin_film_thickness", 0.0, "float", 0.0, 100000.0, unit="nm", doc="Thickness of the thin film (0 = none)"),
+    _factor("transmission_weight", 0.0, "Blend to glass-like transmission"),
+    Param("roughness_map", None, "texture", nullable=True, doc="Texture driving roughness through the mesh's UVs"),
+    Param("metallic_map", None, "texture", nullable=True, doc="Texture driving metallic through the mesh's UVs"),
+    Param("normal_map", None, "normal_map", nullable=True, doc="Tangent-space normal map (OpenGL convention)"),
+)
+
+WIREFRAME: tuple[Param, ...] = (
+    Param(
+        "wireframe_thickness", 0.01, "float", 0.0, None, unit="m", doc="Width of the drawn edges in world units"
+    ),
+    _colour("wireframe_color", (0.0, 0.0, 0.0, 1.0), "Colour of the drawn edges"),
+)
+
+GLOSSY: tuple[Param, ...] = (
+    ROUGHNESS,
+    Param(
+        "distribution",
+        "GGX",
+        "choice",
+        choices=("GGX", "BECKMANN", "ASHIKHMIN_SHIRLEY", "MULTI_GGX"),
+        doc="Microfacet distribution",
+    ),
+    ALPHA,
+)
+
+# presets: the defaults they change and the parameters their signatures list (blendify's)
+_METAL = {"roughness": 0.55, "metallic": 0.9, "specular_ior": 0.5}
+_PLASTIC = {"roughness": 0.3, "specular_ior": 0.5}
+_METAL_NAMES = ("roughness", "metallic", "coat_ior", "specular_ior", "coat_roughness")
+_PLASTIC_NAMES = ("roughness", "ior", "coat_ior", "specular_ior", "coat_roughness")
+_WIRE_NAMES = tuple(p.name for p in WIREFRAME)
+
+
+class Material(Declared):
+    """Base of all materials. Subclasses declare their parameters in ``_declared`` (``_params`` lists the
+    stored ones, in declaration order) and presets their changed defaults in ``_preset``."""
+
+    _declared: tuple[Param, ...] = (MATERIAL_COLOR_SPACE,)
+    _signature = Signature(None, "kwargs")
+    _params: tuple[Param, ...] = ()
     kind = "material"
+    color_space: str
+    revision: int
 
-    def __init__(self, color_space: str = "srgb", **kwargs: Any):
-        object.__setattr__(self, "_values", {})
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls._params = cls._stored
+
+    def _setup(self, inputs: dict[str, Any]) -> None:
         object.__setattr__(self, "revision", 0)
-        object.__setattr__(self, "color_space", as_choice("color_space", color_space, COLOR_SPACES))
-        names = {p.name for p in self._params}
-        reject_unknown(type(self).__name__, kwargs, names)
-        for p in self._params:
-            self._set(p, kwargs.get(p.name, p.default))
+        object.__setattr__(self, "color_space", MATERIAL_COLOR_SPACE.check(inputs["color_space"]))
+        self._init_values(inputs)
 
-    # -- parameter access ------------------------------------------------------------------------
-    @classmethod
-    def parameter_names(cls) -> tuple[str, ...]:
-        return tuple(p.name for p in cls._params)
-
-    def _param(self, name: str) -> _Param | None:
-        for p in self._params:
-            if p.name == name:
-                return p
-        return None
-
-    def _set(self, p: _Param, value: Any) -> None:
-        if p.kind == "float":
-            v: Any = as_float(p.name, value, min_value=p.min_value, max_value=p.max_value)
-        elif p.kind == "color":
-            arr = as_array(p.name, value, ndim=1, min_value=0.0, max_value=1.0)
-            if arr.shape[0] not in (3, 4):
-                raise InvalidSceneError(f"{p.name}: expected 3 (RGB) or 4 (RGBA) values, got {arr.shape[0]}")
-            v = tuple(float(x) for x in arr)
-        elif p.kind == "vec3":
-            v = tuple(float(x) for x in as_array(p.name, value, shape=(3,), min_value=p.min_value))
-        elif p.kind == "texture":
-            if value is not None and (not isinstance(value, TextureMap) or isinstance(value, NormalMap)):
-                raise InvalidSceneError(f"{p.name}: expected a TextureMap or None, got {_describe(value)}")
-            v = value
-        elif p.kind == "normal_map":
-            if value is not None and not isinstance(value, NormalMap):
-                raise InvalidSceneError(f"{p.name}: expected a NormalMap or None, got {_describe(value)}")
-            v = value
-        elif p.kind == "choice":
-            v = as_choice(p.name, value, p.choices)
-        else:  # pragma: no cover - declaration error
-            raise TypeError(p.kind)
-        self._values[p.name] = v
-
-    def __getattr__(self, name: str) -> Any:
-        values = self.__dict__.get("_values")
-        if values is not None and name in values:
-            return values[name]
-        raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
+    def _param_changed(self, param: Param) -> None:
+        object.__setattr__(self, "revision", self.revision + 1)
 
     def __setattr__(self, name: str, value: Any) -> None:
-        p = self._param(name)
-        if p is None:
-            if name.startswith("_"):
-                object.__setattr__(self, name, value)
-                return
+        if name.startswith("_"):
+            object.__setattr__(self, name, value)
+            return
+        p = self._param_index.get(name)
+        if p is None or not p.stored:
             raise InvalidSceneError(
                 f"{type(self).__name__}: unknown parameter {name!r}; known: {list(self.parameter_names())}"
             )
-        self._set(p, value)
-        object.__setattr__(self, "revision", self.revision + 1)
+        self._set_param(p, value)
 
     def get(self, name: str) -> Any:
         return self._values[name]
 
-    def __copy__(self) -> Material:
-        # parameters live in one dict: a shallow copy must not share it, or setting an attribute on the
-        # copy would change the original
-        new = type(self).__new__(type(self))
-        new.__dict__.update(self.__dict__)
-        new.__dict__["_values"] = dict(self._values)
-        return new
-
     def linear(self, name: str) -> np.ndarray:
         """A colour parameter as linear RGBA (4,) float64 (alpha is 1 when only RGB was given)."""
-        p = self._param(name)
+        p = self._param_index.get(name)
         if p is None or p.kind != "color":
             raise InvalidSceneError(f"{name}: not a colour parameter of {type(self).__name__}")
         rgba = np.ones(4)
@@ -168,18 +213,15 @@ class Material:
         rgba[: len(c)] = c
         return _to_linear(rgba, self.color_space)
 
-    def parameters(self) -> dict[str, Any]:
-        return dict(self._values)
-
     def copy(self, **changes: Any) -> Material:
-        values = {k: v for k, v in self._values.items()}
+        values = dict(self._values)
         values.update(changes)
         return type(self)(color_space=self.color_space, **values)
 
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
-        return self.color_space == other.color_space and self._values == other._values  # type: ignore[attr-defined]
+        return self.color_space == other.color_space and self._values == other._values
 
     __hash__ = object.__hash__
 
@@ -196,7 +238,9 @@ class Material:
     @property
     def is_emissive(self) -> bool:
         v = self._values
-        return float(v.get("emission_strength", 0.0)) > 0 and max(v.get("emission_color", (0, 0, 0))[:3]) > 0
+        if "emission_strength" not in v:
+            return False
+        return float(v["emission_strength"]) > 0 and max(v["emission_color"][:3]) > 0
 
     @property
     def is_diffuse_only(self) -> bool:
@@ -204,13 +248,8 @@ class Material:
         return material_lobes(self).diffuse_only
 
     def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
-        params: dict[str, Any] = {}
-        for p in self._params:
-            v = self._values[p.name]
-            if p.kind in ("texture", "normal_map"):
-                params[p.name] = None if v is None else v.to_dict(arrays, f"{prefix}{p.name}.")
-            else:
-                params[p.name] = list(v) if isinstance(v, tuple) else v
+        """The scene-file form: ``{"kind", "color_space", "params"}`` (params walk the declaration)."""
+        params = encode_params(self, arrays, prefix)
         return {"kind": type(self).__name__, "color_space": self.color_space, "params": params}
 
 
@@ -219,261 +258,64 @@ class PrincipledBSDFMaterial(Material):
     0 = no specular layer), as in blendify. Optional ``roughness_map``/``metallic_map`` (TextureMap) and
     ``normal_map`` (NormalMap) drive those inputs from textures through the mesh's UVs."""
 
-    _params = tuple(_principled_params())
+    _declared = PRINCIPLED + (MATERIAL_COLOR_SPACE,)
     kind = "principled"
-
-    def __init__(
-        self,
-        alpha: float = 1.0,
-        anisotropic: float = 0.0,
-        anisotropic_rotation: float = 0.0,
-        coat_ior: float = 1.5,
-        coat_roughness: float = 0.0,
-        coat_tint: Any = (1.0, 1.0, 1.0, 1.0),
-        coat_weight: float = 0.0,
-        diffuse_roughness: float = 0.0,
-        emission_color: Any = (0.0, 0.0, 0.0, 0.0),
-        emission_strength: float = 0.0,
-        ior: float = 1.45,
-        metallic: float = 0.0,
-        roughness: float = 0.4,
-        sheen_weight: float = 0.0,
-        sheen_roughness: float = 0.5,
-        sheen_tint: Any = (0.5, 0.5, 0.5, 1.0),
-        specular_ior: float = 0.3,
-        specular_tint: Any = (0.0, 0.0, 0.0, 1.0),
-        subsurface_anisotropy: float = 0.0,
-        subsurface_radius: Any = (1.0, 0.2, 1.0),
-        subsurface_scale: float = 0.05,
-        subsurface_weight: float = 0.0,
-        thin_film_ior: float = 1.33,
-        thin_film_thickness: float = 0.0,
-        transmission_weight: float = 0.0,
-        roughness_map: TextureMap | None = None,
-        metallic_map: TextureMap | None = None,
-        normal_map: NormalMap | None = None,
-        color_space: str = "srgb",
-        **kwargs: Any,
-    ):
-        reject_unknown(type(self).__name__, kwargs, self._extra_names())
-        super().__init__(
-            color_space=color_space,
-            alpha=alpha,
-            anisotropic=anisotropic,
-            anisotropic_rotation=anisotropic_rotation,
-            coat_ior=coat_ior,
-            coat_roughness=coat_roughness,
-            coat_tint=coat_tint,
-            coat_weight=coat_weight,
-            diffuse_roughness=diffuse_roughness,
-            emission_color=emission_color,
-            emission_strength=emission_strength,
-            ior=ior,
-            metallic=metallic,
-            roughness=roughness,
-            sheen_weight=sheen_weight,
-            sheen_roughness=sheen_roughness,
-            sheen_tint=sheen_tint,
-            specular_ior=specular_ior,
-            specular_tint=specular_tint,
-            subsurface_anisotropy=subsurface_anisotropy,
-            subsurface_radius=subsurface_radius,
-            subsurface_scale=subsurface_scale,
-            subsurface_weight=subsurface_weight,
-            thin_film_ior=thin_film_ior,
-            thin_film_thickness=thin_film_thickness,
-            transmission_weight=transmission_weight,
-            roughness_map=roughness_map,
-            metallic_map=metallic_map,
-            normal_map=normal_map,
-            **kwargs,
-        )
-
-    @classmethod
-    def _extra_names(cls) -> tuple[str, ...]:
-        return tuple(p.name for p in cls._params[len(_principled_params()) :])
 
 
 class DiffuseMaterial(PrincipledBSDFMaterial):
     """An exact Lambertian reflector: Principled with no specular layer (renders identically in every
     path tracer; the reference material of cross-renderer tests)."""
 
-    def __init__(self, **kwargs: Any):
-        kwargs.setdefault("roughness", 1.0)
-        kwargs.setdefault("specular_ior", 0.0)
-        super().__init__(**kwargs)
+    _preset = {"roughness": 1.0, "specular_ior": 0.0}
+    _signature = Signature((), "kwargs")
 
 
 class MetalMaterial(PrincipledBSDFMaterial):
     """Principled preset for metals (blendify's defaults: roughness 0.55, metallic 0.9)."""
 
-    def __init__(
-        self,
-        roughness: float = 0.55,
-        metallic: float = 0.9,
-        coat_ior: float = 1.5,
-        specular_ior: float = 0.5,
-        coat_roughness: float = 0.0,
-        **kwargs: Any,
-    ):
-        super().__init__(
-            roughness=roughness,
-            metallic=metallic,
-            coat_ior=coat_ior,
-            specular_ior=specular_ior,
-            coat_roughness=coat_roughness,
-            **kwargs,
-        )
+    _preset = _METAL
+    _signature = Signature(_METAL_NAMES, "kwargs")
 
 
 class PlasticMaterial(PrincipledBSDFMaterial):
     """Principled preset for plastics (blendify's defaults: roughness 0.3, IOR 1.45)."""
 
-    def __init__(
-        self,
-        roughness: float = 0.3,
-        ior: float = 1.45,
-        coat_ior: float = 1.5,
-        specular_ior: float = 0.5,
-        coat_roughness: float = 0.0,
-        **kwargs: Any,
-    ):
-        super().__init__(
-            roughness=roughness,
-            ior=ior,
-            coat_ior=coat_ior,
-            specular_ior=specular_ior,
-            coat_roughness=coat_roughness,
-            **kwargs,
-        )
-
-
-_WIRE = (
-    _Param("wireframe_thickness", 0.01, min_value=0.0, max_value=None),
-    _Param("wireframe_color", (0.0, 0.0, 0.0, 1.0), "color"),
-)
+    _preset = _PLASTIC
+    _signature = Signature(_PLASTIC_NAMES, "kwargs")
 
 
 class PrincipledBSDFWireframeMaterial(PrincipledBSDFMaterial):
     """Principled surface with the mesh edges drawn over it: ``wireframe_thickness`` in world units,
     ``wireframe_color`` (sRGB by default). The edges are the triangle edges of the mesh."""
 
-    _params = PrincipledBSDFMaterial._params + _WIRE
-    kind = "principled"
-
-    def __init__(self, wireframe_thickness: float = 0.01, wireframe_color: Any = (0.0, 0.0, 0.0, 1.0), **kwargs: Any):
-        super().__init__(wireframe_thickness=wireframe_thickness, wireframe_color=wireframe_color, **kwargs)
+    _declared = PRINCIPLED + WIREFRAME + (MATERIAL_COLOR_SPACE,)
+    _signature = Signature(_WIRE_NAMES, "kwargs")
 
 
 class PlasticWireframeMaterial(PrincipledBSDFWireframeMaterial):
-    def __init__(
-        self,
-        roughness: float = 0.3,
-        ior: float = 1.45,
-        coat_ior: float = 1.5,
-        specular_ior: float = 0.5,
-        coat_roughness: float = 0.0,
-        wireframe_thickness: float = 0.01,
-        wireframe_color: Any = (0.0, 0.0, 0.0, 1.0),
-        **kwargs: Any,
-    ):
-        super().__init__(
-            roughness=roughness,
-            ior=ior,
-            coat_ior=coat_ior,
-            specular_ior=specular_ior,
-            coat_roughness=coat_roughness,
-            wireframe_thickness=wireframe_thickness,
-            wireframe_color=wireframe_color,
-            **kwargs,
-        )
+    """PlasticMaterial's defaults with the mesh edges drawn over it."""
+
+    _preset = _PLASTIC
+    _signature = Signature(_PLASTIC_NAMES + _WIRE_NAMES, "kwargs")
 
 
 class MetalWireframeMaterial(PrincipledBSDFWireframeMaterial):
-    def __init__(
-        self,
-        roughness: float = 0.55,
-        metallic: float = 0.9,
-        coat_ior: float = 1.5,
-        specular_ior: float = 0.5,
-        coat_roughness: float = 0.0,
-        wireframe_thickness: float = 0.01,
-        wireframe_color: Any = (0.0, 0.0, 0.0, 1.0),
-        **kwargs: Any,
-    ):
-        super().__init__(
-            roughness=roughness,
-            metallic=metallic,
-            coat_ior=coat_ior,
-            specular_ior=specular_ior,
-            coat_roughness=coat_roughness,
-            wireframe_thickness=wireframe_thickness,
-            wireframe_color=wireframe_color,
-            **kwargs,
-        )
+    """MetalMaterial's defaults with the mesh edges drawn over it."""
+
+    _preset = _METAL
+    _signature = Signature(_METAL_NAMES + _WIRE_NAMES, "kwargs")
 
 
 class GlossyBSDFMaterial(Material):
     """Blender's Glossy BSDF: a pure specular reflector tinted by the object's colour.
     ``distribution``: "GGX", "BECKMANN", "ASHIKHMIN_SHIRLEY" or "MULTI_GGX"."""
 
-    _params = (
-        _Param("roughness", 0.4),
-        _Param("distribution", "GGX", "choice", choices=("GGX", "BECKMANN", "ASHIKHMIN_SHIRLEY", "MULTI_GGX")),
-        _Param("alpha", 1.0),
-    )
+    _declared = GLOSSY + (MATERIAL_COLOR_SPACE,)
+    _signature = Signature(None, None)
     kind = "glossy"
-
-    @strict_arguments
-    def __init__(
-        self, roughness: float = 0.4, distribution: str = "GGX", alpha: float = 1.0, color_space: str = "srgb"
-    ):
-        super().__init__(color_space=color_space, roughness=roughness, distribution=distribution, alpha=alpha)
-
-
-_MATERIAL_CLASSES = {
-    cls.__name__: cls
-    for cls in (
-        PrincipledBSDFMaterial,
-        DiffuseMaterial,
-        GlossyBSDFMaterial,
-        MetalMaterial,
-        PlasticMaterial,
-        PrincipledBSDFWireframeMaterial,
-        PlasticWireframeMaterial,
-        MetalWireframeMaterial,
-    )
-}
 
 
 def check_material(name: str, value: Any) -> Material:
     if not isinstance(value, Material):
         raise InvalidSceneError(f"{name}: expected a Material (e.g. PrincipledBSDFMaterial()), got {_describe(value)}")
     return value
-
-
-def material_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray], base_dir: str | None) -> Material:
-    cls = _MATERIAL_CLASSES.get(d.get("kind", ""))
-    if cls is None:
-        raise InvalidSceneError(f"scene file: unknown material kind {d.get('kind')!r}")
-    params = dict(d["params"])
-    for key in ("roughness_map", "metallic_map", "normal_map"):
-        t = params.get(key)
-        if t is not None:
-            src = arrays[t["image"]] if t.get("image") else _resolve(t["path"], base_dir)
-            params[key] = (
-                NormalMap(src, strength=t["strength"])
-                if t["kind"] == "normal_map"
-                else TextureMap(src, channel=t["channel"])
-            )
-    mat = Material.__new__(cls)
-    Material.__init__(mat, color_space=d["color_space"], **params)
-    return mat
-
-
-def _resolve(path: str, base_dir: str | None) -> str:
-    import os
-
-    if base_dir is not None and not os.path.isabs(path):
-        return os.path.join(base_dir, path)
-    return path

@@ -99,27 +99,32 @@ class MaterialLobes:
 
 
 def material_lobes(material: Any) -> MaterialLobes:
-    """The lobes of an IR material (the Principled family or the Glossy BSDF)."""
+    """The lobes of an IR material (the Principled family or the Glossy BSDF). A lobe whose parameter the
+    material does not declare (a Glossy BSDF has no ``metallic``) is absent; every declared value is read
+    as the material's attribute (its default is the declaration's, nowhere else)."""
+    declared = set(material.parameter_names())
 
-    def get(name: str, default: Any) -> Any:
-        return getattr(material, name, default)
+    def weight(name: str) -> float:
+        """The lobe's weight, 0 when the material has no such lobe."""
+        return float(getattr(material, name)) if name in declared else 0.0
 
     glossy = material.kind == "glossy"
-    metallic_value = float(get("metallic", 0.0))
-    metallic = metallic_value > 0 or get("metallic_map", None) is not None
-    coat = float(get("coat_weight", 0.0)) > 0
-    sheen = float(get("sheen_weight", 0.0)) > 0
-    transmission = float(get("transmission_weight", 0.0))
+    metallic_value = weight("metallic")
+    metallic = metallic_value > 0 or ("metallic_map" in declared and material.metallic_map is not None)
+    coat = weight("coat_weight") > 0
+    sheen = weight("sheen_weight") > 0
+    transmission = weight("transmission_weight")
+    alpha = float(material.alpha) if "alpha" in declared else 1.0
     return MaterialLobes(
         diffuse=not glossy and metallic_value < 1.0 and transmission < 1.0,
-        rough_diffuse=float(get("diffuse_roughness", 0.0)) > 0,
-        specular=glossy or float(get("specular_ior", 0.0)) > 0 or metallic or coat or sheen,
+        rough_diffuse=weight("diffuse_roughness") > 0,
+        specular=glossy or weight("specular_ior") > 0 or metallic or coat or sheen,
         metallic=metallic,
         transmission=transmission > 0,
         coat=coat,
         sheen=sheen,
-        subsurface=float(get("subsurface_weight", 0.0)) > 0,
+        subsurface=weight("subsurface_weight") > 0,
         emission=bool(material.is_emissive),
-        alpha=float(get("alpha", 1.0)) < 1.0,
-        roughness=float(get("roughness", 1.0)),
+        alpha=alpha < 1.0,
+        roughness=float(material.roughness),
     )

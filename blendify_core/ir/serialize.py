@@ -16,11 +16,26 @@ from blendify_core.io.scenefile import content_digest, read_scene_file, write_sc
 from blendify_core.ir.attachments import Attachment
 from blendify_core.ir.cameras import camera_from_dict
 from blendify_core.ir.colors import FacesUV, FileTextureColors, TextureColors, UniformColors, VertexColors, VertexUV
-from blendify_core.ir.lights import light_from_dict
-from blendify_core.ir.materials import material_from_dict
-from blendify_core.ir.renderables import _PARAMETRIC, _PRIMITIVES
+from blendify_core.ir.lights import BackgroundLight, EnvironmentMap, Light
+from blendify_core.ir.materials import Material
+from blendify_core.ir.params import decode_params
+from blendify_core.ir.renderables import PARAMETRIC, PRIMITIVES
+from blendify_core.ir.types import LIGHT_TYPES, MATERIAL_TYPES
 
-__all__ = ["scene_to_header", "scene_from_header", "save_scene", "load_scene", "fingerprint"]
+__all__ = [
+    "scene_to_header",
+    "scene_from_header",
+    "save_scene",
+    "load_scene",
+    "fingerprint",
+    "material_from_dict",
+    "light_from_dict",
+    "background_from_dict",
+    "environment_from_dict",
+]
+
+_MATERIAL_CLASSES = {cls.__name__: cls for cls in MATERIAL_TYPES}
+_LIGHT_CLASSES = {cls.kind: cls for cls in LIGHT_TYPES}
 
 
 def scene_to_header(scene: Any, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
@@ -62,6 +77,44 @@ def fingerprint(scene: Any) -> str:
     content), so the same scene hashes the same across processes and any change changes the hash."""
     arrays: dict[str, np.ndarray] = {}
     return content_digest(scene_to_header(scene, arrays), arrays)
+
+
+# -- materials and lights: each walks its class's parameter declaration (blendify_core.ir.params) ------
+
+
+def material_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray], base_dir: str | None = None) -> Material:
+    """The material a scene file's ``{"kind", "color_space", "params"}`` describes (Material.to_dict)."""
+    cls = _MATERIAL_CLASSES.get(d.get("kind", ""))
+    if cls is None:
+        raise InvalidSceneError(f"scene file: unknown material kind {d.get('kind')!r}")
+    params = decode_params(f"scene file: {cls.__name__}", cls._params, d["params"], arrays, base_dir)
+    material: Material = cls(color_space=d["color_space"], **params)
+    return material
+
+
+def light_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray] | None = None) -> Light:
+    """The light a scene file's ``{"kind", "tag", "params", "quaternion", "translation"}`` describes."""
+    cls = _LIGHT_CLASSES.get(d.get("kind", ""))
+    if cls is None:
+        raise InvalidSceneError(f"scene file: unknown light kind {d.get('kind')!r}")
+    params = decode_params(f"scene file: {cls.__name__}", cls._stored, d["params"], arrays or {})
+    light: Light = cls(**params, rotation=d["quaternion"], translation=d["translation"])
+    light._tag = d["tag"]
+    return light
+
+
+def background_from_dict(d: dict[str, Any]) -> dict[str, Any]:
+    """``set_background_light`` keywords from a scene file's background entry."""
+    return decode_params("scene file: BackgroundLight", BackgroundLight._stored, d, {})
+
+
+def environment_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray]) -> dict[str, Any]:
+    """``set_environment_map`` keywords from a scene file's environment entry (its parameters, the image
+    or path and the rotation)."""
+    names = {p.name for p in EnvironmentMap._stored}
+    params = decode_params("scene file: EnvironmentMap", EnvironmentMap._stored, {k: d[k] for k in names & set(d)}, {})
+    src = arrays[d["image"]] if d.get("image") else d["path"]
+    return {"image_or_path": src, "rotation": d["quaternion"], **params}
 
 
 def _colors_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
@@ -134,13 +187,13 @@ def scene_from_header(scene: Any, h: dict[str, Any], arrays: dict[str, np.ndarra
                 d["particle_emission_strength"],
                 **pose,
             )
-        elif kind in _PRIMITIVES:
+        elif kind in PRIMITIVES:
             params = dict(d["params"])
             adder = getattr(coll, f"add_{kind}_mesh")
             obj = adder(material=material, colors=colors, faces_material=d["faces_material"], **params, **pose)
             if d.get("smooth"):
                 obj.set_smooth(True)
-        elif kind in _PARAMETRIC:
+        elif kind in PARAMETRIC:
             params = dict(d["params"])
             if kind == "curve":
                 params["keypoints"] = arrays[params["keypoints"]]
@@ -151,17 +204,14 @@ def scene_from_header(scene: Any, h: dict[str, Any], arrays: dict[str, np.ndarra
             raise InvalidSceneError(f"unknown renderable kind {kind!r}")
         obj.emit_shadows = d["emit_shadows"]
     for d in h["lights"]:
-        light = light_from_dict(d)
+        light = light_from_dict(d, arrays)
         scene.lights._add(light, d["tag"])
     if h["background"] is not None:
-        scene.lights.set_background_light(**h["background"])
+        scene.lights.set_background_light(**background_from_dict(h["background"]))
     scene.attachments = [Attachment(d["format"], str(d["path"])) for d in h.get("attachments", [])] + [
         Attachment("blend", str(d["path"])) for d in h.get("attached_blends", [])  # files of 0.1.0
     ]
     env = h["environment"]
     if env is not None:
-        src = arrays[env["image"]] if env.get("image") else env["path"]
-        scene.lights.set_environment_map(
-            src, env["strength"], rotation=env["quaternion"], color_space=env["color_space"]
-        )
+        scene.lights.set_environment_map(**environment_from_dict(env, arrays))
     return scene

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime
 import functools
 import inspect
 import math
@@ -99,6 +100,9 @@ def as_array(
     return frozen(out)
 
 
+_NOT_NUMBERS = (str, bytes, bytearray, complex, np.complexfloating, datetime.date, datetime.time, datetime.timedelta)
+
+
 def as_float(
     name: str,
     value: Any,
@@ -107,9 +111,12 @@ def as_float(
     max_value: float | None = None,
     exclusive_min: bool = False,
     exclusive_max: bool = False,
+    finite: bool = True,
 ) -> float:
-    """Check a real scalar (finite) within an optional range."""
-    if isinstance(value, (bool, np.bool_)) or value is None:
+    """Check a real scalar within an optional range. Booleans, strings, bytes, complex numbers, dates and
+    durations are refused (``float("1.5")`` would accept a string); NaN is always refused, infinities
+    unless ``finite=False``."""
+    if isinstance(value, (bool, np.bool_, np.datetime64, np.timedelta64) + _NOT_NUMBERS) or value is None:
         raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}")
     if isinstance(value, np.ndarray):  # float() of a 1-element array is deprecated in numpy
         if value.size != 1 or value.dtype.kind not in "iuf":
@@ -117,9 +124,9 @@ def as_float(
         value = value.reshape(-1)[0]
     try:
         out = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}") from None
-    if not math.isfinite(out):
+    if math.isnan(out) or (finite and math.isinf(out)):
         raise InvalidSceneError(f"{name}: expected a finite number, got {out}")
     if min_value is not None and (out < min_value or (exclusive_min and out == min_value)):
         op = ">" if exclusive_min else ">="
@@ -146,9 +153,13 @@ def as_int(name: str, value: Any, *, min_value: int | None = None, max_value: in
 
 
 def as_bool(name: str, value: Any) -> bool:
+    """The one boolean rule: ``True``/``False``, a numpy bool, or the integers 0 and 1. Strings (``"no"``,
+    ``"False"``), other numbers, None and everything else raise InvalidSceneError naming ``name``."""
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
-    raise InvalidSceneError(f"{name}: expected True or False, got {_describe(value)}")
+    if isinstance(value, (int, np.integer)) and value in (0, 1):
+        return bool(value)
+    raise InvalidSceneError(f"{name}: expected True or False (or 0 / 1), got {_describe(value)}")
 
 
 def as_choice(name: str, value: Any, choices: Iterable[str], *, case_insensitive: bool = True) -> str:

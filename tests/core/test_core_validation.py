@@ -305,7 +305,7 @@ BAD_INPUTS = [
     ("update-material-count", lambda: mesh().update_material([M(), M()]), "material"),
     ("update-material-not-material", lambda: mesh().update_material("metal"), "material"),
     ("set-smooth-not-bool", lambda: mesh().set_smooth("yes"), "smooth"),
-    ("emit-shadows-not-bool", lambda: set_attr(mesh(), "emit_shadows", 1), "emit_shadows"),
+    ("emit-shadows-not-bool", lambda: set_attr(mesh(), "emit_shadows", 2), "emit_shadows"),  # 0 / 1 are booleans
     (
         "sphere-cannot-be-flat",
         lambda: bf.Scene().renderables.add_sphere_nurbs(1, M(), U((1, 1, 1))).set_smooth(False),
