@@ -8,6 +8,7 @@ import argparse
 import sys
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -23,12 +24,13 @@ from blendify_core.pipeline.render import render
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import _outputs
 from blendify_core.registry import available_backends
+from blendify_core.typing import Float32Array
 
 __all__ = ["crosscheck", "crosscheck_main"]
 
 
 def crosscheck(
-    scene: Any,
+    scene: Scene,
     backends: Sequence[str] = ("cycles", "mitsuba", "pyrender"),
     outputs: Sequence[str] = ("rgb", "depth", "normal", "albedo", "instance"),
     samples: int | None = 256,
@@ -57,102 +59,36 @@ def crosscheck(
     statistical test (:meth:`ReferenceEstimate.compare`) in ``report.ztests``, which must pass too: are
     the two engines' expected images equal, given their noise?
     """
-    if not isinstance(scene, Scene):
-        raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
-    if isinstance(backends, str):
-        backends = (backends,)
-    if not backends or len(set(backends)) != len(backends):
-        raise InvalidSceneError(f"backends: expected a non-empty sequence of distinct names, got {backends!r}")
-    forbidden = {"pixel_filter", "denoise", "clamp_direct", "clamp_indirect", "adaptive"} & set(settings)
-    if forbidden:
-        raise InvalidSceneError(
-            f"crosscheck: {sorted(forbidden)} are fixed by crosscheck (box filter, no denoiser/clamping/adaptive)"
-        )
-    outputs = _outputs(outputs if isinstance(outputs, str) else tuple(outputs))  # bad names: error up front
-    backend_options = dict(backend_options or {})
+    backends, outs = _checked_arguments(scene, backends, outputs, settings, repeats)
+    renders = _Renders(scene, samples, seed, repeats, settings, dict(backend_options or {}))
     status = available_backends()
-    results: dict[str, RenderResult] = {}
-    skipped: dict[str, str] = {}
-    errors: dict[str, str] = {}
-    notes: list[str] = []
-    if not isinstance(repeats, (int, np.integer)) or repeats < 1:
-        raise InvalidSceneError(f"repeats: expected a positive integer, got {repeats!r}")
-    fixed = dict(pixel_filter="box", denoise=False, clamp_direct=0.0, clamp_indirect=0.0, adaptive=False)
-    estimates: dict[str, Any] = {}
     for name in backends:
         st = status.get(name)
         if st is None:
-            skipped[name] = f"not registered (registered: {sorted(status)})"
-            continue
-        if not st.available:
-            skipped[name] = st.reason or "unavailable"
-            continue
-        outs = list(outputs)
-        while True:
-            try:
-                results[name] = render(
-                    scene,
-                    backend=name,
-                    samples=samples,
-                    seed=seed,
-                    outputs=tuple(outs),
-                    **fixed,
-                    **settings,
-                    **dict(backend_options.get(name, {})),
-                )
-                if repeats > 1 and is_path_tracer(name) and results[name].rgba is not None:
-                    extra = [
-                        render(
-                            scene,
-                            backend=name,
-                            samples=samples,
-                            seed=seed + i,
-                            outputs=("rgb",),
-                            **fixed,
-                            **settings,
-                            **dict(backend_options.get(name, {})),
-                        ).rgba
-                        for i in range(1, repeats)
-                    ]
-                    estimates[name] = _average_repeats(results[name], extra, samples)
-                break
-            except UnsupportedFeatureError as exc:
-                feat = getattr(exc, "feature", None) or ""
-                if feat.startswith("output.") and feat[7:] in outs and len(outs) > 1:
-                    outs.remove(feat[7:])
-                    notes.append(f"{name}: output {feat[7:]!r} unsupported, not compared ({exc})")
-                    continue
-                skipped[name] = f"unsupported: {exc}"
-                break
-            except BackendUnavailableError as exc:
-                skipped[name] = str(exc)
-                break
-            except (RenderError, InvalidSceneError) as exc:
-                errors[name] = f"{type(exc).__name__}: {exc}"
-                break
-    pairs: dict[tuple[str, str], CompareReport] = {}
-    names = list(results)
+            renders.skipped[name] = f"not registered (registered: {sorted(status)})"
+        elif not st.available:
+            renders.skipped[name] = st.reason or "unavailable"
+        else:
+            renders.render(name, list(outs))
+    names = list(renders.results)
     n_pt = sum(is_path_tracer(n) for n in names)
     if n_pt >= 1 and samples is not None and samples * max(repeats, 1) < 128 and not _delta_lights(scene):
-        notes.append(
+        renders.notes.append(
             f"samples={samples}: the colour tiers for area/sky light were measured at 256 spp; at fewer samples "
             "Monte-Carlo noise alone may fail them (use more samples, or repeats=k for the statistical test)"
         )
-    for i in range(len(names)):
-        for j in range(i + 1, len(names)):
-            a, b = names[i], names[j]
-            t = tier if tier is not None else choose_tier(a, b, scene)
-            pairs[(a, b)] = compare(results[a], results[b], tier=t, names=(a, b))
+    pairs = _compare_pairs(scene, renders.results, tier)
+    estimates = renders.estimates
     ztests = {(a, b): estimates[a].compare(estimates[b]) for (a, b) in pairs if a in estimates and b in estimates}
-    used_settings = {"samples": samples, "seed": seed, **fixed, **settings}
+    used_settings: dict[str, Any] = {"samples": samples, "seed": seed, **FIXED_SETTINGS, **settings}
     if repeats > 1:
         used_settings["repeats"] = repeats
     return CrosscheckReport(
-        results=results,
+        results=renders.results,
         pairs=pairs,
-        skipped=skipped,
-        errors=errors,
-        notes=notes,
+        skipped=renders.skipped,
+        errors=renders.errors,
+        notes=renders.notes,
         settings=used_settings,
         scene_name=scene_name,
         estimates=estimates,
@@ -160,8 +96,113 @@ def crosscheck(
     )
 
 
-def _average_repeats(first: RenderResult, extra: list[Any], samples: int | None) -> Any:
+#: settings crosscheck fixes so that the backends' images are comparable
+FIXED_SETTINGS: dict[str, Any] = {
+    "pixel_filter": "box",
+    "denoise": False,
+    "clamp_direct": 0.0,
+    "clamp_indirect": 0.0,
+    "adaptive": False,
+}
+
+
+def _checked_arguments(
+    scene: object,
+    backends: Sequence[str] | str,
+    outputs: Sequence[str] | str,
+    settings: Mapping[str, object],
+    repeats: object,
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The backends and the validated outputs; errors for a bad scene, backend list, setting or repeats."""
+    if not isinstance(scene, Scene):
+        raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
+    if isinstance(backends, str):
+        backends = (backends,)
+    if not backends or len(set(backends)) != len(backends):
+        raise InvalidSceneError(f"backends: expected a non-empty sequence of distinct names, got {backends!r}")
+    forbidden = set(FIXED_SETTINGS) & set(settings)
+    if forbidden:
+        raise InvalidSceneError(
+            f"crosscheck: {sorted(forbidden)} are fixed by crosscheck (box filter, no denoiser/clamping/adaptive)"
+        )
+    outs = _outputs(outputs if isinstance(outputs, str) else tuple(outputs))  # bad names: error up front
+    if not isinstance(repeats, (int, np.integer)) or repeats < 1:
+        raise InvalidSceneError(f"repeats: expected a positive integer, got {repeats!r}")
+    return tuple(backends), outs
+
+
+@dataclass
+class _Renders:
+    """Renders every backend at the comparable settings; what each rendered, skipped or failed at."""
+
+    scene: Scene
+    samples: int | None
+    seed: int
+    repeats: int
+    settings: dict[str, Any]
+    backend_options: dict[str, Mapping[str, Any]]
+    results: dict[str, RenderResult] = field(default_factory=dict)
+    skipped: dict[str, str] = field(default_factory=dict)
+    errors: dict[str, str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    estimates: dict[str, ReferenceEstimate] = field(default_factory=dict)
+
+    def _render(self, name: str, seed: int, outputs: tuple[str, ...]) -> RenderResult:
+        return render(
+            self.scene,
+            backend=name,
+            samples=self.samples,
+            seed=seed,
+            outputs=outputs,
+            **FIXED_SETTINGS,
+            **self.settings,
+            **dict(self.backend_options.get(name, {})),
+        )
+
+    def render(self, name: str, outs: list[str]) -> None:
+        """Render with backend ``name``, dropping outputs it does not support (noted) and, for a path
+        tracer with ``repeats`` > 1, averaging the colour of the repeats."""
+        while True:
+            try:
+                self.results[name] = result = self._render(name, self.seed, tuple(outs))
+                if self.repeats > 1 and is_path_tracer(name) and result.rgba is not None:
+                    extra = [self._render(name, self.seed + i, ("rgb",)).rgba for i in range(1, self.repeats)]
+                    self.estimates[name] = _average_repeats(result, extra, self.samples)
+                return
+            except UnsupportedFeatureError as exc:
+                feat = getattr(exc, "feature", None) or ""
+                if feat.startswith("output.") and feat[7:] in outs and len(outs) > 1:
+                    outs.remove(feat[7:])
+                    self.notes.append(f"{name}: output {feat[7:]!r} unsupported, not compared ({exc})")
+                    continue
+                self.skipped[name] = f"unsupported: {exc}"
+                return
+            except BackendUnavailableError as exc:
+                self.skipped[name] = str(exc)
+                return
+            except (RenderError, InvalidSceneError) as exc:
+                self.errors[name] = f"{type(exc).__name__}: {exc}"
+                return
+
+
+def _compare_pairs(
+    scene: Scene, results: dict[str, RenderResult], tier: str | Mapping[str, Mapping[str, float]] | None
+) -> dict[tuple[str, str], CompareReport]:
+    """Every pair (a, b) in the order of ``results``; b is the reference."""
+    pairs: dict[tuple[str, str], CompareReport] = {}
+    names = list(results)
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            a, b = names[i], names[j]
+            t = tier if tier is not None else choose_tier(a, b, scene)
+            pairs[(a, b)] = compare(results[a], results[b], tier=t, names=(a, b))
+    return pairs
+
+
+def _average_repeats(first: RenderResult, extra: list[Float32Array | None], samples: int | None) -> ReferenceEstimate:
     """Replace ``first.rgba`` by the mean of all repeats; return the ReferenceEstimate of the colour."""
+    if first.rgba is None:
+        raise InvalidSceneError("crosscheck: repeats need the 'rgb' output")
     stack = [first.rgba] + [x for x in extra if x is not None]
     est = ReferenceEstimate.from_images([x[..., :3] for x in stack], int(samples or 1))
     first.rgba = np.mean(np.stack(stack), axis=0).astype(np.float32)
