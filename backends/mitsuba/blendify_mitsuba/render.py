@@ -106,7 +106,7 @@ def render_native(
     if native.effects is not None:
         meta["effects"] = native.effects.to_dict()
     if native.ignored:
-        meta["ignored"] = list(native.ignored)
+        meta["ignored"] = sorted(set(native.ignored))
     if settings.denoise:
         meta.setdefault("notes", []).append("denoise requested: Mitsuba's CPU build has no denoiser (not applied)")
     if settings.adaptive or settings.time_limit or settings.target_error:

@@ -128,7 +128,6 @@ class Translation:
     spp: int = 1
     aniso: SquarePixelPlan | None = None
     ignored: list[str] = field(default_factory=list)
-    approximations: list[str] = field(default_factory=list)
     #: the camera's rays are parallel (orthographic): the geometric outputs' planar depth is the ray length
     parallel_rays: bool = False
 
@@ -531,7 +530,6 @@ class MitsubaTranslator(Translator):
             spp=ctx.aniso.spp if ctx.aniso is not None else int(self.settings.samples),
             aniso=ctx.aniso,
             ignored=ctx.ignored,
-            approximations=ctx.approximations,
             parallel_rays=ctx.parallel_rays,
         )
 
