@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from blendify_core.errors import BackendUnavailableError, BlendifyError, RenderError
+from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.changes import ChangeTracker
 from blendify_core.pipeline.settings import RenderSettings
 from blendify_core.pipeline.translator import TranslationContext
@@ -413,12 +414,12 @@ class TranslatedScene:
     between (another thread's, a .blend export's, a reset), so a render always shows its own scene."""
 
     built: BuiltScene
-    scene: Any
+    scene: Scene
     settings: RenderSettings
     token: int
 
 
-def _world_extra(scene: Any) -> tuple[Any, ...]:
+def _world_extra(scene: Scene) -> tuple[Any, ...]:
     """What the core's ``world_state`` does not follow (yet) and the world depends on: the environment map's
     rotation and colour space, and the lights collection's revision (a new environment map may get the
     ``id`` of the one it replaces)."""
@@ -448,7 +449,7 @@ class CyclesSession:
         self.last_stats: dict[str, Any] = {}
 
     # -- state -----------------------------------------------------------------------------------------
-    def _same_scene(self, scene: Any) -> bool:
+    def _same_scene(self, scene: Scene) -> bool:
         if self.built is None or self._scene_ref is None or self.built.generation != generation():
             return False
         if self._scene_ref() is not scene.renderables:
@@ -497,7 +498,7 @@ class CyclesSession:
             self._forget()
 
     # -- translation -----------------------------------------------------------------------------------
-    def translate(self, scene: Any, settings: RenderSettings, verbose: bool = False) -> TranslatedScene:
+    def translate(self, scene: Scene, settings: RenderSettings, verbose: bool = False) -> TranslatedScene:
         """Bring the bpy scene in line with ``scene`` and ``settings``."""
         with BPY_LOCK:
             with capture_output("translate", verbose) as cap, engine_errors("translating", cap):
@@ -512,7 +513,7 @@ class CyclesSession:
             native = self.translate(native.scene, native.settings, verbose)
         return native.built
 
-    def sync(self, scene: Any, settings: RenderSettings) -> BuiltScene:
+    def sync(self, scene: Scene, settings: RenderSettings) -> BuiltScene:
         """Translate what changed since the last call (everything for a new scene); returns the BuiltScene."""
         translator_class = self.translator_class
         translator_class.check_scene(scene)

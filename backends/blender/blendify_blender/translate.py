@@ -287,7 +287,7 @@ class CyclesTranslator(Translator):
         self.mb = MaterialBuilder()
 
     # -- the walk ----------------------------------------------------------------------------------
-    def translate(self, scene: Any, changes: SceneChanges, ctx: TranslationContext) -> dict[str, Any]:
+    def translate(self, scene: Scene, changes: SceneChanges, ctx: TranslationContext) -> dict[str, Any]:
         """Bring ``self.built`` in line with ``scene`` given what changed; returns what was done."""
         built = self.built
         stats: dict[str, Any] = {"built": 0, "moved": 0, "removed": 0, "lights_rebuilt": False}
@@ -891,7 +891,7 @@ class CyclesTranslator(Translator):
 
 
 def apply_engine_settings(
-    sc: Any, settings: RenderSettings, scene: Any, device: str = "CPU", compute_device_type: str = ""
+    sc: Any, settings: RenderSettings, scene: Scene, device: str = "CPU", compute_device_type: str = ""
 ) -> dict[str, Any]:
     """Set every Cycles setting explicitly from ``settings`` (and the effect analysis of ``scene`` when
     ``settings.effects``). Returns what was set (recorded in ``result.meta["engine_settings"]``)."""
@@ -997,7 +997,7 @@ def apply_engine_settings(
 # ---------------------------------------------------------------------------------------------------
 
 
-def build_scene(scene: Any, settings: RenderSettings | None = None, reset: bool = True) -> BuiltScene:
+def build_scene(scene: Scene, settings: RenderSettings | None = None, reset: bool = True) -> BuiltScene:
     """Build the bpy scene for ``scene`` from scratch in the current bpy session (see the module doc).
 
     ``settings`` defaults to the "final" preset. With ``reset=True`` (default) bpy is first reset to an
