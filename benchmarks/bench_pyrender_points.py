@@ -68,7 +68,7 @@ def child(variant: str, n: int) -> dict:
     bf.render(testing.depth_plane_scene(), backend=be, samples=1)  # context + shaders outside the timing
     if variant.startswith("instanced"):
         return instanced(be, scene, n)
-    from blendify_pyrender import _translate as tr
+    from blendify_pyrender import translate as tr
 
     lod = {
         "icosphere-1": tr.PointLOD("icosphere-1", 1, False),
@@ -179,7 +179,7 @@ def write_report(rows: list) -> None:
             lines.append(f"| {n:,} | {variant} | {tris[variant] * n:,} | {r['build']:.2f} | {r['warm'] * 1000:.0f} |")
     lines += [
         "",
-        "Choice (``blendify_pyrender._translate.point_lod``): merged spheres with per-vertex colours, because "
+        "Choice (``blendify_pyrender.translate.point_lod``): merged spheres with per-vertex colours, because "
         "pyrender's instancing has no per-instance colour (it would need one draw per colour); icosphere-1 "
         "(the shared tessellation) up to 20,000 points, icosphere-0 up to 50,000, octahedra up to 100,000, "
         "beyond that GL points (one square sprite per point, the projected diameter at the cloud's centre, "

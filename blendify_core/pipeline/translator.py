@@ -40,12 +40,18 @@ __all__ = [
     "TranslationContext",
     "approximate",
     "check_handlers",
+    "exact",
     "handles",
     "unsupported",
 ]
 
 #: the capability of a feature a handler renders exactly
 EXACT = Capability("exact")
+
+
+def exact(note: str) -> Capability:
+    """The capability of a feature a handler renders exactly, with a note saying how (formulas, engine names)."""
+    return Capability("exact", note)
 
 
 def approximate(note: str) -> Capability:
@@ -171,6 +177,11 @@ class Translator:
             f: cls._declared.get(f, Capability("unsupported", f"not declared by the {cls.backend} translator"))
             for f in ALL_FEATURES
         }
+
+    @classmethod
+    def declared(cls) -> dict[str, Capability]:
+        """Only what the handlers (and :attr:`extra_capabilities`) declare, without the default."""
+        return dict(cls._declared)
 
     @classmethod
     def missing_handlers(cls, types: Iterable[type] = IR_TYPES) -> list[type]:

@@ -50,8 +50,7 @@ from blendify_core.ir.renderables import (
     PointCloud,
     SphereNURBS,
 )
-from blendify_core.pipeline.capabilities import Capability
-from blendify_core.pipeline.translator import TranslationContext, Translator, approximate, handles
+from blendify_core.pipeline.translator import TranslationContext, Translator, approximate, exact, handles
 
 __all__ = [
     "PyrenderTranslator",
@@ -73,11 +72,6 @@ DIFFUSE_COMPENSATION = 0.96
 #: area lights become spot lights with these cones (outer < 84.4 deg keeps the spot shadow camera finite)
 AREA_INNER_CONE = np.deg2rad(25.0)
 AREA_OUTER_CONE = np.deg2rad(80.0)
-
-
-def exact(note: str) -> Capability:
-    """An exact capability with a note saying how."""
-    return Capability("exact", note)
 
 
 def _pyrender() -> Any:

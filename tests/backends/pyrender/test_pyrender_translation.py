@@ -227,7 +227,7 @@ def test_capability_table_declares_every_feature():
     assert set(caps) == set(ALL_FEATURES)
     from blendify_pyrender.translate import PyrenderTranslator
 
-    assert set(PyrenderTranslator._declared) == set(ALL_FEATURES), "declare new features explicitly"
+    assert set(PyrenderTranslator.declared()) == set(ALL_FEATURES), "declare new features explicitly"
     for name, cap in caps.items():
         assert cap.level in ("exact", "approximate", "unsupported")
         if cap.level != "exact":
