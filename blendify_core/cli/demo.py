@@ -5,12 +5,15 @@ best available backend into one labelled contact sheet."""
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from blendify_core.errors import RenderError
+from blendify_core.io.output import atomic_write
 from blendify_core.ir.colors import UniformColors, VertexColors
+from blendify_core.ir.colorspace import linear_to_srgb8
 from blendify_core.ir.geometry import torus
 from blendify_core.ir.materials import (
     DiffuseMaterial,
@@ -20,6 +23,9 @@ from blendify_core.ir.materials import (
     PrincipledBSDFMaterial,
 )
 from blendify_core.ir.scene import Scene
+from blendify_core.pipeline.render import render
+from blendify_core.pipeline.result import RenderResult, depth_to_image
+from blendify_core.typing import UInt8Array
 
 __all__ = ["donut_scene", "run_demo"]
 
@@ -135,7 +141,7 @@ def _label(img: np.ndarray, text: str) -> np.ndarray:
     return np.asarray(canvas)
 
 
-def _over_white(result: Any) -> np.ndarray:
+def _over_white(result: RenderResult) -> UInt8Array:
     rgba = result.to_srgb8().astype(np.float32) / 255.0
     a = rgba[..., 3:4]
     return np.round((rgba[..., :3] * a + (1 - a)) * 255).astype(np.uint8)
@@ -147,14 +153,10 @@ def run_demo(
     quality: str = "draft",
     size: int = 256,
     samples: int | None = None,
-    log: Any = print,
+    log: Callable[[str], object] = print,
 ) -> Path:
     """Render the demo panels and write a labelled contact sheet; returns its path."""
     from PIL import Image
-
-    from blendify_core import render
-    from blendify_core.io.output import atomic_write
-    from blendify_core.pipeline.result import depth_to_image
 
     panels: list[np.ndarray] = []
     res = (size, size)
@@ -166,9 +168,9 @@ def run_demo(
     seconds = main.meta["timings"]["total"]
     log(f"demo: rendering with backend {used!r} ({quality}); {seconds:.1f} s for colour+depth+albedo")
     panels.append(_label(_over_white(main), f"colour ({used})"))
+    if main.depth is None or main.albedo is None:
+        raise RenderError(f"demo: backend {used!r} returned no depth or albedo although both were requested")
     panels.append(_label(np.dstack([depth_to_image(main.depth)] * 3), "depth"))
-    from blendify_core.ir.colorspace import linear_to_srgb8
-
     panels.append(_label(linear_to_srgb8(main.albedo), "albedo"))
     for panel, label in (
         ("materials", "metal / plastic / wireframe"),

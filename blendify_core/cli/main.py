@@ -10,22 +10,30 @@ import logging
 import platform
 import sys
 from pathlib import Path
-from typing import Any
+from typing import NoReturn
 
 from blendify_core import __version__
+from blendify_core.batch.jobs import read_jobs
+from blendify_core.batch.local import DEFAULT_RECYCLE_AFTER
+from blendify_core.batch.run import render_many
+from blendify_core.batch.worker import _save
+from blendify_core.cli.demo import run_demo
+from blendify_core.errors import BlendifyError, InvalidSceneError
+from blendify_core.evaluate.crosscheck import crosscheck_main
+from blendify_core.ir.scene import Scene
+from blendify_core.pipeline.render import render
+from blendify_core.registry import available_backends, get_backend_class
 
 __all__ = ["main"]
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         # one line, no usage dump, exit code 2 (argparse's convention)
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def _info(args: argparse.Namespace) -> int:
-    from blendify_core.registry import available_backends, get_backend_class
-
     print(f"blendify-core {__version__} (Python {platform.python_version()}, {platform.system()} {platform.machine()})")
     import numpy
     import scipy
@@ -48,10 +56,6 @@ def _outputs(text: str) -> tuple[str, ...]:
 
 
 def _render(args: argparse.Namespace) -> int:
-    from blendify_core import render
-    from blendify_core.errors import InvalidSceneError
-    from blendify_core.ir.scene import Scene
-
     # check where the image goes before rendering, not after a long render
     target = Path(args.output)
     if target.suffix.lower() not in (".png", ".exr", ".npz"):
@@ -67,8 +71,6 @@ def _render(args: argparse.Namespace) -> int:
         seed=args.seed,
         outputs=_outputs(args.outputs),
     )
-    from blendify_core.batch.worker import _save
-
     # the same files as a batch job: OUT = rgb (or the first output), OUT.<name>.<ext> for the others
     out = Path(args.output)
     _save(result, str(out), tuple(result.meta["settings"]["outputs"]))
@@ -78,24 +80,15 @@ def _render(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from blendify_core.cli.demo import run_demo
-
     run_demo(args.output, backend=args.backend, quality=args.quality, size=args.size, samples=args.samples)
     return 0
 
 
 def _crosscheck(args: argparse.Namespace) -> int:
-    try:
-        from blendify_core.evaluate.crosscheck import crosscheck_main
-    except ImportError:
-        print("blendify crosscheck: not available in this version", file=sys.stderr)
-        return 1
     return int(crosscheck_main(args.rest) or 0)
 
 
 def _batch(args: argparse.Namespace) -> int:
-    from blendify_core.batch.run import read_jobs, render_many
-
     jobs = read_jobs(args.jobs)
     report = render_many(
         jobs,
@@ -138,8 +131,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-s", "--samples", type=int, default=None)
     p.set_defaults(func=_demo)
 
-    from blendify_core.batch.run import DEFAULT_RECYCLE_AFTER
-
     p = sub.add_parser(
         "batch",
         help="render many scene files listed in a JSON-lines file, resumably",
@@ -165,18 +156,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``blendify`` command; returns the process exit code."""
-    from blendify_core.errors import BlendifyError
-
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "crosscheck":  # its own parser: options may come before the scene path
-        try:
-            from blendify_core.evaluate.crosscheck import crosscheck_main
-        except ImportError:
-            print("blendify crosscheck: not available in this version", file=sys.stderr)
-            return 1
-        from blendify_core.errors import BlendifyError
-
         try:
             return int(crosscheck_main(argv[1:]) or 0)
         except BlendifyError as exc:
@@ -205,5 +187,5 @@ def main(argv: list[str] | None = None) -> int:
         return 1
 
 
-def _entry() -> Any:  # pragma: no cover - used by `python -m blendify_core`
+def _entry() -> NoReturn:  # pragma: no cover - used by `python -m blendify_core`
     raise SystemExit(main())

@@ -251,7 +251,7 @@ class CrosscheckReport:
             draw.multiline_text((pad, y + label_h), head, fill=colour, spacing=2)
             for ci, (label, img) in enumerate(row):
                 x = head_w + ci * (tw + pad)
-                im = Image.fromarray(np.ascontiguousarray(img[..., :3])).resize((tw, th), Image.NEAREST)
+                im = Image.fromarray(np.ascontiguousarray(img[..., :3])).resize((tw, th), Image.Resampling.NEAREST)
                 sheet.paste(im, (x, y + label_h))
                 draw.text((x + 1, y + 1), label, fill=(180, 0, 0) if label.endswith("FAIL") else (0, 0, 0))
         return np.asarray(sheet)

@@ -336,9 +336,10 @@ def estimate_reference(
         kw = {"denoise": False, "adaptive": False, "pixel_filter": "box", **render_kwargs}
         outputs = kw.pop("outputs", ("rgb",))
 
-        def render_fn(seed: int) -> Any:
+        def scene_render(seed: int) -> Any:
             return bf_render(scene, backend=backend, samples=samples, seed=seed, outputs=outputs, **kw)
 
+        render_fn: Callable[[int], Any] = scene_render
     elif callable(render):
         render_fn = render
     else:

@@ -162,7 +162,7 @@ def choose_tier(backend_a: str | RenderResult | None, backend_b: str | RenderRes
     return "pathtracer"
 
 
-_NON_DELTA = ("light.point.soft", "light.sun.soft", "light.area", "light.area.disk")
+_NON_DELTA: tuple[str, ...] = ("light.point.soft", "light.sun.soft", "light.area", "light.area.disk")
 _NON_DELTA += ("light.background", "light.environment")
 _NON_DIFFUSE = (
     "material.principled",

@@ -162,8 +162,8 @@ def cluster_simplify(verts: np.ndarray, faces: np.ndarray, target_faces: int) ->
         label = label.ravel()
         n = int(label.max()) + 1
         counts = np.bincount(label, minlength=n).astype(np.float64)
-        centres = np.stack([np.bincount(label, weights=verts[:, c], minlength=n) for c in range(3)], 1)
-        centres /= counts[:, None]
+        sums = np.stack([np.bincount(label, weights=verts[:, c], minlength=n) for c in range(3)], 1)
+        centres = sums / counts[:, None]
         return _clean(centres, label[faces])
 
     # the face count falls roughly with the square of the cell size

@@ -7,8 +7,9 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.cameras import Camera, PerspectiveCamera
-from blendify_core.ir.validate import _describe, as_array
+from blendify_core.ir.validate import as_array
 
 __all__ = ["approximate_colors_from_camera"]
 

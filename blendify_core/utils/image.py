@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.colorspace import linear_to_srgb, srgb8_to_linear, srgb_to_linear
-from blendify_core.ir.validate import _describe
 from blendify_core.pipeline.result import RenderResult
 
 __all__ = ["blend_with_background", "crop_to_content", "contact_sheet", "to_display_uint8"]
@@ -166,14 +166,15 @@ def crop_to_content(
     h, w = img.shape[:2]
     rows, cols = np.flatnonzero(content.any(axis=1)), np.flatnonzero(content.any(axis=0))
     if rows.size == 0:
-        box = (0, h, 0, w)
+        top, bottom, left, right = 0, h, 0, w
     else:
-        box = (max(0, rows[0] - m), min(h, rows[-1] + 1 + m), max(0, cols[0] - m), min(w, cols[-1] + 1 + m))
-    box = tuple(int(b) for b in box)
+        top, bottom = max(0, rows[0] - m), min(h, rows[-1] + 1 + m)
+        left, right = max(0, cols[0] - m), min(w, cols[-1] + 1 + m)
+    box = (int(top), int(bottom), int(left), int(right))
     out = np.array(img[box[0] : box[1], box[2] : box[3]])
     if np.asarray(rgba if not hasattr(rgba, "rgba") else rgba.rgba).ndim == 2:
         out = out[..., 0]
-    return (out, box) if return_box else out  # type: ignore[return-value]
+    return (out, box) if return_box else out
 
 
 def _font(size: int) -> Any:

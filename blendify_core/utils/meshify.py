@@ -17,9 +17,10 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import FacesUV, TextureColors
 from blendify_core.ir.materials import DiffuseMaterial
-from blendify_core.ir.validate import _describe, as_array, as_float
+from blendify_core.ir.validate import as_array, as_float
 from blendify_core.utils._implicit import cluster_simplify, marching_tetrahedra, signed_distance_grid
 from blendify_core.utils.normals import _points, estimate_normals
 

@@ -6,14 +6,17 @@ Everything is vectorised numpy/scipy (``scipy.spatial.cKDTree``, batched ``np.li
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.geometry import face_normals
 from blendify_core.ir.renderables import Renderable
-from blendify_core.ir.validate import _describe, as_array
+from blendify_core.ir.validate import as_array
+from blendify_core.typing import Float64Array
 
 __all__ = ["estimate_normals", "normals_from_mesh", "orient_normals"]
 
@@ -133,8 +136,8 @@ def _propagate(points: np.ndarray, normals: np.ndarray, idx: np.ndarray, viewpoi
         score = np.where(score == 0, tie, score)
     else:
         counts = np.bincount(labels, minlength=ncomp).astype(np.float64)
-        centroid = np.stack([np.bincount(labels, weights=points[:, c], minlength=ncomp) for c in range(3)], 1)
-        centroid /= counts[:, None]
+        sums = np.stack([np.bincount(labels, weights=points[:, c], minlength=ncomp) for c in range(3)], 1)
+        centroid = sums / counts[:, None]
         outward = np.einsum("ij,ij->i", out, points - centroid[labels])
         score = np.bincount(labels, weights=outward, minlength=ncomp)
         extent = max(float(np.ptp(points, axis=0).max()), 1e-300)
@@ -191,13 +194,34 @@ def _unique_rows(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return sp[new], inverse
 
 
+@overload
 def estimate_normals(
-    points: Any,
+    points: ArrayLike,
     k: int = 16,
     orient: str | None = "propagate",
-    viewpoint: Any = None,
+    viewpoint: ArrayLike | None = None,
+    return_variation: Literal[False] = False,
+) -> Float64Array: ...
+
+
+@overload
+def estimate_normals(
+    points: ArrayLike,
+    k: int = 16,
+    orient: str | None = "propagate",
+    viewpoint: ArrayLike | None = None,
+    *,
+    return_variation: Literal[True],
+) -> tuple[Float64Array, Float64Array]: ...
+
+
+def estimate_normals(
+    points: ArrayLike,
+    k: int = 16,
+    orient: str | None = "propagate",
+    viewpoint: ArrayLike | None = None,
     return_variation: bool = False,
-) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+) -> Float64Array | tuple[Float64Array, Float64Array]:
     """Unit normals (N, 3) of a point cloud from the principal axes of each point's ``k`` nearest
     neighbours (itself included).
 

@@ -14,8 +14,9 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.transforms import Positionable, quaternion_from_rotation
-from blendify_core.ir.validate import _describe, as_array, as_float
+from blendify_core.ir.validate import as_array, as_float
 
 __all__ = ["Pose", "Trajectory", "apply_pose"]
 
