@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import Capability
 from blendify_core.pipeline.result import RenderResult
@@ -122,11 +123,12 @@ class MitsubaBackend(Backend):
         return self.session.max_analytic_spheres
 
     # -- work --------------------------------------------------------------------------------------
-    def translate(self, scene: Any, settings: RenderSettings) -> MitsubaNative:
+    def translate(self, scene: Scene, settings: RenderSettings) -> MitsubaNative:
         """The loaded Mitsuba scene (reused while neither the scene nor the translation settings change)."""
         return self.session.translate(scene, settings)
 
     def render(self, native: MitsubaNative, settings: RenderSettings) -> RenderResult:
+        """Render a native scene from :meth:`translate` (see :mod:`blendify_mitsuba.render`)."""
         return render_native(native, settings, self.session, self.name, self.engine_version())
 
     def close(self) -> None:

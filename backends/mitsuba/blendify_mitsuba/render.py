@@ -3,6 +3,10 @@ coverage alpha under a sky, shadow catchers emulated, non-square pixels resample
 outputs (depth, normal, albedo, instance) from our own rays through the pixel centres (exact, not
 filtered).
 
+Timings of the backend's own (``meta["timings"]``, seconds, besides the core's ``translate`` and
+``render``): ``render_rgb`` (every colour pass and its post-processing) and ``ray_cast`` (the geometric
+outputs).
+
 Mitsuba and Dr.Jit are imported inside the functions that use them; callers hold the session's engine
 (:meth:`blendify_mitsuba.session.MitsubaSession.engine`).
 """

@@ -131,7 +131,7 @@ class MitsubaSession:
                     mi.set_variant(previous)
 
     # -- translation ------------------------------------------------------------------------------------
-    def translate(self, scene: Any, settings: RenderSettings) -> MitsubaNative:
+    def translate(self, scene: Scene, settings: RenderSettings) -> MitsubaNative:
         """The native scene of ``scene``: the previous one when neither the scene (core change detection)
         nor the translation settings changed, or only the camera changed but not its sensor; else a new
         translation."""
