@@ -41,11 +41,7 @@ def facade(
     """A method ``owner.name`` that builds ``cls`` from its arguments and hands it to ``action``."""
     extra = tuple(POSE) + (TAG,) if pose else ()
     skip = {p.name for p in extra} | {p.name for p in trailing}
-    own = [
-        p.replace()
-        for p in inspect.signature(cls).parameters.values()
-        if p.kind is _POK and p.name not in skip
-    ]
+    own = [p.replace() for p in inspect.signature(cls).parameters.values() if p.kind is _POK and p.name not in skip]
     params = [inspect.Parameter("self", _POK), *own, *(_parameter(p) for p in extra + tuple(trailing))]
     sig = inspect.Signature(params, return_annotation=cls.__name__)
     qualname = f"{owner}.{name}"

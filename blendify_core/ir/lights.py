@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import COLOR_SPACES, _check_image, _to_linear, load_image
 from blendify_core.ir.colorspace import srgb8_to_linear
 from blendify_core.ir.facade import facade
@@ -34,7 +35,7 @@ from blendify_core.ir.params import (
     encode_params,
 )
 from blendify_core.ir.transforms import Positionable, ValidatedParam, quaternion_from_rotation, quaternion_to_matrix
-from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, check_tag, frozen, raw_array
+from blendify_core.ir.validate import as_array, as_choice, as_float, check_tag, frozen, raw_array
 
 __all__ = [
     "Light",
@@ -111,8 +112,12 @@ def _image_or_path(obj: Any, name: str, value: Any) -> Any:
 class Light(Positionable, Declared):
     """Base of positioned lights."""
 
-    _declared = (Param("strength", REQUIRED, "float", 0.0, None, unit="W or W/m^2", doc="Power"), COLOR, USE_SHADOW)
-    _declared += _LIGHT_TAIL
+    _declared: tuple[Param, ...] = (
+        Param("strength", REQUIRED, "float", 0.0, None, unit="W or W/m^2", doc="Power"),
+        COLOR,
+        USE_SHADOW,
+        *_LIGHT_TAIL,
+    )
     _signature = Signature(("strength", "color", "use_shadow", "color_space", "tag"), "pose")
     kind = "light"
     prefix = "Light"
@@ -188,7 +193,15 @@ class SpotLight(Light):
 
     _declared = (
         POWER,
-        Param("spot_size", np.pi / 4, "float", float(np.deg2rad(1.0)), np.pi, unit="rad", doc="Full cone angle"),
+        Param(
+            "spot_size",
+            np.pi / 4,
+            "float",
+            float(np.deg2rad(1.0)),
+            np.pi,
+            unit="rad",
+            doc="Full cone angle (1 to 180 degrees)",
+        ),
         Param("spot_blend", 0.15, "float", 0.0, 1.0, doc="Softness of the cone's edge"),
         SHADOW_SOFT_SIZE,
         COLOR,

@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import COLOR_SPACES, _to_linear
 from blendify_core.ir.params import Clamp, Declared, Param, Signature, encode_params
 from blendify_core.ir.physics import material_lobes
-from blendify_core.ir.validate import _describe
 
 __all__ = [
     "Material",
@@ -70,9 +70,7 @@ SUBSURFACE_ANISOTROPY_CLAMPS = (Clamp(-1.0, 0.0, 0.0, high_open=True), Clamp(0.9
 PRINCIPLED: tuple[Param, ...] = (
     ALPHA,
     _factor("anisotropic", 0.0, "Anisotropy of the specular highlight (0 = isotropic)"),
-    Param(
-        "anisotropic_rotation", 0.0, "float", 0.0, 1.0, unit="turns", doc="Rotation of the anisotropy direction"
-    ),
+    Param("anisotropic_rotation", 0.0, "float", 0.0, 1.0, unit="turns", doc="Rotation of the anisotropy direction"),
     Param(
         "coat_ior",
         1.5,
@@ -140,9 +138,7 @@ PRINCIPLED: tuple[Param, ...] = (
 )
 
 WIREFRAME: tuple[Param, ...] = (
-    Param(
-        "wireframe_thickness", 0.01, "float", 0.0, None, unit="m", doc="Width of the drawn edges in world units"
-    ),
+    Param("wireframe_thickness", 0.01, "float", 0.0, None, unit="m", doc="Width of the drawn edges in world units"),
     _colour("wireframe_color", (0.0, 0.0, 0.0, 1.0), "Colour of the drawn edges"),
 )
 
@@ -216,7 +212,9 @@ class Material(Declared):
     def copy(self, **changes: Any) -> Material:
         values = dict(self._values)
         values.update(changes)
-        return type(self)(color_space=self.color_space, **values)
+        cls: Any = type(self)
+        new: Material = cls(color_space=self.color_space, **values)
+        return new
 
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):

@@ -28,8 +28,9 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import NormalMap, TextureMap
-from blendify_core.ir.validate import _describe, as_array, as_bool, as_choice, as_float, as_int
+from blendify_core.ir.validate import as_array, as_bool, as_choice, as_float, as_int
 
 __all__ = [
     "KINDS",
@@ -299,13 +300,13 @@ def _check_choice(p: Param, label: str, value: Any, obj: Any) -> str:
 def _check_texture(p: Param, label: str, value: Any, obj: Any) -> TextureMap | None:
     if value is not None and (not isinstance(value, TextureMap) or isinstance(value, NormalMap)):
         raise InvalidSceneError(f"{label}: expected a TextureMap or None, got {_describe(value)}")
-    return value  # type: ignore[no-any-return]
+    return value
 
 
 def _check_normal_map(p: Param, label: str, value: Any, obj: Any) -> NormalMap | None:
     if value is not None and not isinstance(value, NormalMap):
         raise InvalidSceneError(f"{label}: expected a NormalMap or None, got {_describe(value)}")
-    return value  # type: ignore[no-any-return]
+    return value
 
 
 def _check_custom(p: Param, label: str, value: Any, obj: Any) -> Any:
@@ -464,10 +465,25 @@ ROTATION_MODE = Param(
     doc="How ``rotation`` is given (docs/conventions.md, 'World and poses')",
 )
 ROTATION = Param(
-    "rotation", None, "custom", stored=False, annotation="Any", type_text="per rotation_mode", check_fn=_as_given
+    "rotation",
+    None,
+    "custom",
+    stored=False,
+    annotation="Any",
+    type_text="per rotation_mode",
+    check_fn=_as_given,
+    doc="The rotation (None: identity)",
 )
 TRANSLATION = Param(
-    "translation", (0, 0, 0), "custom", stored=False, annotation="Any", type_text="(x, y, z)", check_fn=_as_given
+    "translation",
+    (0, 0, 0),
+    "custom",
+    stored=False,
+    annotation="Any",
+    type_text="(x, y, z)",
+    unit="m",
+    check_fn=_as_given,
+    doc="World position",
 )
 TAG = Param(
     "tag",

@@ -34,8 +34,9 @@ __all__ = [
     "environment_from_dict",
 ]
 
-_MATERIAL_CLASSES = {cls.__name__: cls for cls in MATERIAL_TYPES}
-_LIGHT_CLASSES = {cls.kind: cls for cls in LIGHT_TYPES}
+_LIGHTS: tuple[Any, ...] = LIGHT_TYPES
+_MATERIAL_CLASSES: dict[str, Any] = {cls.__name__: cls for cls in MATERIAL_TYPES}
+_LIGHT_CLASSES: dict[str, Any] = {cls.kind: cls for cls in _LIGHTS}
 
 
 def scene_to_header(scene: Any, arrays: dict[str, np.ndarray]) -> dict[str, Any]:

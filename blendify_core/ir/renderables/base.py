@@ -13,11 +13,12 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import Colors, UniformColors
 from blendify_core.ir.geometry import TriMesh
 from blendify_core.ir.materials import Material, check_material
 from blendify_core.ir.transforms import Positionable
-from blendify_core.ir.validate import _describe, as_bool
+from blendify_core.ir.validate import as_bool
 
 __all__ = ["Renderable"]
 

@@ -20,7 +20,8 @@ __all__ = ["RenderablesCollection"]
 
 def _add(collection: RenderablesCollection, cls: type, arguments: dict[str, Any]) -> Renderable:
     tag = arguments.pop("tag")
-    return collection._add(cls(**arguments), tag)
+    obj: Renderable = collection._add(cls(**arguments), tag)
+    return obj
 
 
 def _adder(cls: type, name: str) -> Any:

@@ -8,6 +8,7 @@ import numpy as np
 
 from blendify_core._memo import bounds_memo
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import (
     FacesUV,
     FileTextureColors,
@@ -20,7 +21,7 @@ from blendify_core.ir.colors import (
 )
 from blendify_core.ir.geometry import TriMesh, triangulate_polygons, vertex_normals
 from blendify_core.ir.renderables.base import Renderable, _column_bounds
-from blendify_core.ir.validate import _describe, as_array, as_bool, frozen
+from blendify_core.ir.validate import as_array, as_bool, frozen
 
 __all__ = ["Mesh"]
 

@@ -7,11 +7,12 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.geometry import TriMesh, tube_along_polyline, uv_sphere
 from blendify_core.ir.renderables.base import Renderable
 from blendify_core.ir.renderables.primitives import _RADIUS
 from blendify_core.ir.transforms import ValidatedParam
-from blendify_core.ir.validate import _describe, as_array, as_bool, as_float
+from blendify_core.ir.validate import as_array, as_bool, as_float
 
 __all__ = ["ParametricPrimitive", "SphereNURBS", "EllipsoidNURBS", "CurveBezier", "PARAMETRIC"]
 
@@ -81,7 +82,7 @@ class EllipsoidNURBS(ParametricPrimitive):
     def to_mesh(self, segments: int = 64, rings: int = 32) -> TriMesh:
         m = uv_sphere(1.0, segments, rings)
         m.vertices = m.vertices * self.radius
-        n = m.normals / self.radius  # type: ignore[operator]
+        n = m.normals / self.radius
         m.normals = n / np.linalg.norm(n, axis=1, keepdims=True)
         return m
 

@@ -8,11 +8,12 @@ import numpy as np
 
 from blendify_core._memo import bounds_memo
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import UniformColors, VertexColors
 from blendify_core.ir.geometry import TriMesh, icosphere
 from blendify_core.ir.renderables.base import Renderable, _column_bounds
 from blendify_core.ir.transforms import ValidatedParam
-from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, raw_array
+from blendify_core.ir.validate import as_array, as_choice, as_float, raw_array
 
 __all__ = ["PointCloud"]
 

@@ -14,6 +14,8 @@ from blendify_core.ir.validate import as_array, as_bool, as_choice, as_float, as
 
 __all__ = ["MeshPrimitive", "CubeMesh", "CircleMesh", "CylinderMesh", "PlaneMesh", "FILL_TYPES", "PRIMITIVES"]
 
+FILL_TYPES = ("NOTHING", "NGON", "TRIFAN")
+
 
 def _positive(obj: Any, name: str, value: Any) -> float:
     return as_float(name, value, min_value=0.0, exclusive_min=True)
@@ -124,7 +126,8 @@ class CubeMesh(MeshPrimitive):
 
     def _polygons(self) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | None]:
         h = self.size / 2.0
-        verts, polys = [], []
+        verts: list[np.ndarray] = []
+        polys: list[np.ndarray] = []
         for axis in range(3):
             for sign in (-1.0, 1.0):
                 u, w = [a for a in range(3) if a != axis]
@@ -149,9 +152,6 @@ class CubeMesh(MeshPrimitive):
 def _ring(radius: float, n: int, z: float = 0.0) -> np.ndarray:
     a = np.linspace(0, 2 * np.pi, n, endpoint=False)
     return np.stack([radius * np.cos(a), radius * np.sin(a), np.full(n, z)], axis=1)
-
-
-FILL_TYPES = ("NOTHING", "NGON", "TRIFAN")
 
 
 def _fill(ring_idx: np.ndarray, verts: list[np.ndarray], centre: np.ndarray, fill: str, flip: bool) -> list[np.ndarray]:
