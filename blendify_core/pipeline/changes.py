@@ -8,21 +8,44 @@ colour sources by identity: they are immutable), so a moved camera or light rebu
 
 from __future__ import annotations
 
+import json
+import os
 from collections.abc import Hashable
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["ChangeTracker", "SceneChanges", "renderable_state", "lights_state", "world_state"]
+__all__ = [
+    "ChangeTracker",
+    "SceneChanges",
+    "camera_state",
+    "file_stamp",
+    "lights_state",
+    "renderable_state",
+    "world_state",
+]
+
+
+def file_stamp(obj: Any) -> tuple[Hashable, ...] | None:
+    """(path, modification time, size) of the file an IR object reads (a file texture, an environment map
+    given by path), so a file rewritten between two renders counts as a change; None without a file."""
+    path = getattr(obj, "texture_path", None) or getattr(obj, "path", None)
+    if not isinstance(path, str):
+        return None
+    try:
+        st = os.stat(path)
+    except OSError:
+        return (path, None, None)
+    return (path, st.st_mtime_ns, st.st_size)
 
 
 def renderable_state(r: Any) -> tuple[Hashable, ...]:
-    """Everything about a renderable except its pose that a translation depends on."""
+    """Everything about a renderable except its pose that a translation depends on (files by their stamp)."""
     return (
         type(r),
         r.revision("geometry"),
         r.revision("appearance"),
         tuple((id(m), m.revision) for m in r.materials),
-        tuple(id(c) for c in r.colors_list),
+        tuple((id(c), file_stamp(c)) for c in r.colors_list),
     )
 
 
@@ -35,24 +58,23 @@ def lights_state(lights: Any) -> tuple[Hashable, ...]:
 
 
 def world_state(lights: Any) -> tuple[Hashable, ...]:
-    """The background light and the environment map."""
+    """The background light and the environment map (a map read from a file by its stamp)."""
     bg, env = lights.background, lights.environment
     return (
         None if bg is None else (bg.strength, tuple(bg.color), bg.color_space),
-        None if env is None else (id(env), env.strength, getattr(env, "revision", 0)),
+        None if env is None else (id(env), env.strength, getattr(env, "revision", 0), file_stamp(env)),
     )
 
 
-def camera_state(camera: Any) -> tuple[Hashable, ...] | None:
+def camera_state(camera: Any) -> str | None:
+    """The camera by content (type, intrinsics, clip range, distortion, pose), not identity: ``bf.render``
+    passes engines copies of the camera (resolution percentage, distortion margins, re-centring) and an
+    equal copy is no change, while any parameter change is one (whether or not it bumps a revision)."""
     if camera is None:
         return None
-    return (
-        type(camera),
-        id(camera),
-        camera.revision("transform"),
-        camera.revision("geometry"),
-        camera.revision("appearance"),
-    )
+    d = camera.to_dict()
+    d.pop("tag", None)
+    return f"{type(camera).__qualname__}:{json.dumps(d, sort_keys=True)}"
 
 
 @dataclass(frozen=True)
@@ -110,7 +132,7 @@ class ChangeTracker:
     _order: tuple[int, ...] = ()
     _lights: tuple[Hashable, ...] | None = None
     _world: tuple[Hashable, ...] | None = None
-    _camera: tuple[Hashable, ...] | None = None
+    _camera: str | None = None
     _attachments: tuple[Hashable, ...] | None = None
     _recorded: bool = False
 

@@ -77,3 +77,33 @@ def test_geometry_change_of_a_mesh_is_a_rebuild():
     t.update(s)
     m.update_vertices(v * 2)
     assert t.update(s).rebuilt == (m.uid,)
+
+
+def test_a_camera_copy_is_no_change_but_a_clip_change_is():
+    s = every_feature_scene()
+    t = ChangeTracker()
+    t.update(s)
+    view = s.with_camera(s.camera.copy())
+    assert not t.update(view).camera
+    s.camera.near = s.camera.near * 0.5
+    assert t.update(s).camera
+
+
+def test_a_texture_file_rewritten_between_renders_is_a_rebuild(tmp_path):
+    from PIL import Image
+
+    path = tmp_path / "tex.png"
+    Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(path)
+    s = bf.Scene()
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    uv = bf.VertexUV(np.array([[0, 0], [1, 0], [0, 1]], float))
+    m = s.renderables.add_mesh(v, np.array([[0, 1, 2]]), bf.DiffuseMaterial(), bf.FileTextureColors(path, uv))
+    t = ChangeTracker()
+    t.update(s)
+    assert not t.update(s).rebuilt
+    Image.fromarray(np.full((4, 4, 3), 255, np.uint8)).save(path)
+    import os
+
+    st = os.stat(path)
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))
+    assert t.update(s).rebuilt == (m.uid,)
