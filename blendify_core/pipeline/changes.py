@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Hashable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,7 +24,7 @@ __all__ = [
 ]
 
 
-def file_stamp(obj: Any) -> tuple[Hashable, ...] | None:
+def file_stamp(obj: Any) -> tuple[object, ...] | None:
     """(path, modification time, size) of the file an IR object reads (a file texture, an environment map
     given by path), so a file rewritten between two renders counts as a change; None without a file."""
     path = getattr(obj, "texture_path", None) or getattr(obj, "path", None)
@@ -38,7 +37,7 @@ def file_stamp(obj: Any) -> tuple[Hashable, ...] | None:
     return (path, st.st_mtime_ns, st.st_size)
 
 
-def renderable_state(r: Any) -> tuple[Hashable, ...]:
+def renderable_state(r: Any) -> tuple[object, ...]:
     """Everything about a renderable except its pose that a translation depends on (files by their stamp)."""
     return (
         type(r),
@@ -49,7 +48,7 @@ def renderable_state(r: Any) -> tuple[Hashable, ...]:
     )
 
 
-def lights_state(lights: Any) -> tuple[Hashable, ...]:
+def lights_state(lights: Any) -> tuple[object, ...]:
     """The lights (not the world): identity, pose and parameters of each."""
     return tuple(
         (light.uid, type(light), light.revision("transform"), light.revision("appearance"), light.revision("geometry"))
@@ -57,7 +56,7 @@ def lights_state(lights: Any) -> tuple[Hashable, ...]:
     )
 
 
-def world_state(lights: Any) -> tuple[Hashable, ...]:
+def world_state(lights: Any) -> tuple[object, ...]:
     """The background light and the environment map (a map read from a file by its stamp)."""
     bg, env = lights.background, lights.environment
     return (
@@ -127,13 +126,13 @@ class SceneChanges:
 class ChangeTracker:
     """Records the state of the scene a backend translated and reports :class:`SceneChanges`."""
 
-    _renderables: dict[int, tuple[Hashable, ...]] = field(default_factory=dict)
+    _renderables: dict[int, tuple[object, ...]] = field(default_factory=dict)
     _poses: dict[int, int] = field(default_factory=dict)
     _order: tuple[int, ...] = ()
-    _lights: tuple[Hashable, ...] | None = None
-    _world: tuple[Hashable, ...] | None = None
+    _lights: tuple[object, ...] | None = None
+    _world: tuple[object, ...] | None = None
     _camera: str | None = None
-    _attachments: tuple[Hashable, ...] | None = None
+    _attachments: tuple[object, ...] | None = None
     _recorded: bool = False
 
     def reset(self) -> None:
