@@ -16,7 +16,7 @@ from blendify_core.batch.state import STARTUP_TIMEOUT, BatchRun
 from blendify_core.errors import BlendifyError
 
 if TYPE_CHECKING:  # annotations only: subprocess and multiprocessing load when a pool starts
-    pass
+    from multiprocessing.connection import Connection
 
 __all__ = ["run_local", "DEFAULT_RECYCLE_AFTER"]
 
@@ -226,7 +226,7 @@ class _LocalPool:
                     continue
                 w.job, w.assigned_at, w.started_at = index, now, None
 
-    def wait(self) -> set[Any]:
+    def wait(self) -> set[object]:
         """Wait for a message, a worker's exit or the next deadline; the connections and sentinels ready."""
         from multiprocessing.connection import wait
 
@@ -240,7 +240,9 @@ class _LocalPool:
         if self.retiring or any(w.sentinel is None for w in self.pool):
             deadlines.append(time.monotonic() + 0.5)  # poll exits that no descriptor reports
         wait_for = max(0.0, min(deadlines) - time.monotonic()) if deadlines else None
-        handles: list[Any] = [w.conn for w in self.pool] + [w.sentinel for w in self.pool if w.sentinel is not None]
+        handles: list[Connection | int] = [w.conn for w in self.pool] + [
+            w.sentinel for w in self.pool if w.sentinel is not None
+        ]
         return set(wait(handles, timeout=wait_for))
 
     def receive(self, w: _PoolWorker) -> None:
@@ -263,7 +265,7 @@ class _LocalPool:
         except (EOFError, OSError):
             w.eof = True  # the process exited (or closed its end): find out how in service()
 
-    def service(self, w: _PoolWorker, ready: set[Any]) -> None:
+    def service(self, w: _PoolWorker, ready: set[object]) -> None:
         """Handle ``w`` after a wait: its messages, its death, its recycling, its job's deadline."""
         if w.conn in ready:
             self.receive(w)

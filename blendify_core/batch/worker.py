@@ -21,14 +21,28 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from blendify_core import registry as backend_mod
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.render import choose_backend, render
+from blendify_core.pipeline.result import RenderResult
 from blendify_core.registry import close_backends, shared_backend
 
-__all__ = ["run_job", "run_ray_job", "StartClock", "pool_main", "output_files", "rss_mb", "BOOTSTRAP", "in_pool_worker"]
+if TYPE_CHECKING:  # annotations only: the parent process need not load multiprocessing
+    from multiprocessing.connection import Connection
+
+__all__ = [
+    "run_job",
+    "run_ray_job",
+    "StartClock",
+    "pool_main",
+    "output_files",
+    "save_outputs",
+    "rss_mb",
+    "BOOTSTRAP",
+    "in_pool_worker",
+]
 
 #: what a local pool worker runs (``python -c BOOTSTRAP FD LABEL``). Standard library only until the
 #: parent's ``sys.path`` is in place; an import error is sent to the parent (then the traceback goes to
@@ -86,7 +100,8 @@ def output_files(output: str, outputs: tuple[str, ...] | list[str]) -> list[str]
     return files
 
 
-def _save(result: Any, output: str, outputs: tuple[str, ...]) -> list[str]:
+def save_outputs(result: RenderResult, output: str, outputs: tuple[str, ...]) -> list[str]:
+    """Write ``result`` as a batch job does (see :func:`output_files`); the files written."""
     files = output_files(output, outputs)
     if Path(output).suffix.lower() == ".npz":
         result.save(output)
@@ -98,7 +113,7 @@ def _save(result: Any, output: str, outputs: tuple[str, ...]) -> list[str]:
     return files
 
 
-def _load_scene(payload: dict[str, Any]) -> Any:
+def _load_scene(payload: dict[str, Any]) -> Scene:
     data = payload.get("scene_bytes")
     if data is None:
         return Scene.load(payload["scene_path"], allow_outside=bool(payload.get("allow_outside")))
@@ -170,7 +185,7 @@ def run_job(payload: dict[str, Any], on_start: Callable[[], None] | None = None)
             )
         else:
             outputs = tuple(result.meta.get("settings", {}).get("outputs") or settings.get("outputs") or ("rgb",))
-            info.update(status="done", files=_save(result, payload["output"], outputs))
+            info.update(status="done", files=save_outputs(result, payload["output"], outputs))
         info["backend"] = result.meta.get("backend", name)
         info["render_seconds"] = elapsed
     except Exception as exc:  # reported per job; the worker and the run go on
@@ -202,7 +217,7 @@ def run_ray_job(payload: dict[str, Any], clock: Any = None) -> dict[str, Any]:
     return run_job(payload, on_start=on_start)
 
 
-def pool_main(conn: Any) -> None:
+def pool_main(conn: Connection) -> None:
     """Main loop of a local pool worker process: receive a job dict, send ``("start", index)`` when the
     render starts and ``("result", index, info)`` when it ends; ``None`` (or the parent going away) ends
     the loop. Ctrl-C is left to the parent, which stops the workers itself."""

@@ -16,7 +16,7 @@ from blendify_core import __version__
 from blendify_core.batch.jobs import read_jobs
 from blendify_core.batch.local import DEFAULT_RECYCLE_AFTER
 from blendify_core.batch.run import render_many
-from blendify_core.batch.worker import _save
+from blendify_core.batch.worker import save_outputs
 from blendify_core.cli.demo import run_demo
 from blendify_core.errors import BlendifyError, InvalidSceneError
 from blendify_core.evaluate.crosscheck import crosscheck_main
@@ -73,7 +73,7 @@ def _render(args: argparse.Namespace) -> int:
     )
     # the same files as a batch job: OUT = rgb (or the first output), OUT.<name>.<ext> for the others
     out = Path(args.output)
-    _save(result, str(out), tuple(result.meta["settings"]["outputs"]))
+    save_outputs(result, str(out), tuple(result.meta["settings"]["outputs"]))
     t = result.meta.get("timings", {}).get("total", 0.0)
     print(f"wrote {out} ({result.meta['backend']}, {t:.2f} s)")
     return 0

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from typing import Any
 
 import numpy as np
 
@@ -34,6 +33,7 @@ from blendify_core.evaluate.metrics import (
 )
 from blendify_core.evaluate.report import CompareReport, _fmt
 from blendify_core.evaluate.tiers import _resolve_tier
+from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.result import RenderResult
 
 __all__ = ["compare"]
@@ -53,7 +53,7 @@ def compare(
     tier: str | Mapping[str, Mapping[str, float]] | None = "auto",
     outputs: Iterable[str] | None = None,
     names: tuple[str, str] | None = None,
-    scene: Any = None,
+    scene: Scene | None = None,
 ) -> CompareReport:
     """Compare render ``a`` with reference ``b``; see the module docstring for the metrics.
 

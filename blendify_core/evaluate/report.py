@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from blendify_core.evaluate.stats import ReferenceEstimate, ZTestResult
 from blendify_core.io.output import atomic_write, ensure_folder
 from blendify_core.ir.colorspace import linear_to_srgb
 from blendify_core.pipeline.result import RenderResult, depth_to_image, instance_to_image
@@ -155,9 +156,9 @@ class CrosscheckReport:
     settings: dict[str, Any] = field(default_factory=dict)
     scene_name: str = "scene"
     #: backend -> ReferenceEstimate of its colour (``crosscheck(repeats=k)``, path tracers only)
-    estimates: dict[str, Any] = field(default_factory=dict, repr=False)
+    estimates: dict[str, ReferenceEstimate] = field(default_factory=dict, repr=False)
     #: (a, b) -> ZTestResult of the two-sample test between two path tracers' estimates
-    ztests: dict[tuple[str, str], Any] = field(default_factory=dict)
+    ztests: dict[tuple[str, str], ZTestResult] = field(default_factory=dict)
 
     @property
     def passed(self) -> bool:

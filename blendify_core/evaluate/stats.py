@@ -45,11 +45,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.render import render as bf_render
 from blendify_core.pipeline.result import RenderResult
+from blendify_core.typing import Float64Array
 
 __all__ = ["ZTestResult", "ReferenceEstimate", "z_test", "estimate_reference", "sidak_alpha"]
 
@@ -106,7 +108,7 @@ class ZTestResult:
         )
 
 
-def _as_image(name: str, value: Any) -> np.ndarray:
+def _as_image(name: str, value: ArrayLike) -> Float64Array:
     a = np.asarray(value, dtype=np.float64)
     if a.ndim not in (2, 3):
         raise InvalidSceneError(f"{name}: expected an (H, W) or (H, W, C) image, got shape {a.shape}")
@@ -124,12 +126,12 @@ def _two_sided_p(z: np.ndarray, dof: float | None) -> np.ndarray:
 
 
 def z_test(
-    image: Any,
-    ref_mean: Any,
-    ref_var: Any,
+    image: ArrayLike,
+    ref_mean: ArrayLike,
+    ref_var: ArrayLike,
     n_samples_image: int,
     *,
-    ref_mean_var: Any = 0.0,
+    ref_mean_var: ArrayLike = 0.0,
     dof: float | None = None,
     alpha: float = 0.01,
     var_floor: float = 1e-4,
@@ -271,7 +273,7 @@ class ReferenceEstimate:
         return self.var / (self.n_samples * self.k)
 
     @classmethod
-    def from_images(cls, images: Sequence[Any], n_samples: int, seeds: Sequence[int] = ()) -> ReferenceEstimate:
+    def from_images(cls, images: Sequence[ArrayLike], n_samples: int, seeds: Sequence[int] = ()) -> ReferenceEstimate:
         """Estimate from ``images`` (K >= 2 renders with different seeds, same settings)."""
         if len(images) < 2:
             raise InvalidSceneError(f"images: need at least 2 independent renders, got {len(images)}")
@@ -286,7 +288,7 @@ class ReferenceEstimate:
             seeds=list(seeds),
         )
 
-    def z_test(self, image: Any, n_samples_image: int | None = None, **kwargs: Any) -> ZTestResult:
+    def z_test(self, image: ArrayLike, n_samples_image: int | None = None, **kwargs: Any) -> ZTestResult:
         """:func:`z_test` of ``image`` (default: rendered with the same sample count) against this estimate,
         with the estimate's own variance and t-distribution degrees of freedom taken into account."""
         n = self.n_samples if n_samples_image is None else n_samples_image
@@ -313,7 +315,7 @@ class ReferenceEstimate:
 
 
 def estimate_reference(
-    render: Callable[[int], Any] | Any,
+    render: Callable[[int], ArrayLike | RenderResult] | Scene,
     k: int = 8,
     *,
     samples: int = 64,
@@ -336,10 +338,10 @@ def estimate_reference(
         kw = {"denoise": False, "adaptive": False, "pixel_filter": "box", **render_kwargs}
         outputs = kw.pop("outputs", ("rgb",))
 
-        def scene_render(seed: int) -> Any:
+        def scene_render(seed: int) -> RenderResult:
             return bf_render(scene, backend=backend, samples=samples, seed=seed, outputs=outputs, **kw)
 
-        render_fn: Callable[[int], Any] = scene_render
+        render_fn: Callable[[int], ArrayLike | RenderResult] = scene_render
     elif callable(render):
         render_fn = render
     else:

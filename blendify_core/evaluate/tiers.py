@@ -8,10 +8,10 @@ cites its measurement (see the comments next to :data:`TIERS`).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
 from blendify_core.evaluate.metrics import COMPARED_OUTPUTS, _backend_of
+from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.capabilities import scene_features
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.registry import get_backend_class
@@ -143,7 +143,9 @@ def is_path_tracer(backend: str | RenderResult | None) -> bool:
         return False
 
 
-def choose_tier(backend_a: str | RenderResult | None, backend_b: str | RenderResult | None, scene: Any = None) -> str:
+def choose_tier(
+    backend_a: str | RenderResult | None, backend_b: str | RenderResult | None, scene: Scene | None = None
+) -> str:
     """The tier for a backend pair and (optionally) the scene.
 
     Two path tracers: "pathtracer_delta" (Lambertian materials, delta lights only), "pathtracer"
@@ -182,18 +184,18 @@ _NON_DIFFUSE = (
 )
 
 
-def _delta_lights(scene: Any) -> bool:
+def _delta_lights(scene: Scene) -> bool:
     used = scene_features(scene, ("rgb",))
     return not any(f in used for f in _NON_DELTA)
 
 
-def _non_lambertian(scene: Any) -> bool:
+def _non_lambertian(scene: Scene) -> bool:
     used = scene_features(scene, ("rgb",))
     return any(f in used for f in _NON_DIFFUSE)
 
 
 def _resolve_tier(
-    tier: Any, a: RenderResult, b: RenderResult, scene: Any = None
+    tier: str | Mapping[str, Mapping[str, float]] | None, a: RenderResult, b: RenderResult, scene: Scene | None = None
 ) -> tuple[str, dict[str, dict[str, float]]]:
     if tier is None or tier == "auto":
         name = choose_tier(a, b, scene)

@@ -25,7 +25,7 @@ from blendify_core.pipeline.render import render as bf_render
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.result import _jsonable as core_jsonable
 from blendify_core.registry import get_backend_class
-from blendify_core.typing import Float64Array
+from blendify_core.typing import Float64Array, UInt8Array
 from blendify_core.utils.image import _color3, blend_with_background, to_display_uint8
 from blendify_core.utils.trajectory import Pose, Trajectory, apply_pose
 
@@ -112,7 +112,7 @@ def _even_rgb(frame: np.ndarray) -> np.ndarray:
     return frame
 
 
-def _video_frame(result_or_png: Any, background: np.ndarray) -> np.ndarray:
+def _video_frame(result_or_png: str | Path | RenderResult, background: Float64Array) -> UInt8Array:
     if isinstance(result_or_png, (str, Path)):
         from PIL import Image
 
@@ -180,10 +180,10 @@ class _VideoWriter:
 
 
 def write_video(
-    frames: Sequence[Any],
+    frames: Sequence[str | Path | RenderResult | ArrayLike],
     video_path: str | os.PathLike[str],
     fps: float = 30.0,
-    background: Any = (1.0, 1.0, 1.0),
+    background: ArrayLike = (1.0, 1.0, 1.0),
     quality: float | None = 8.0,
     codec: str = "libx264",
 ) -> Path:
@@ -196,7 +196,7 @@ def write_video(
     writer = _VideoWriter(Path(video_path), fps, quality, codec)
     try:
         for f in frames:
-            if isinstance(f, (str, Path)) or hasattr(f, "to_srgb8"):
+            if isinstance(f, (str, Path, RenderResult)):
                 writer.append(_video_frame(f, bg))
             else:
                 img = to_display_uint8(f)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
@@ -35,11 +36,11 @@ def _rgba_rows(name: str, colors: Any, n: int) -> np.ndarray:
 
 
 def approximate_colors_from_camera(
-    camera: Any,
-    normals: Any,
-    colors: Any,
-    back_color: Any = (0.6, 0.6, 0.6),
-    points: Any = None,
+    camera: Camera | ArrayLike,
+    normals: ArrayLike,
+    colors: ArrayLike,
+    back_color: ArrayLike = (0.6, 0.6, 0.6),
+    points: ArrayLike | None = None,
 ) -> np.ndarray:
     """Per-point RGBA colours (N, 4) float32: ``colors`` where a point faces the camera, ``back_color``
     where its normal points away from the camera (``normal . view_direction > 0``).

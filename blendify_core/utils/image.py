@@ -11,16 +11,18 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.colorspace import linear_to_srgb, srgb8_to_linear, srgb_to_linear
 from blendify_core.pipeline.result import RenderResult
+from blendify_core.typing import AnyArray, Float64Array
 
 __all__ = ["blend_with_background", "crop_to_content", "contact_sheet", "to_display_uint8"]
 
 
-def _as_image(name: str, image: Any) -> np.ndarray:
+def _as_image(name: str, image: ArrayLike | RenderResult) -> AnyArray:
     """An (H, W, C) array (C in 1, 2, 3, 4) of uint8 or float from an array or a RenderResult."""
     if isinstance(image, RenderResult):
         if image.rgba is None:
@@ -44,7 +46,7 @@ def _as_image(name: str, image: Any) -> np.ndarray:
     return arr
 
 
-def _color3(name: str, color: Any) -> np.ndarray:
+def _color3(name: str, color: ArrayLike) -> Float64Array:
     c = np.asarray(color, dtype=np.float64).ravel() if not isinstance(color, str) else None
     if c is None or c.shape not in ((3,), (4,), (1,)) or not np.all(np.isfinite(c)):
         raise InvalidSceneError(f"{name}: expected an RGB colour (3 values in [0, 1]), got {_describe(color)}")
@@ -59,8 +61,8 @@ def _color3(name: str, color: Any) -> np.ndarray:
 
 
 def blend_with_background(
-    rgba: Any,
-    color: Any = (1.0, 1.0, 1.0),
+    rgba: ArrayLike | RenderResult,
+    color: ArrayLike = (1.0, 1.0, 1.0),
     premultiplied: bool | None = None,
     color_space: str = "srgb",
 ) -> np.ndarray:
@@ -104,7 +106,7 @@ def blend_with_background(
     return (fg + (1.0 - a) * bg_lin.astype(np.float32)).astype(np.float32)
 
 
-def to_display_uint8(image: Any, linear: bool = True, premultiplied: bool = True) -> np.ndarray:
+def to_display_uint8(image: ArrayLike | RenderResult, linear: bool = True, premultiplied: bool = True) -> np.ndarray:
     """Any image as uint8 for display: (H, W, 3) or (H, W, 4) (straight alpha, sRGB).
 
     uint8 inputs pass through (gray is expanded to RGB). Float RGB(A) inputs are scene-linear and
@@ -145,7 +147,7 @@ def to_display_uint8(image: Any, linear: bool = True, premultiplied: bool = True
 
 
 def crop_to_content(
-    rgba: Any, margin: int = 0, threshold: float = 0.0, return_box: bool = False
+    rgba: ArrayLike | RenderResult, margin: int = 0, threshold: float = 0.0, return_box: bool = False
 ) -> np.ndarray | tuple[np.ndarray, tuple[int, int, int, int]]:
     """Crop an image to the bounding box of its content plus ``margin`` pixels (clipped to the image).
 
@@ -187,14 +189,14 @@ def _font(size: int) -> Any:
 
 
 def contact_sheet(
-    images: Sequence[Any],
+    images: Sequence[ArrayLike | RenderResult],
     labels: Sequence[str] | None = None,
     ncols: int | None = None,
     cell_size: tuple[int, int] | None = None,
-    background: Any = (1.0, 1.0, 1.0),
+    background: ArrayLike = (1.0, 1.0, 1.0),
     pad: int = 4,
     font_size: int = 12,
-    text_color: Any = (0.0, 0.0, 0.0),
+    text_color: ArrayLike = (0.0, 0.0, 0.0),
     linear: bool = True,
 ) -> np.ndarray:
     """Tile images into one (H, W, 3) uint8 sRGB picture with a text label under each tile.

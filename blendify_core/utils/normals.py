@@ -6,7 +6,7 @@ Everything is vectorised numpy/scipy (``scipy.spatial.cKDTree``, batched ``np.li
 
 from __future__ import annotations
 
-from typing import Any, Literal, overload
+from typing import Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -24,14 +24,14 @@ _CHUNK = 65536
 _FALLBACK = np.array([0.0, 0.0, 1.0])
 
 
-def _points(name: str, points: Any) -> np.ndarray:
+def _points(name: str, points: ArrayLike) -> Float64Array:
     p = as_array(name, points, dtype=np.float64, ndim=2)
     if p.shape[1] != 3:
         raise InvalidSceneError(f"{name}: expected shape (N, 3), got {_describe(p)}")
     return p
 
 
-def _viewpoint(viewpoint: Any) -> np.ndarray:
+def _viewpoint(viewpoint: ArrayLike) -> Float64Array:
     return as_array("viewpoint", viewpoint, dtype=np.float64, shape=(3,))
 
 
@@ -151,7 +151,7 @@ def _propagate(points: np.ndarray, normals: np.ndarray, idx: np.ndarray, viewpoi
 
 
 def orient_normals(
-    points: Any, normals: Any, orient: str = "propagate", viewpoint: Any = None, k: int = 10
+    points: ArrayLike, normals: ArrayLike, orient: str = "propagate", viewpoint: ArrayLike | None = None, k: int = 10
 ) -> np.ndarray:
     """Re-orient existing normals consistently (see :func:`estimate_normals` for ``orient``)."""
     p = _points("points", points)
@@ -401,7 +401,11 @@ def _welded_normals(v: np.ndarray, f: np.ndarray, weld: np.ndarray) -> np.ndarra
 
 
 def normals_from_mesh(
-    points: Any, mesh_vertices: Any, mesh_faces: Any = None, method: str = "interpolate", k: int = 4
+    points: ArrayLike,
+    mesh_vertices: ArrayLike | Renderable,
+    mesh_faces: ArrayLike | None = None,
+    method: str = "interpolate",
+    k: int = 4,
 ) -> np.ndarray:
     """Unit normals (N, 3) for points near a reference mesh: the mesh normal at each point's closest
     surface point.

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
@@ -46,7 +47,7 @@ class Pose:
         return {"position": self.position.tolist(), "quaternion": self.quaternion.tolist(), "time": self.time}
 
 
-def apply_pose(camera: Any, pose: Pose | dict[str, Any]) -> None:
+def apply_pose(camera: Positionable, pose: Pose | dict[str, Any]) -> None:
     """Move a camera (or any blendify positionable object) to ``pose``."""
     if not isinstance(camera, Positionable):
         raise InvalidSceneError(f"camera: expected a blendify camera or positionable object, got {_describe(camera)}")
@@ -157,7 +158,11 @@ class Trajectory:
 
     # -- keypoints ---------------------------------------------------------------------------------
     def add_keypoint(
-        self, position: Any, rotation: Any = None, time: float | None = None, rotation_mode: str = "quaternionWXYZ"
+        self,
+        position: ArrayLike,
+        rotation: ArrayLike | None = None,
+        time: float | None = None,
+        rotation_mode: str = "quaternionWXYZ",
     ) -> None:
         """Add a keypoint. ``rotation`` in any blendify rotation mode (``quaternionWXYZ``, ``quaternionXYZW``,
         ``rotvec``, ``rotmat``, ``eulerXYZ``..., ``look_at`` with a target point); None = identity
@@ -217,7 +222,7 @@ class Trajectory:
         return f"Trajectory({len(self)} keypoints, {self.duration:g} s)"
 
     @staticmethod
-    def apply(camera: Any, pose: Pose | dict[str, Any]) -> None:
+    def apply(camera: Positionable, pose: Pose | dict[str, Any]) -> None:
         """Move ``camera`` to ``pose`` (see :func:`apply_pose`)."""
         apply_pose(camera, pose)
 
@@ -241,7 +246,7 @@ class Trajectory:
     @classmethod
     def orbit(
         cls,
-        center: Any = (0.0, 0.0, 0.0),
+        center: ArrayLike = (0.0, 0.0, 0.0),
         radius: float = 3.0,
         height: float = 1.0,
         duration: float = 4.0,
@@ -269,7 +274,7 @@ class Trajectory:
     # -- sampling ----------------------------------------------------------------------------------
     def sample(
         self,
-        times: Any,
+        times: ArrayLike,
         interpolation: str = "cubic",
         rotation_interpolation: str | None = None,
         smoothness: float = 0.0,
