@@ -6,6 +6,7 @@ Backends are found by name through :mod:`blendify_core.registry`.
 from __future__ import annotations
 
 import abc
+import contextlib
 import logging
 import os
 import time
@@ -99,16 +100,23 @@ class Backend(abc.ABC):
         :data:`~blendify_core.pipeline.meta.COMMON_TIMINGS` (``render``, ``read_back``) plus any finer
         phases of the backend's own."""
 
+    def scene_lock(self) -> contextlib.AbstractContextManager[object]:
+        """A lock held from translation to the end of the render (default: none). A backend whose engine
+        holds one global scene (bpy) returns its re-entrant lock, so no other thread translates in between."""
+        return contextlib.nullcontext()
+
     def render_scene(self, scene: Scene, settings: RenderSettings) -> RenderResult:
-        """Translate and render; records ``meta["timings"]["translate"]`` and ``["render"]`` (seconds)
-        unless :meth:`render` reported them. A backend that overrides this reports them itself."""
+        """Translate and render under :meth:`scene_lock` (the one entry point: backends do not override it);
+        records ``meta["timings"]["translate"]`` and ``["render"]`` (seconds) unless :meth:`render`
+        reported them."""
         if self._closed:
             raise BackendUnavailableError(f"{self.name}: this backend instance was closed")
-        t0 = time.perf_counter()
-        native = self.translate(scene, settings)
-        t1 = time.perf_counter()
-        result = self.render(native, settings)
-        t2 = time.perf_counter()
+        with self.scene_lock():
+            t0 = time.perf_counter()
+            native = self.translate(scene, settings)
+            t1 = time.perf_counter()
+            result = self.render(native, settings)
+            t2 = time.perf_counter()
         timings = result.meta.setdefault("timings", {})
         timings.setdefault("translate", t1 - t0)
         timings.setdefault("render", t2 - t1)

@@ -61,7 +61,9 @@ def world_state(lights: Any) -> tuple[object, ...]:
     bg, env = lights.background, lights.environment
     return (
         None if bg is None else (bg.strength, tuple(bg.color), bg.color_space),
-        None if env is None else (id(env), env.strength, getattr(env, "revision", 0), file_stamp(env)),
+        None
+        if env is None
+        else (id(env), env.strength, env.color_space, tuple(env.quaternion.tolist()), file_stamp(env)),
     )
 
 
@@ -134,6 +136,9 @@ class ChangeTracker:
     _camera: str | None = None
     _attachments: tuple[object, ...] | None = None
     _recorded: bool = False
+    #: the objects followed by ``id()`` (materials, colour sources, the environment map), kept alive while
+    #: recorded so a new object cannot reuse a recorded id
+    _alive: tuple[object, ...] = ()
 
     def reset(self) -> None:
         """Forget everything: the next :meth:`update` reports ``first``."""
@@ -181,4 +186,9 @@ class ChangeTracker:
             self._renderables, self._poses, self._order = states, poses, order
             self._lights, self._world, self._camera, self._attachments = lights, world, camera, attachments
             self._recorded = True
+            self._alive = (
+                *(m for r in scene.renderables for m in r.materials),
+                *(c for r in scene.renderables for c in r.colors_list),
+                scene.lights.environment,
+            )
         return changes

@@ -107,3 +107,14 @@ def test_a_texture_file_rewritten_between_renders_is_a_rebuild(tmp_path):
     st = os.stat(path)
     os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))
     assert t.update(s).rebuilt == (m.uid,)
+
+
+def test_environment_rotation_or_replacement_is_a_world_change():
+    s = every_feature_scene()
+    s.lights.set_environment_map(np.ones((4, 8, 3), np.float32), 1.0)
+    t = ChangeTracker()
+    t.update(s)
+    s.lights.set_environment_map(np.ones((4, 8, 3), np.float32), 1.0, rotation=(0.9238795, 0.0, 0.0, 0.3826834))
+    assert t.update(s).world
+    s.lights.set_environment_map(np.zeros((4, 8, 3), np.float32), 1.0)  # a new map, maybe at a reused address
+    assert t.update(s).world

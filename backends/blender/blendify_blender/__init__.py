@@ -49,6 +49,7 @@ package does it again. Details and measurements in that module's docstring.
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import logging
 from typing import Any
@@ -176,6 +177,11 @@ class CyclesBackend(Backend):
     def _check_open(self) -> None:
         if self._closed:
             raise BackendUnavailableError(f"{self.name}: this backend instance was closed")
+
+    def scene_lock(self) -> contextlib.AbstractContextManager[object]:
+        """bpy holds one scene per process: no other thread translates between this translation and its
+        render (the lock is re-entrant; an isolated backend renders in its worker and needs none)."""
+        return contextlib.nullcontext() if self.isolate else BPY_LOCK
 
     def translate(self, scene: Scene, settings: RenderSettings) -> TranslatedScene | IsolatedScene:
         """Translate (or update) the scene in the bpy session. With ``isolate=True`` nothing is translated
