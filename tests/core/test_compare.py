@@ -213,7 +213,24 @@ def test_every_tier_documented():
     assert set(TIER_NOTES) == set(TIERS)
 
 
-def test_choose_tier():
+@pytest.fixture
+def project_backend_names():
+    """The project's three backend names resolvable by the registry: the real backends where installed,
+    stand-ins with the same ``path_tracer`` flag where not (the numpy-2 core-only CI environment)."""
+    from blendify_core.pipeline.backend import Backend
+    from blendify_core.registry import backend_names, register_backend, unregister_backend
+
+    added = []
+    for name, pt in (("cycles", True), ("mitsuba", True), ("pyrender", False)):
+        if name not in backend_names():
+            register_backend(name, type(f"StandIn_{name}", (Backend,), {"name": name, "path_tracer": pt}))
+            added.append(name)
+    yield
+    for name in added:
+        unregister_backend(name)
+
+
+def test_choose_tier(project_backend_names):
     assert choose_tier("cycles", "mitsuba") == "pathtracer"
     assert choose_tier("cycles", "mitsuba", plane_scene("sun")) == "pathtracer_delta"
     assert choose_tier("cycles", "mitsuba", plane_scene("area")) == "pathtracer"
