@@ -12,15 +12,20 @@ image with a margin and remaps it, once, for every backend.
 from __future__ import annotations
 
 import copy
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import describe as _describe
 from blendify_core.ir.transforms import Positionable, ValidatedParam, _orthonormalise, matrix_to_quaternion
-from blendify_core.ir.validate import _describe, as_array, as_float, as_int, raw_array
+from blendify_core.ir.validate import as_array, as_float, as_int, raw_array
+from blendify_core.typing import Float64Array, IntArray
 
 __all__ = ["Camera", "PerspectiveCamera", "OrthographicCamera", "CV_FROM_BLENDER"]
+
+_C = TypeVar("_C", bound="Camera")
 
 CV_FROM_BLENDER = np.diag([1.0, -1.0, -1.0])
 """Camera-frame change between Blender/OpenGL (-Z forward, +Y up) and OpenCV (+Z forward, +Y down)."""
@@ -70,18 +75,18 @@ class Camera(Positionable):
         super().__init__(**pose)
 
     @staticmethod
-    def _check_distortion(value: Any) -> np.ndarray:
+    def _check_distortion(value: Any) -> Float64Array | None:
         d = as_array("distortion", value, ndim=1)
         if d.shape[0] not in (4, 5):
             raise InvalidSceneError(f"distortion: expected OpenCV (k1, k2, p1, p2[, k3]), got {d.shape[0]} values")
         out = np.zeros(5)
         out[: d.shape[0]] = d
         if not np.any(out):
-            return None  # type: ignore[return-value]
+            return None
         return out
 
     @property
-    def resolution(self) -> np.ndarray:
+    def resolution(self) -> IntArray:
         """(2,) int: (width, height) in pixels."""
         return np.array(self._resolution)
 
@@ -94,7 +99,7 @@ class Camera(Positionable):
         return self._resolution[1]
 
     @property
-    def center(self) -> np.ndarray:
+    def center(self) -> Float64Array:
         """Principal point (cx, cy) in OpenCV pixel coordinates (settable)."""
         return np.array([self.cx, self.cy])
 
@@ -131,31 +136,33 @@ class Camera(Positionable):
         self._resolution_percentage = as_int("resolution_percentage", value, min_value=1, max_value=10000)
 
     @property
-    def viewdir(self) -> np.ndarray:
+    def viewdir(self) -> Float64Array:
         """(3,) unit world direction the camera looks along (local -Z)."""
         return -self.rotation_matrix[:, 2]
 
-    def get_camera_viewdir(self) -> np.ndarray:
+    def get_camera_viewdir(self) -> Float64Array:
         """blendify's name for :attr:`viewdir`."""
         return self.viewdir
 
-    def opencv_extrinsics(self) -> tuple[np.ndarray, np.ndarray]:
+    def opencv_extrinsics(self) -> tuple[Float64Array, Float64Array]:
         """(R, t) with ``x_cam = R @ x_world + t`` in the OpenCV camera frame (+Z forward, +Y down)."""
         rb = self.rotation_matrix
         r = CV_FROM_BLENDER @ rb.T
         t = -r @ self.translation
         return r, t
 
-    def world_to_camera_cv(self, points: np.ndarray) -> np.ndarray:
+    def world_to_camera_cv(self, points: ArrayLike) -> Float64Array:
+        """World points (N, 3) in the OpenCV camera frame (+Z forward, +Y down)."""
         r, t = self.opencv_extrinsics()
-        return np.asarray(points, dtype=np.float64) @ r.T + t
+        x: Float64Array = np.asarray(points, dtype=np.float64) @ r.T + t
+        return x
 
-    def copy(self) -> Camera:
+    def copy(self: _C) -> _C:
         c = copy.copy(self)
         c._revisions = dict(self._revisions)
         return c
 
-    def _scaled(self, factor: float) -> Camera:
+    def _scaled(self: _C, factor: float) -> _C:
         """A copy with the resolution multiplied by ``factor`` (resolution_percentage)."""
         c = self.copy()
         w, h = self._resolution
@@ -171,10 +178,10 @@ class Camera(Positionable):
     def _scale_intrinsics(self, sx: float, sy: float) -> None:  # pragma: no cover - overridden
         raise NotImplementedError
 
-    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - overridden
+    def project(self, points: ArrayLike) -> tuple[Float64Array, Float64Array]:  # pragma: no cover - overridden
         raise NotImplementedError
 
-    def pixel_rays(self, pixels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+    def pixel_rays(self, pixels: ArrayLike | None = None) -> tuple[Float64Array, Float64Array]:  # pragma: no cover
         raise NotImplementedError
 
     def _base_dict(self) -> dict[str, Any]:
@@ -252,7 +259,7 @@ class PerspectiveCamera(Camera):
         super().__init__(resolution, near, far, center, distortion, tag, resolution_percentage, **pose)
 
     @property
-    def K(self) -> np.ndarray:  # noqa: N802 - the standard name
+    def K(self) -> Float64Array:  # noqa: N802 - the standard name
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
     @property
@@ -289,7 +296,7 @@ class PerspectiveCamera(Camera):
         self.fx *= sx
         self.fy *= sy
 
-    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def project(self, points: ArrayLike) -> tuple[Float64Array, Float64Array]:
         """Project world points: (N, 2) OpenCV pixel coordinates and (N,) planar depth (ignores distortion)."""
         x = self.world_to_camera_cv(points)
         z = x[:, 2]
@@ -298,7 +305,7 @@ class PerspectiveCamera(Camera):
             v = self.fy * x[:, 1] / z + self.cy
         return np.stack([u, v], axis=1), z
 
-    def pixel_rays(self, pixels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def pixel_rays(self, pixels: ArrayLike | None = None) -> tuple[Float64Array, Float64Array]:
         """World-space rays through pixel centres: origins (N, 3) and unit directions (N, 3).
 
         ``pixels`` is (N, 2) OpenCV (u, v); by default every pixel in row-major order (v outer)."""
@@ -357,12 +364,12 @@ class OrthographicCamera(Camera):
     def _scale_intrinsics(self, sx: float, sy: float) -> None:
         pass  # same visible width at any resolution
 
-    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def project(self, points: ArrayLike) -> tuple[Float64Array, Float64Array]:
         x = self.world_to_camera_cv(points)
         s = self.pixel_size
         return np.stack([x[:, 0] / s + self.cx, x[:, 1] / s + self.cy], axis=1), x[:, 2]
 
-    def pixel_rays(self, pixels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def pixel_rays(self, pixels: ArrayLike | None = None) -> tuple[Float64Array, Float64Array]:
         if pixels is None:
             vv, uu = np.mgrid[0 : self.height, 0 : self.width]
             pixels = np.stack([uu.ravel(), vv.ravel()], axis=1).astype(np.float64)

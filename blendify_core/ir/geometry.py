@@ -3,9 +3,13 @@ of parametric primitives (so that all backends that tessellate use the very same
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from blendify_core.typing import BoolArray, Float64Array, FloatArray, Int32Array, IntArray
 
 __all__ = [
     "TriMesh",
@@ -27,11 +31,11 @@ class TriMesh:
     came from.
     """
 
-    vertices: np.ndarray
-    faces: np.ndarray
-    normals: np.ndarray | None = None
-    uv: np.ndarray | None = None
-    face_polygon: np.ndarray | None = None
+    vertices: FloatArray
+    faces: IntArray
+    normals: FloatArray | None = None
+    uv: FloatArray | None = None
+    face_polygon: IntArray | None = None
     smooth: bool = False
 
     @property
@@ -40,8 +44,8 @@ class TriMesh:
 
 
 def triangulate_polygons(
-    polygons: list[np.ndarray] | np.ndarray, vertices: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    polygons: Sequence[ArrayLike] | IntArray, vertices: ArrayLike | None = None
+) -> tuple[Int32Array, Int32Array, Int32Array]:
     """Triangulate polygons: (F, 3) int32 triangles, (F,) int32 polygon index, (F, 3) int32 corner
     index within the polygon (for per-corner data such as FacesUV).
 
@@ -74,9 +78,11 @@ def triangulate_polygons(
         tris = np.take_along_axis(np.repeat(polygons, k - 2, axis=0), all_corners, axis=1)
         poly = np.repeat(np.arange(m, dtype=np.int32), k - 2)
         return tris.astype(np.int32), poly, all_corners
-    tris_l, poly_l, corner_l = [], [], []
-    for i, p in enumerate(polygons):
-        p = np.asarray(p)
+    tris_l: list[IntArray] = []
+    poly_l: list[IntArray] = []
+    corner_l: list[IntArray] = []
+    for i, polygon in enumerate(polygons):
+        p = np.asarray(polygon)
         j = np.arange(1, len(p) - 1)
         corners = np.stack([np.zeros_like(j), j, j + 1], axis=1)
         if vertices is not None and len(p) > 3:
@@ -96,33 +102,35 @@ def triangulate_polygons(
     )
 
 
-def _newell(pts: np.ndarray) -> np.ndarray:
+def _newell(pts: Float64Array) -> Float64Array:
     """(M, 3) Newell normals of polygons (M, k, 3) (area-weighted, robust for non-planar polygons)."""
     nxt = np.roll(pts, -1, axis=1)
-    return np.cross(pts, nxt).sum(axis=1)
+    normals: Float64Array = np.cross(pts, nxt).sum(axis=1)
+    return normals
 
 
-def _reflex(pts: np.ndarray) -> np.ndarray:
+def _reflex(pts: Float64Array) -> BoolArray:
     """(M, k) bool: reflex corners of polygons (M, k, 3) (turning against their Newell normal)."""
     n = _newell(pts)
     e = np.roll(pts, -1, axis=1) - pts  # edge i: corner i -> i + 1
     turn = np.einsum("mkj,mj->mk", np.cross(e, np.roll(e, -1, axis=1)), n)  # turn at corner i + 1
     scale = np.linalg.norm(e, axis=2) * np.linalg.norm(np.roll(e, -1, axis=1), axis=2)
     scale = scale * np.linalg.norm(n, axis=1, keepdims=True)
-    flags = (turn < -1e-9 * scale) & (np.linalg.norm(n, axis=1) > 0)[:, None]
+    flags: BoolArray = (turn < -1e-9 * scale) & (np.linalg.norm(n, axis=1) > 0)[:, None]
     return np.roll(flags, 1, axis=1)
 
 
-def _concave(pts: np.ndarray) -> np.ndarray:
+def _concave(pts: Float64Array) -> BoolArray:
     """(M,) bool: polygons (M, k, 3) with a reflex corner."""
-    return _reflex(pts).any(axis=1)
+    concave: BoolArray = _reflex(pts).any(axis=1)
+    return concave
 
 
 #: concave polygons with more corners than this keep the fan (ear clipping here is O(k^2): ~1 s at 1000)
 MAX_EAR_CLIP_CORNERS = 1000
 
 
-def _ear_clip_checked(pts: np.ndarray, index: int) -> np.ndarray | None:
+def _ear_clip_checked(pts: Float64Array, index: int) -> Int32Array | None:
     if len(pts) > MAX_EAR_CLIP_CORNERS:
         import warnings
 
@@ -135,7 +143,7 @@ def _ear_clip_checked(pts: np.ndarray, index: int) -> np.ndarray | None:
     return _ear_clip(pts)
 
 
-def _ear_clip(pts: np.ndarray) -> np.ndarray | None:
+def _ear_clip(pts: Float64Array) -> Int32Array | None:
     """(k - 2, 3) corner triples triangulating the simple polygon ``pts`` (k, 3) by ear clipping in its
     Newell plane, keeping its winding; None when it is not simple (the caller keeps the fan)."""
     n = _newell(pts[None])[0]
@@ -145,12 +153,12 @@ def _ear_clip(pts: np.ndarray) -> np.ndarray | None:
     w = np.cross(n, u)
     q = np.stack([(pts - pts[0]) @ u, (pts - pts[0]) @ w], axis=1)  # counter-clockwise about n
 
-    def cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    def cross(o: Float64Array, a: Float64Array, b: Float64Array) -> float:
         return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
 
     eps = 1e-12 * float(np.ptp(q, axis=0).max()) ** 2
     idx = list(range(len(q)))
-    out = []
+    out: list[tuple[int, ...]] = []
     while len(idx) > 3:
         for t in range(len(idx)):
             a, b, c = idx[t - 1], idx[t], idx[(t + 1) % len(idx)]
@@ -177,15 +185,16 @@ def _ear_clip(pts: np.ndarray) -> np.ndarray | None:
     return np.array(out, dtype=np.int32)
 
 
-def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def face_normals(vertices: ArrayLike, faces: IntArray) -> Float64Array:
     """(F, 3) unit face normals (zero for degenerate triangles, never NaN)."""
     v = np.asarray(vertices, dtype=np.float64)
     n = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
     length = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+    unit: Float64Array = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+    return unit
 
 
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def vertex_normals(vertices: ArrayLike, faces: IntArray) -> Float64Array:
     """(N, 3) area-weighted unit vertex normals (zero where undefined, never NaN)."""
     v = np.asarray(vertices, dtype=np.float64)
     n = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
@@ -193,7 +202,8 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     for k in range(3):
         np.add.at(acc, faces[:, k], n)
     length = np.linalg.norm(acc, axis=1, keepdims=True)
-    return np.divide(acc, length, out=np.zeros_like(acc), where=length > 0)
+    unit: Float64Array = np.divide(acc, length, out=np.zeros_like(acc), where=length > 0)
+    return unit
 
 
 def uv_sphere(radius: float = 1.0, segments: int = 64, rings: int = 32) -> TriMesh:
@@ -280,7 +290,7 @@ def icosphere(subdivisions: int = 1, radius: float = 1.0) -> TriMesh:
     return TriMesh(vertices=v * radius, faces=f.astype(np.int32), normals=v.copy(), smooth=True)
 
 
-def _frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _frames(points: Float64Array) -> tuple[Float64Array, Float64Array, Float64Array]:
     """Rotation-minimising frames (double reflection) along a polyline: tangents, normals, binormals."""
     seg = np.diff(points, axis=0)
     seg_len = np.linalg.norm(seg, axis=1, keepdims=True)
@@ -313,7 +323,7 @@ def _frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, normals, binormals
 
 
-def tube_along_polyline(points: np.ndarray, radius: float, segments: int = 16, caps: bool = True) -> TriMesh:
+def tube_along_polyline(points: ArrayLike, radius: float, segments: int = 16, caps: bool = True) -> TriMesh:
     """A tube of ``radius`` around a polyline (consecutive duplicate points removed), smooth sides,
     flat caps at both ends. The cross-section keeps a constant radius (mitred joints are not widened)."""
     pts = np.asarray(points, dtype=np.float64)
@@ -333,7 +343,9 @@ def tube_along_polyline(points: np.ndarray, radius: float, segments: int = 16, c
     c, d = idx[1:], np.roll(idx[1:], -1, axis=1)
     faces = np.concatenate([np.stack([a, bb, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
     if caps:
-        cap_faces, cap_verts, cap_norms = [], [], []
+        cap_faces: list[IntArray] = []
+        cap_verts: list[Float64Array] = []
+        cap_norms: list[Float64Array] = []
         base = len(verts)
         for end, sign in ((0, -1.0), (k - 1, 1.0)):
             centre = base + len(cap_verts)

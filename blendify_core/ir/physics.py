@@ -16,6 +16,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from blendify_core.typing import Float64Array
 
 __all__ = [
     "MaterialLobes",
@@ -53,12 +56,12 @@ def spot_cone(spot_size: float, spot_blend: float) -> tuple[float, float]:
     return half, inner
 
 
-def blend_normal_map(normals: np.ndarray, strength: float) -> np.ndarray:
+def blend_normal_map(normals: ArrayLike, strength: float) -> Float64Array:
     """Tangent-space normals (..., 3) with Blender's normal-map ``strength`` applied:
     n' = normalize(N + s (n - N)) with N = (0, 0, 1). Strength 0 gives the flat normal, 1 the map."""
     n = np.asarray(normals, dtype=np.float64)
     s = float(strength)
-    out = np.stack([s * n[..., 0], s * n[..., 1], 1.0 + s * (n[..., 2] - 1.0)], axis=-1)
+    out: Float64Array = np.stack([s * n[..., 0], s * n[..., 1], 1.0 + s * (n[..., 2] - 1.0)], axis=-1)
     out /= np.maximum(np.linalg.norm(out, axis=-1, keepdims=True), 1e-12)
     return out
 

@@ -21,12 +21,15 @@ Rotation modes (blendify's vocabulary; all resolve to a unit quaternion in WXYZ 
 from __future__ import annotations
 
 import itertools
-from typing import Any
+from collections.abc import Callable
+from typing import Any, Generic, TypeVar, overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.validate import as_array, as_float, frozen
+from blendify_core.typing import Float64Array
 
 __all__ = [
     "ROTATION_MODES",
@@ -41,11 +44,12 @@ __all__ = [
 ROTATION_MODES = ("quaternionWXYZ", "quaternionXYZW", "rotvec", "rotmat", "euler<order>", "look_at")
 
 _uid_counter = itertools.count(1)
+_T = TypeVar("_T")
 
 
-def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
+def quaternion_to_matrix(q: ArrayLike) -> Float64Array:
     """3x3 rotation matrix of a unit WXYZ quaternion (float64)."""
-    w, x, y, z = (float(v) for v in q)
+    w, x, y, z = (float(v) for v in np.asarray(q, dtype=np.float64))
     return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
@@ -56,9 +60,10 @@ def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
     )
 
 
-def matrix_to_quaternion(m: np.ndarray) -> np.ndarray:
+def matrix_to_quaternion(m: ArrayLike) -> Float64Array:
     """Unit WXYZ quaternion (w >= 0) of a proper rotation matrix (Shepperd's method, float64)."""
     m = np.asarray(m, dtype=np.float64)
+    q: Float64Array
     trace = m[0, 0] + m[1, 1] + m[2, 2]
     if trace > 0:
         s = 2.0 * np.sqrt(trace + 1.0)
@@ -78,7 +83,7 @@ def matrix_to_quaternion(m: np.ndarray) -> np.ndarray:
     return q
 
 
-def _orthonormalise(name: str, m: np.ndarray) -> np.ndarray:
+def _orthonormalise(name: str, m: Float64Array) -> Float64Array:
     u, s, vt = np.linalg.svd(m)
     det = np.linalg.det(m)
     if not np.isfinite(det) or det <= 0:
@@ -91,14 +96,16 @@ def _orthonormalise(name: str, m: np.ndarray) -> np.ndarray:
             f"{name}: expected an orthonormal rotation matrix, got singular values {np.round(s, 4).tolist()} "
             "(scale and shear belong in the geometry, not in the rotation)"
         )
-    return u @ vt
+    rotation: Float64Array = u @ vt
+    return rotation
 
 
-def look_at_rotation(position: np.ndarray, target: np.ndarray, roll_deg: float = 0.0) -> np.ndarray:
+def look_at_rotation(position: ArrayLike, target: ArrayLike, roll_deg: float = 0.0) -> Float64Array:
     """Rotation matrix whose local -Z looks from ``position`` at ``target`` (see module docs)."""
-    forward = np.asarray(position, dtype=np.float64) - np.asarray(target, dtype=np.float64)
+    pos, tgt = np.asarray(position, dtype=np.float64), np.asarray(target, dtype=np.float64)
+    forward = pos - tgt
     norm = np.linalg.norm(forward)
-    scale = max(np.linalg.norm(position), np.linalg.norm(target), 1.0)
+    scale = max(float(np.linalg.norm(pos)), float(np.linalg.norm(tgt)), 1.0)
     if norm <= 1e-12 * scale:
         base = np.eye(3)
     else:
@@ -118,8 +125,8 @@ def look_at_rotation(position: np.ndarray, target: np.ndarray, roll_deg: float =
 
 
 def quaternion_from_rotation(
-    rotation_mode: str, rotation: Any, position: np.ndarray | None = None, *, name: str = "rotation"
-) -> np.ndarray:
+    rotation_mode: str, rotation: Any, position: Float64Array | None = None, *, name: str = "rotation"
+) -> Float64Array:
     """Resolve any rotation mode to a unit WXYZ quaternion (float64, w >= 0)."""
     if not isinstance(rotation_mode, str):
         raise InvalidSceneError(f"rotation_mode: expected a string such as 'quaternionWXYZ', got {rotation_mode!r}")
@@ -177,12 +184,12 @@ def quaternion_from_rotation(
     )
 
 
-class ValidatedParam:
+class ValidatedParam(Generic[_T]):
     """A settable parameter of a positionable object: every assignment is checked with
     ``check(obj, name, value)`` and, once the object exists, bumps its ``kind`` revision so backends
     that cache by revision see the change."""
 
-    def __init__(self, check: Any, kind: str = "appearance", doc: str | None = None):
+    def __init__(self, check: Callable[[Any, str, Any], _T], kind: str = "appearance", doc: str | None = None):
         self.check = check
         self.kind = kind
         self.__doc__ = doc
@@ -191,18 +198,25 @@ class ValidatedParam:
         self.name = name
         self.attr = "_" + name
 
-    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+    @overload
+    def __get__(self, obj: None, owner: type | None = None) -> ValidatedParam[_T]: ...
+
+    @overload
+    def __get__(self, obj: object, owner: type | None = None) -> _T: ...
+
+    def __get__(self, obj: object | None, owner: type | None = None) -> ValidatedParam[_T] | _T:
         if obj is None:
             return self
-        return obj.__dict__[self.attr]
+        value: _T = obj.__dict__[self.attr]
+        return value
 
-    def __set__(self, obj: Any, value: Any) -> None:
+    def __set__(self, obj: Any, value: object) -> None:
         obj.__dict__[self.attr] = self.check(obj, self.name, value)
         if "_revisions" in obj.__dict__:
             obj._bump(self.kind)
 
 
-def compose_matrix(quaternion: np.ndarray, translation: np.ndarray) -> np.ndarray:
+def compose_matrix(quaternion: ArrayLike, translation: ArrayLike) -> Float64Array:
     m = np.eye(4)
     m[:3, :3] = quaternion_to_matrix(quaternion)
     m[:3, 3] = translation
@@ -227,7 +241,7 @@ class Positionable:
     @property
     def tag(self) -> str:
         """The object's name in its scene (read-only, as in blendify: collections are keyed by it)."""
-        return self.__dict__.get("_tag", "")
+        return str(self.__dict__.get("_tag", ""))
 
     @tag.setter
     def tag(self, value: Any) -> None:
@@ -258,7 +272,7 @@ class Positionable:
         self._bump("transform")
 
     @property
-    def translation(self) -> np.ndarray:
+    def translation(self) -> Float64Array:
         """(3,) float64 world position."""
         return self._translation
 
@@ -268,7 +282,7 @@ class Positionable:
         self._bump("transform")
 
     @property
-    def quaternion(self) -> np.ndarray:
+    def quaternion(self) -> Float64Array:
         """(4,) float64 unit quaternion, WXYZ, w >= 0."""
         return self._quaternion
 
@@ -278,10 +292,10 @@ class Positionable:
         self._bump("transform")
 
     @property
-    def rotation_matrix(self) -> np.ndarray:
+    def rotation_matrix(self) -> Float64Array:
         return quaternion_to_matrix(self._quaternion)
 
     @property
-    def matrix_world(self) -> np.ndarray:
+    def matrix_world(self) -> Float64Array:
         """(4, 4) float64 object-to-world transform."""
         return compose_matrix(self._quaternion, self._translation)
