@@ -154,8 +154,8 @@ class CyclesBackend(Backend):
 
     @classmethod
     def export_blend(cls, scene: Any, path: Any, **kwargs: Any) -> Any:
-        """Write a .blend file that renders ``scene`` in Blender (see :mod:`blendify_blender.blendfile.export`)."""
-        from .blendfile.export import export_blend
+        """Write a .blend file that renders ``scene`` in Blender (see :mod:`blendify_blender.export`)."""
+        from .export import export_blend
 
         return export_blend(scene, path, **kwargs)
 

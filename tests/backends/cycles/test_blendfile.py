@@ -27,7 +27,7 @@ if importlib.util.find_spec("bpy") is None:  # pragma: no cover - depends on the
     pytest.skip("the 'bpy' package (Blender as a module) is not installed", allow_module_level=True)
 
 from blendify_blender.blendfile import BlendAttachWarning, attach_blend, blender_camera_intrinsics
-from blendify_blender.blendfile.export import export_blend
+from blendify_blender.export import export_blend
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colors import (

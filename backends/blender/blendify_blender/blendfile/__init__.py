@@ -1,5 +1,6 @@
-""".blend files on the Cycles backend: attach (parse a .blend into the IR), attached blends (their raw
-content rendered by Cycles) and export (write an IR scene as a .blend).
+""".blend files on the Cycles backend: attach (parse a .blend into the IR) and attached blends (their raw
+content rendered by Cycles). Export (write an IR scene as a .blend) builds the scene with the translator,
+which uses this package, so it lives above both: :mod:`blendify_blender.export`.
 
 Security: nothing embedded in a file is ever executed, whatever the user's Blender preferences say
 (:mod:`.safety`).
@@ -13,10 +14,9 @@ Modules, bottom to top:
 - :mod:`.geometry`: meshes and point clouds; :mod:`.lights`: lights and the world; :mod:`.camera`;
 - :mod:`.attach`: :func:`attach_blend` and :func:`append_blend_scenes` (used by the translator to render
   ``scene.attachments``);
-- :mod:`.export`: ``export_blend``, which builds the bpy scene with
-  :func:`blendify_blender.translate.build_scene`. It is above the translator, which imports this
-  package for :func:`append_blend_scenes`, so this ``__init__`` does not import it: use
-  ``from blendify_blender.blendfile.export import export_blend`` (or ``Scene.export_blend``).
+
+Layering: blendfile -> translate -> export (:mod:`blendify_blender.export`: ``export_blend``, through
+``Scene.export_blend``).
 """
 
 from __future__ import annotations

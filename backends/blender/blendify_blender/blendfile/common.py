@@ -18,7 +18,7 @@ __all__ = [
     "saved_tag",
 ]
 
-#: custom property holding the IR tag on objects written by :func:`blendify_blender.blendfile.export.export_blend`
+#: custom property holding the IR tag on objects written by :func:`blendify_blender.export.export_blend`
 TAG_PROPERTY = "blendify_tag"
 
 

@@ -6,7 +6,7 @@ same translation the renders use), the images are packed into the file and it is
 untouched). Objects carry their IR tag as the custom property ``blendify_tag``, so an exported scene
 attaches back (:func:`blendify_blender.blendfile.attach_blend`) with the same tags.
 
-This module sits above the translator (the parsing and safety modules below it do not import it).
+This module sits above the translator, which sits above the .blend parsing and safety package (blendfile/).
 """
 
 from __future__ import annotations
