@@ -208,7 +208,7 @@ def run_translation(impl: str) -> dict[str, Any]:
     quad_uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
     out: dict[str, Any] = {"n_vertices": len(v), "n_faces": len(f)}
     if impl == "blendify":
-        from blendify_blender import _runtime
+        from blendify_blender import session as _runtime
         from blendify_blender.materials import MaterialBuilder
         from blendify_blender.translate import _build_renderable
 
@@ -507,7 +507,8 @@ def run_memory(impl: str) -> dict[str, Any]:
     rss: list[float] = []
     counts_ok: list[bool] = []
     if impl in ("blendify", "blendify_isolate"):
-        from blendify_blender import CyclesBackend, _runtime
+        from blendify_blender import CyclesBackend
+        from blendify_blender import session as _runtime
 
         import blendify_core as bf
 

@@ -13,7 +13,7 @@ pytestmark = pytest.mark.cycles
 
 
 def _hair_blend(bpy, path):
-    from blendify_blender import _runtime
+    from blendify_blender import session as _runtime
 
     _runtime.factory_reset()
     sc = bpy.context.scene
