@@ -89,6 +89,9 @@ class RenderMeta(TypedDict, total=False):
     warnings: list[str]
     #: (core) world origin the scene was re-centred on before translation (far-from-origin scenes only)
     recentred_origin: list[float]
+    #: [mitsuba, pyrender] IR objects that contribute nothing in this backend, each "Type: why" (sorted;
+    #: only when some were ignored; Cycles lists them under ``translation["ignored"]``)
+    ignored: list[str]
 
     # -- error estimate (core) -------------------------------------------------------------------------
     #: (core) estimated relative RMS error of the colour, None when not estimated
@@ -162,7 +165,7 @@ class RenderMeta(TypedDict, total=False):
 
 
 #: the common phases of ``meta["timings"]`` (seconds): ``translate``, ``render`` and ``total`` are in every
-#: result, ``read_back`` when the backend measures it apart from ``render``. A backend reports
+#: result, ``read_back`` (a part of ``render``) when the backend measures it. A backend reports
 #: ``translate``, ``render`` and ``read_back`` itself under these names (``Backend.render_scene`` does it for
 #: backends that do not override it); the core reads no other name.
 COMMON_TIMINGS: tuple[str, ...] = ("translate", "render", "read_back", "total")
@@ -170,8 +173,8 @@ COMMON_TIMINGS: tuple[str, ...] = ("translate", "render", "read_back", "total")
 #: every timing the core reads or writes, with its meaning
 TIMING_KEYS: dict[str, str] = {
     "translate": "IR to the engine's native scene (incremental backends: only what changed)",
-    "render": "the engine's rendering of every requested output (read back included unless split out)",
-    "read_back": "reading the engine's outputs back into numpy, when measured apart from render",
+    "render": "the engine's rendering of every requested output, reading them back into numpy included",
+    "read_back": "the part of render spent reading the engine's outputs back into numpy (when measured)",
     "total": "the whole bf.render call, checks and post-processing included (written by the core)",
     "distortion": "the core's lens-distortion remap (distorted cameras only, written by the core)",
 }
