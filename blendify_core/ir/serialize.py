@@ -21,6 +21,7 @@ from blendify_core.ir.materials import Material
 from blendify_core.ir.params import decode_params
 from blendify_core.ir.renderables import PARAMETRIC, PRIMITIVES
 from blendify_core.ir.types import LIGHT_TYPES, MATERIAL_TYPES
+from blendify_core.typing import AnyArray
 
 __all__ = [
     "scene_to_header",
@@ -39,7 +40,7 @@ _MATERIAL_CLASSES: dict[str, Any] = {cls.__name__: cls for cls in MATERIAL_TYPES
 _LIGHT_CLASSES: dict[str, Any] = {cls.kind: cls for cls in _LIGHTS}
 
 
-def scene_to_header(scene: Any, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
+def scene_to_header(scene: Any, arrays: dict[str, AnyArray]) -> dict[str, Any]:
     """The JSON-able description of ``scene``; its arrays are added to ``arrays``."""
     cam = scene.camera
     return {
@@ -55,8 +56,9 @@ def scene_to_header(scene: Any, arrays: dict[str, np.ndarray]) -> dict[str, Any]
 
 def save_scene(scene: Any, path: str | os.PathLike[str], relative_paths: bool = True) -> None:
     """Write ``scene`` to a portable ``.npz`` scene file, atomically."""
-    def build() -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        arrays: dict[str, np.ndarray] = {}
+
+    def build() -> tuple[dict[str, Any], dict[str, AnyArray]]:
+        arrays: dict[str, AnyArray] = {}
         return scene_to_header(scene, arrays), arrays
 
     write_scene_file(path, build, relative_paths=relative_paths)
@@ -76,14 +78,14 @@ def load_scene(scene: Any, path: str | os.PathLike[str], allow_outside: bool = F
 def fingerprint(scene: Any) -> str:
     """SHA-256 over the canonical header and every array's dtype, shape and bytes (file textures by
     content), so the same scene hashes the same across processes and any change changes the hash."""
-    arrays: dict[str, np.ndarray] = {}
+    arrays: dict[str, AnyArray] = {}
     return content_digest(scene_to_header(scene, arrays), arrays)
 
 
 # -- materials and lights: each walks its class's parameter declaration (blendify_core.ir.params) ------
 
 
-def material_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray], base_dir: str | None = None) -> Material:
+def material_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray], base_dir: str | None = None) -> Material:
     """The material a scene file's ``{"kind", "color_space", "params"}`` describes (Material.to_dict)."""
     cls = _MATERIAL_CLASSES.get(d.get("kind", ""))
     if cls is None:
@@ -93,7 +95,7 @@ def material_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray], base_di
     return material
 
 
-def light_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray] | None = None) -> Light:
+def light_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray] | None = None) -> Light:
     """The light a scene file's ``{"kind", "tag", "params", "quaternion", "translation"}`` describes."""
     cls = _LIGHT_CLASSES.get(d.get("kind", ""))
     if cls is None:
@@ -109,7 +111,7 @@ def background_from_dict(d: dict[str, Any]) -> dict[str, Any]:
     return decode_params("scene file: BackgroundLight", BackgroundLight._stored, d, {})
 
 
-def environment_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray]) -> dict[str, Any]:
+def environment_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray]) -> dict[str, Any]:
     """``set_environment_map`` keywords from a scene file's environment entry (its parameters, the image
     or path and the rotation)."""
     names = {p.name for p in EnvironmentMap._stored}
@@ -118,7 +120,7 @@ def environment_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray]) -> d
     return {"image_or_path": src, "rotation": d["quaternion"], **params}
 
 
-def _colors_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
+def _colors_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray]) -> Any:
     def uv(u: dict[str, Any] | None) -> Any:
         if u is None:
             return None
@@ -140,7 +142,7 @@ def _colors_from_dict(d: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
     raise InvalidSceneError(f"unknown colour kind {kind!r}")
 
 
-def _polygons(arrays: dict[str, np.ndarray], d: dict[str, Any]) -> Any:
+def _polygons(arrays: dict[str, AnyArray], d: dict[str, Any]) -> Any:
     tris = arrays[d["faces"]]
     poly = arrays[d["faces"].replace("faces", "face_polygon")]
     corner = arrays[d["faces"].replace("faces", "face_corner")]
@@ -157,7 +159,7 @@ def _polygons(arrays: dict[str, np.ndarray], d: dict[str, Any]) -> Any:
     return polys
 
 
-def scene_from_header(scene: Any, h: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
+def scene_from_header(scene: Any, h: dict[str, Any], arrays: dict[str, AnyArray]) -> Any:
     """Fill the empty ``scene`` from a header and its arrays (as :func:`scene_to_header` wrote them)."""
 
     if h["camera"] is not None:
@@ -210,7 +212,8 @@ def scene_from_header(scene: Any, h: dict[str, Any], arrays: dict[str, np.ndarra
     if h["background"] is not None:
         scene.lights.set_background_light(**background_from_dict(h["background"]))
     scene.attachments = [Attachment(d["format"], str(d["path"])) for d in h.get("attachments", [])] + [
-        Attachment("blend", str(d["path"])) for d in h.get("attached_blends", [])  # files of 0.1.0
+        Attachment("blend", str(d["path"]))
+        for d in h.get("attached_blends", [])  # files of 0.1.0
     ]
     env = h["environment"]
     if env is not None:
