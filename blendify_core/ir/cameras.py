@@ -31,7 +31,7 @@ CV_FROM_BLENDER = np.diag([1.0, -1.0, -1.0])
 """Camera-frame change between Blender/OpenGL (-Z forward, +Y up) and OpenCV (+Z forward, +Y down)."""
 
 
-def _resolution(value: Any) -> tuple[int, int]:
+def _resolution(value: ArrayLike) -> tuple[int, int]:
     arr = raw_array("resolution", value)
     if arr.shape != (2,):
         raise InvalidSceneError(f"resolution: expected (width, height), got {_describe(value)}")
@@ -51,11 +51,11 @@ class Camera(Positionable):
 
     def __init__(
         self,
-        resolution: Any,
+        resolution: ArrayLike,
         near: float = 0.1,
         far: float = 100.0,
-        center: Any = None,
-        distortion: Any = None,
+        center: ArrayLike | None = None,
+        distortion: ArrayLike | None = None,
         tag: str = "camera",
         resolution_percentage: int = 100,
         **pose: Any,
@@ -75,7 +75,7 @@ class Camera(Positionable):
         super().__init__(**pose)
 
     @staticmethod
-    def _check_distortion(value: Any) -> Float64Array | None:
+    def _check_distortion(value: ArrayLike) -> Float64Array | None:
         d = as_array("distortion", value, ndim=1)
         if d.shape[0] not in (4, 5):
             raise InvalidSceneError(f"distortion: expected OpenCV (k1, k2, p1, p2[, k3]), got {d.shape[0]} values")
@@ -104,7 +104,7 @@ class Camera(Positionable):
         return np.array([self.cx, self.cy])
 
     @center.setter
-    def center(self, value: Any) -> None:
+    def center(self, value: ArrayLike) -> None:
         c = as_array("center", value, shape=(2,))
         self.cx, self.cy = float(c[0]), float(c[1])
 
@@ -214,15 +214,15 @@ class PerspectiveCamera(Camera):
 
     def __init__(
         self,
-        resolution: Any,
+        resolution: ArrayLike,
         focal_dist: float | None = None,
         fov_x: float | None = None,
         fov_y: float | None = None,
-        center: Any = None,
-        K: Any = None,
+        center: ArrayLike | None = None,
+        K: ArrayLike | None = None,
         near: float = 0.1,
         far: float = 100.0,
-        distortion: Any = None,
+        distortion: ArrayLike | None = None,
         tag: str = "camera",
         resolution_percentage: int = 100,
         **pose: Any,
@@ -332,12 +332,12 @@ class OrthographicCamera(Camera):
 
     def __init__(
         self,
-        resolution: Any,
+        resolution: ArrayLike,
         ortho_scale: float = 1.0,
         near: float = 0.1,
         far: float = 100.0,
-        center: Any = None,
-        distortion: Any = None,
+        center: ArrayLike | None = None,
+        distortion: ArrayLike | None = None,
         tag: str = "camera",
         resolution_percentage: int = 100,
         **pose: Any,
@@ -386,11 +386,11 @@ class OrthographicCamera(Camera):
 
 
 def camera_from_opencv(
-    K: Any,
-    R: Any,
-    t: Any,
-    resolution: Any,
-    distortion: Any = None,
+    K: ArrayLike,
+    R: ArrayLike,
+    t: ArrayLike,
+    resolution: ArrayLike,
+    distortion: ArrayLike | None = None,
     near: float = 0.1,  # noqa: N803
     far: float = 100.0,
 ) -> PerspectiveCamera:
