@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colors import FacesUV, NormalMap, TextureColors, TextureMap, UniformColors, VertexColors, VertexUV
 from blendify_core.ir.geometry import torus, uv_sphere, vertex_normals
 from blendify_core.ir.materials import (
@@ -196,7 +197,7 @@ def bunny_scene(
     (or an area light), with colours from its normals."""
     import trimesh
 
-    tm = trimesh.load(data_path("bunny.ply"), process=False)
+    tm: Any = trimesh.load(data_path("bunny.ply"), process=False)  # a Trimesh (trimesh types it as any geometry)
     v = np.asarray(tm.vertices, dtype=np.float64)
     v = v[:, [0, 2, 1]] * np.array([1, -1, 1])  # +Y up -> +Z up (right-handed)
     v -= [v[:, 0].mean(), v[:, 1].mean(), v[:, 2].min()]
@@ -785,9 +786,11 @@ def _hc_default_clip(scale: float) -> Scene:
     clipped, which :func:`blendify_core.pipeline.render` reports with a warning naming near or far."""
     scene = _hc_base(scale=scale)
     cam = scene.camera
-    cam.far = max(cam.far, 100.0)  # type: ignore[union-attr]  (order: near < far at every step)
-    cam.near = 0.1  # type: ignore[union-attr]
-    cam.far = 100.0  # type: ignore[union-attr]
+    if cam is None:
+        raise InvalidSceneError("_hc_base: the reference scene has no camera")
+    cam.far = max(cam.far, 100.0)  # order: near < far at every step
+    cam.near = 0.1
+    cam.far = 100.0
     return scene
 
 

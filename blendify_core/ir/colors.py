@@ -21,6 +21,7 @@ import numpy as np
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colorspace import srgb8_to_linear, srgb_to_linear
 from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, frozen, raw_array
+from blendify_core.typing import AnyArray
 
 __all__ = [
     "Colors",
@@ -44,7 +45,7 @@ def _color_space(value: Any) -> str:
     return as_choice("color_space", value, COLOR_SPACES)
 
 
-def _to_linear(values: np.ndarray, color_space: str) -> np.ndarray:
+def _to_linear(values: AnyArray, color_space: str) -> AnyArray:
     """Linearise the RGB channels of float values in [0, 1]; alpha is never colour-managed."""
     out = np.array(values, dtype=np.float32 if values.dtype == np.float32 else np.float64)
     if color_space == "srgb":
@@ -52,7 +53,7 @@ def _to_linear(values: np.ndarray, color_space: str) -> np.ndarray:
     return out
 
 
-def load_image(path: str | os.PathLike[str]) -> np.ndarray:
+def load_image(path: str | os.PathLike[str]) -> AnyArray:
     """Read an image file: uint8 (H, W, C) for 8-bit formats, float32 for EXR/HDR/16-bit; row 0 = top."""
     p = Path(path)
     if not p.is_file():
@@ -115,7 +116,7 @@ def _image_header(path: str) -> tuple[int, bool] | None:
         return None
 
 
-def _check_image(name: str, texture: Any, *, max_value: float | None = 1.0) -> np.ndarray:
+def _check_image(name: str, texture: Any, *, max_value: float | None = 1.0) -> AnyArray:
     arr = raw_array(name, texture)
     if arr.dtype.kind not in "uif" or arr.dtype.kind == "b":
         raise InvalidSceneError(f"{name}: expected a uint8 or float image, got {_describe(texture)}")
@@ -132,7 +133,7 @@ def _check_image(name: str, texture: Any, *, max_value: float | None = 1.0) -> n
     return as_array(name, arr, dtype=np.float32, min_value=0.0, max_value=max_value)
 
 
-def _to_rgba(img: np.ndarray) -> np.ndarray:
+def _to_rgba(img: AnyArray) -> AnyArray:
     if img.shape[2] == 4:
         return img
     if img.shape[2] == 1:
@@ -163,7 +164,7 @@ class Colors(_Immutable):
     kind = "base"
     color_space: str
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:  # pragma: no cover
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:  # pragma: no cover
         raise NotImplementedError
 
     def __repr__(self) -> str:
@@ -192,13 +193,13 @@ class UniformColors(Colors):
         return self.color.shape[0] == 4 and self.color[3] < 1.0
 
     @property
-    def linear_rgba(self) -> np.ndarray:
+    def linear_rgba(self) -> AnyArray:
         """(4,) float64 linear RGBA."""
         rgba = np.ones(4)
         rgba[: self.color.shape[0]] = self.color
         return _to_linear(rgba, self.color_space)
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         return {"kind": self.kind, "color": self.color.tolist(), "color_space": self.color_space}
 
 
@@ -218,7 +219,7 @@ class VertexColors(Colors):
             raise InvalidSceneError(f"vertex_colors: expected shape (N, 3) or (N, 4), got {_describe(c)}")
         self.vertex_colors = c
         self.color_space = _color_space(color_space)
-        self._linear: np.ndarray | None = None
+        self._linear: AnyArray | None = None
 
     def __len__(self) -> int:
         return self.vertex_colors.shape[0]
@@ -228,7 +229,7 @@ class VertexColors(Colors):
         return self.vertex_colors.shape[1] == 4 and bool(np.any(self.vertex_colors[:, 3] < 1.0))
 
     @property
-    def linear_rgba(self) -> np.ndarray:
+    def linear_rgba(self) -> AnyArray:
         """(N, 4) float32 linear RGBA (cached, read-only)."""
         if self._linear is None:
             n = self.vertex_colors.shape[0]
@@ -237,7 +238,7 @@ class VertexColors(Colors):
             self._linear = frozen(_to_linear(rgba, self.color_space).astype(np.float32))
         return self._linear
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         arrays[prefix + "vertex_colors"] = self.vertex_colors
         return {"kind": self.kind, "vertex_colors": prefix + "vertex_colors", "color_space": self.color_space}
 
@@ -246,7 +247,7 @@ class UVMap(_Immutable):
     """Base of UV maps. UV (0, 0) is the bottom-left of the texture."""
 
     kind = "base"
-    data: np.ndarray
+    data: AnyArray
 
 
 class VertexUV(UVMap):
@@ -283,7 +284,7 @@ def _check_uv(uv_map: Any) -> UVMap:
     return uv_map
 
 
-def uv_to_dict(uv: UVMap | None, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any] | None:
+def uv_to_dict(uv: UVMap | None, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any] | None:
     if uv is None:
         return None
     arrays[prefix + "uv"] = uv.data
@@ -306,15 +307,15 @@ class TextureColors(Colors):
         t = self.texture
         return t.shape[2] == 4 and bool(np.any(t[..., 3] < (255 if t.dtype == np.uint8 else 1.0)))
 
-    def image(self) -> np.ndarray:
+    def image(self) -> AnyArray:
         """The texture as stored (uint8 or float32), row 0 = top."""
         return self.texture
 
-    def linear_rgba_image(self) -> np.ndarray:
+    def linear_rgba_image(self) -> AnyArray:
         """(H, W, 4) float32 linear RGBA, row 0 = top."""
         return _linear_rgba_image(self.image(), self.color_space)
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         arrays[prefix + "texture"] = self.texture
         return {
             "kind": self.kind,
@@ -325,7 +326,7 @@ class TextureColors(Colors):
         }
 
 
-def _linear_rgba_image(img: np.ndarray, color_space: str) -> np.ndarray:
+def _linear_rgba_image(img: AnyArray, color_space: str) -> AnyArray:
     rgba = _to_rgba(img)
     if rgba.dtype == np.uint8:
         out = np.empty(rgba.shape, dtype=np.float32)
@@ -359,7 +360,7 @@ class FileTextureColors(Colors):
         self.uv_map = _check_uv(uv_map)
         self.color_space = _color_space(color_space)
         self.interpolation = as_choice("interpolation", interpolation, INTERPOLATIONS)
-        self._cache: np.ndarray | None = None
+        self._cache: AnyArray | None = None
 
     #: above this many pixels, ``has_alpha`` trusts the file header instead of decoding the pixels
     EXACT_ALPHA_LIMIT = 4096 * 4096
@@ -380,16 +381,16 @@ class FileTextureColors(Colors):
         img = self.image()
         return img.shape[2] == 4 and bool(np.any(img[..., 3] < (255 if img.dtype == np.uint8 else 1.0)))
 
-    def image(self) -> np.ndarray:
+    def image(self) -> AnyArray:
         """Load (once) and return the pixels as stored in the file (uint8 or float32), row 0 = top."""
         if self._cache is None:
             self._cache = frozen(load_image(self.texture_path))
         return self._cache
 
-    def linear_rgba_image(self) -> np.ndarray:
+    def linear_rgba_image(self) -> AnyArray:
         return _linear_rgba_image(self.image(), self.color_space)
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         return {
             "kind": self.kind,
             "texture_path": self.texture_path,
@@ -410,7 +411,7 @@ class TextureMap(_Immutable):
 
     def __init__(self, image_or_path: Any, channel: int = 0):
         path: str | None = None
-        self._image: np.ndarray | None = None
+        self._image: AnyArray | None = None
         if isinstance(image_or_path, (str, os.PathLike)):
             p = Path(image_or_path).expanduser()
             if not p.is_file():
@@ -425,18 +426,18 @@ class TextureMap(_Immutable):
         if self._image is not None and self.channel >= self._image.shape[2]:
             raise InvalidSceneError(f"channel: image has {self._image.shape[2]} channel(s), got channel {channel}")
 
-    def image(self) -> np.ndarray:
+    def image(self) -> AnyArray:
         if self._image is None:
             self._image = frozen(load_image(str(self.path)))
         return self._image
 
-    def values(self) -> np.ndarray:
+    def values(self) -> AnyArray:
         """(H, W) float32 data values in [0, 1], row 0 = top."""
         img = self.image()
         ch = img[..., min(self.channel, img.shape[2] - 1)]
         return (ch.astype(np.float32) / 255.0) if ch.dtype == np.uint8 else ch.astype(np.float32)
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         d: dict[str, Any] = {"kind": self.kind, "channel": self.channel, "path": self.path}
         if self.path is None:
             arrays[prefix + "image"] = self.image()
@@ -456,14 +457,14 @@ class NormalMap(TextureMap):
         super().__init__(image_or_path, channel=0)
         self.strength = as_float("strength", strength, min_value=0.0)
 
-    def normals(self) -> np.ndarray:
+    def normals(self) -> AnyArray:
         """(H, W, 3) float32 tangent-space normals in [-1, 1], row 0 = top."""
         img = self.image()
         rgb = _to_rgba(img)[..., :3]
         v = rgb.astype(np.float32) / 255.0 if rgb.dtype == np.uint8 else rgb.astype(np.float32)
         return v * 2.0 - 1.0
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         d = super().to_dict(arrays, prefix)
         d["strength"] = self.strength
         return d

@@ -13,6 +13,7 @@ from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colors import Colors, TextureColors, UniformColors, VertexColors, VertexUV
 from blendify_core.ir.materials import Material, PrincipledBSDFMaterial
 from blendify_core.ir.validate import _describe
+from blendify_core.typing import AnyArray
 
 __all__ = ["add_trimesh", "load_trimesh"]
 
@@ -52,7 +53,7 @@ def _image_of(material: Any) -> Any:
     return None
 
 
-def _part(mesh: Any) -> tuple[np.ndarray, np.ndarray, Any]:
+def _part(mesh: Any) -> tuple[AnyArray, AnyArray, Any]:
     """(vertices, faces, colour description) of one trimesh.Trimesh.
 
     The colour description is ("uniform", rgba) | ("vertex", (N,4) float) | ("texture", image uint8, uv (N,2))."""

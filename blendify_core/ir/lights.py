@@ -36,6 +36,7 @@ from blendify_core.ir.params import (
 )
 from blendify_core.ir.transforms import Positionable, ValidatedParam, quaternion_from_rotation, quaternion_to_matrix
 from blendify_core.ir.validate import as_array, as_choice, as_float, check_tag, frozen, raw_array
+from blendify_core.typing import AnyArray
 
 __all__ = [
     "Light",
@@ -135,12 +136,12 @@ class Light(Positionable, Declared):
         self._bump(param.group)
 
     @property
-    def linear_color(self) -> np.ndarray:
+    def linear_color(self) -> AnyArray:
         """(3,) float64 linear RGB."""
         return _to_linear(np.array(self.color), self.color_space)
 
     @property
-    def direction(self) -> np.ndarray:
+    def direction(self) -> AnyArray:
         """(3,) unit world direction of emission (local -Z)."""
         return -self.rotation_matrix[:, 2]
 
@@ -251,7 +252,7 @@ class AreaLight(Light):
         return a * b if self.shape in ("square", "rectangle") else float(np.pi * a * b / 4.0)
 
     @property
-    def radiance(self) -> np.ndarray:
+    def radiance(self) -> AnyArray:
         """(3,) linear emitted radiance P / (pi A) x colour (W / m^2 / sr)."""
         return self.linear_color * self.strength / (np.pi * self.area)
 
@@ -277,11 +278,11 @@ class BackgroundLight(Declared):
     color_space: str
 
     @property
-    def linear_color(self) -> np.ndarray:
+    def linear_color(self) -> AnyArray:
         return _to_linear(np.array(self.color), self.color_space)
 
     @property
-    def radiance(self) -> np.ndarray:
+    def radiance(self) -> AnyArray:
         return self.linear_color * self.strength
 
     def to_dict(self) -> dict[str, Any]:
@@ -333,7 +334,7 @@ class EnvironmentMap(Declared):
     def _setup(self, inputs: dict[str, Any]) -> None:
         image_or_path = inputs["image_or_path"]
         self.path: str | None = None
-        self._image: np.ndarray | None = None
+        self._image: AnyArray | None = None
         if isinstance(image_or_path, (str, os.PathLike)):
             p = Path(image_or_path).expanduser()
             if not p.is_file():
@@ -344,12 +345,12 @@ class EnvironmentMap(Declared):
         self._init_values(inputs)
         self.quaternion = frozen(quaternion_from_rotation(inputs["rotation_mode"], inputs["rotation"]))
 
-    def image(self) -> np.ndarray:
+    def image(self) -> AnyArray:
         if self._image is None:
             self._image = frozen(load_image(str(self.path)))
         return self._image
 
-    def linear_rgb_image(self) -> np.ndarray:
+    def linear_rgb_image(self) -> AnyArray:
         """(H, W, 3) float32 linear radiance before ``strength``; row 0 = top (the sky)."""
         img = self.image()
         if img.shape[2] == 1:
@@ -361,10 +362,10 @@ class EnvironmentMap(Declared):
         return _to_linear(out, self.color_space).astype(np.float32) if self.color_space == "srgb" else out
 
     @property
-    def rotation_matrix(self) -> np.ndarray:
+    def rotation_matrix(self) -> AnyArray:
         return quaternion_to_matrix(self.quaternion)
 
-    def to_dict(self, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray]) -> dict[str, Any]:
         d: dict[str, Any] = {
             **encode_params(self, arrays),
             "quaternion": self.quaternion.tolist(),
@@ -376,7 +377,7 @@ class EnvironmentMap(Declared):
         return d
 
 
-def equirect_uv(directions: np.ndarray) -> np.ndarray:
+def equirect_uv(directions: AnyArray) -> AnyArray:
     """Map world directions (..., 3) to equirectangular texture coordinates (..., 2), u right, v up."""
     d = np.asarray(directions, dtype=np.float64)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)

@@ -26,6 +26,7 @@ from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import COLOR_SPACES, _to_linear
 from blendify_core.ir.params import Clamp, Declared, Param, Signature, encode_params
 from blendify_core.ir.physics import material_lobes
+from blendify_core.typing import AnyArray
 
 __all__ = [
     "Material",
@@ -199,7 +200,7 @@ class Material(Declared):
     def get(self, name: str) -> Any:
         return self._values[name]
 
-    def linear(self, name: str) -> np.ndarray:
+    def linear(self, name: str) -> AnyArray:
         """A colour parameter as linear RGBA (4,) float64 (alpha is 1 when only RGB was given)."""
         p = self._param_index.get(name)
         if p is None or p.kind != "color":
@@ -245,7 +246,7 @@ class Material(Declared):
         """True when the material is an exact Lambertian reflector (no specular, metal, transmission, ...)."""
         return material_lobes(self).diffuse_only
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         """The scene-file form: ``{"kind", "color_space", "params"}`` (params walk the declaration)."""
         params = encode_params(self, arrays, prefix)
         return {"kind": type(self).__name__, "color_space": self.color_space, "params": params}

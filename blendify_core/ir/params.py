@@ -23,14 +23,13 @@ import warnings
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import NormalMap, TextureMap
 from blendify_core.ir.validate import as_array, as_bool, as_choice, as_float, as_int
+from blendify_core.typing import AnyArray
 
 __all__ = [
     "KINDS",
@@ -534,6 +533,10 @@ class Declared:
     _positional: tuple[str, ...] = ()
     _values: dict[str, Any]
 
+    if TYPE_CHECKING:  # the real __init__ is generated from the declaration (see __init_subclass__)
+
+        def __init__(self, *args: Any, **kwargs: Any) -> None: ...
+
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         own = cls.__dict__
@@ -600,7 +603,7 @@ class Declared:
 # ---------------------------------------------------------------------------------------------------
 
 
-def encode_value(p: Param, value: Any, arrays: dict[str, np.ndarray], prefix: str, obj: Any = None) -> Any:
+def encode_value(p: Param, value: Any, arrays: dict[str, AnyArray], prefix: str, obj: Any = None) -> Any:
     """A stored value as JSON (texture maps add their images to ``arrays`` under ``prefix``)."""
     if p.encode_fn is not None:
         return p.encode_fn(obj, value)
@@ -611,7 +614,7 @@ def encode_value(p: Param, value: Any, arrays: dict[str, np.ndarray], prefix: st
     return value
 
 
-def encode_params(obj: Declared, arrays: dict[str, np.ndarray], prefix: str = "") -> dict[str, Any]:
+def encode_params(obj: Declared, arrays: dict[str, AnyArray], prefix: str = "") -> dict[str, Any]:
     """``{name: JSON value}`` for every stored parameter of ``obj``, in declaration order."""
     values = obj._values
     return {p.name: encode_value(p, values[p.name], arrays, prefix, obj) for p in type(obj)._stored}
@@ -623,7 +626,7 @@ def _resolve(path: str, base_dir: str | None) -> str:
     return path
 
 
-def decode_value(p: Param, value: Any, arrays: Mapping[str, np.ndarray], base_dir: str | None = None) -> Any:
+def decode_value(p: Param, value: Any, arrays: Mapping[str, AnyArray], base_dir: str | None = None) -> Any:
     """The constructor input a JSON value stands for (validation happens in the constructor)."""
     if p.kind in ("texture", "normal_map") and value is not None:
         src = arrays[value["image"]] if value.get("image") else _resolve(value["path"], base_dir)
@@ -637,7 +640,7 @@ def decode_params(
     where: str,
     params: Iterable[Param],
     d: Mapping[str, Any],
-    arrays: Mapping[str, np.ndarray],
+    arrays: Mapping[str, AnyArray],
     base_dir: str | None = None,
 ) -> dict[str, Any]:
     """Constructor keywords from a scene file's ``params`` (missing keys take the declared default;

@@ -16,6 +16,7 @@ from blendify_core.ir.renderables import RenderablesCollection
 from blendify_core.ir.serialize import fingerprint, load_scene, save_scene
 from blendify_core.ir.validate import strict_arguments
 from blendify_core.registry import backend_for_format
+from blendify_core.typing import AnyArray
 
 __all__ = ["Scene"]
 
@@ -173,7 +174,7 @@ class Scene:
         return backend_for_format("blend").attach_file(self, "blend", path, with_camera=with_camera, **kwargs)
 
     # -- summaries -------------------------------------------------------------------------------
-    def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+    def bounds(self) -> tuple[AnyArray, AnyArray] | None:
         """World-space axis-aligned bounds of all renderables, or None for an empty scene."""
         boxes = [r.world_bounds() for r in self.renderables]
         if not boxes:

@@ -11,11 +11,16 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from blendify_core.errors import InvalidSceneError
-from blendify_core.errors import describe as _describe
+from blendify_core.errors import InvalidSceneError, describe
+from blendify_core.typing import AnyArray
+
+_Array = TypeVar("_Array", bound="np.ndarray[Any, Any]")
+
+#: the IR modules' name for :func:`blendify_core.errors.describe` (a short description of a bad value)
+_describe = describe
 
 
-def raw_array(name: str, value: Any) -> np.ndarray:
+def raw_array(name: str, value: Any) -> AnyArray:
     """``np.asarray(value)`` for a first look at user input; ragged nested lists and other values numpy
     cannot turn into an array raise InvalidSceneError naming ``name``."""
     if isinstance(value, np.ndarray):
@@ -26,7 +31,7 @@ def raw_array(name: str, value: Any) -> np.ndarray:
         raise InvalidSceneError(f"{name}: expected a numeric array, got {_describe(value)} ({exc})") from None
 
 
-def frozen(array: np.ndarray) -> np.ndarray:
+def frozen(array: _Array) -> _Array:
     """Mark an array read-only (in place) and return it."""
     array.flags.writeable = False
     return array
@@ -44,7 +49,7 @@ def as_array(
     max_value: float | None = None,
     copy: bool = True,
     allow_empty: bool = True,
-) -> np.ndarray:
+) -> AnyArray:
     """Convert ``value`` to a read-only array of ``dtype`` and check it.
 
     ``shape`` may contain ``None`` for "any size" in that dimension.
@@ -173,7 +178,7 @@ def as_choice(name: str, value: Any, choices: Iterable[str], *, case_insensitive
     raise InvalidSceneError(f"{name}: expected one of {options}, got {value!r}")
 
 
-def as_vector(name: str, value: Any, size: int, **kwargs: Any) -> np.ndarray:
+def as_vector(name: str, value: Any, size: int, **kwargs: Any) -> AnyArray:
     return as_array(name, value, shape=(size,), **kwargs)
 
 

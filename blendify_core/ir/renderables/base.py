@@ -19,11 +19,12 @@ from blendify_core.ir.geometry import TriMesh
 from blendify_core.ir.materials import Material, check_material
 from blendify_core.ir.transforms import Positionable
 from blendify_core.ir.validate import as_bool
+from blendify_core.typing import AnyArray
 
 __all__ = ["Renderable"]
 
 
-def _column_bounds(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _column_bounds(v: AnyArray) -> tuple[AnyArray, AnyArray]:
     """Per-column min and max of an (N, 3) array (15x faster than ``min(axis=0)`` on millions of rows)."""
     return (
         np.array([v[:, k].min() for k in range(v.shape[1])]),
@@ -142,7 +143,7 @@ class Renderable(Positionable):
         """A triangle mesh in object space (the shared tessellation)."""
         raise NotImplementedError
 
-    def world_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+    def world_bounds(self) -> tuple[AnyArray, AnyArray]:
         """Axis-aligned bounds (min, max) in world space."""
         m = self.to_mesh()
         if len(m.vertices) == 0:
@@ -150,7 +151,7 @@ class Renderable(Positionable):
         v = m.vertices @ self.rotation_matrix.T + self.translation
         return v.min(axis=0), v.max(axis=0)
 
-    def _base_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def _base_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         return {
             "kind": self.kind,
             "tag": self.tag,

@@ -22,13 +22,14 @@ from blendify_core.ir.colors import (
 from blendify_core.ir.geometry import TriMesh, triangulate_polygons, vertex_normals
 from blendify_core.ir.renderables.base import Renderable, _column_bounds
 from blendify_core.ir.validate import as_array, as_bool, frozen
+from blendify_core.typing import AnyArray
 
 __all__ = ["Mesh"]
 
 
 def _check_faces(
-    faces: Any, n_vertices: int, vertices: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int | None]:
+    faces: Any, n_vertices: int, vertices: AnyArray | None = None
+) -> tuple[AnyArray, AnyArray, AnyArray, int, int | None]:
     """Validate polygons and triangulate them. Returns triangles, polygon index, corner index, polygon
     count and the common polygon size (None when sizes differ)."""
     if isinstance(faces, np.ndarray) or (
@@ -94,7 +95,7 @@ class Mesh(Renderable):
         if uv_map is not None and not isinstance(uv_map, UVMap):
             raise InvalidSceneError(f"uv_map: expected a VertexUV or FacesUV, got {_describe(uv_map)}")
         self._uv_map = uv_map
-        self._faces_material_poly: np.ndarray | None = None
+        self._faces_material_poly: AnyArray | None = None
         self._smooth = as_bool("smooth", smooth)
         self._pending_faces_material = faces_material
         super().__init__(material, colors, tag, **pose)
@@ -149,7 +150,7 @@ class Mesh(Renderable):
 
     # -- data --------------------------------------------------------------------------------------
     @property
-    def vertices(self) -> np.ndarray:
+    def vertices(self) -> AnyArray:
         """(N, 3) float64 object-space positions (a read-only array; assigning calls update_vertices)."""
         return self._vertices
 
@@ -158,24 +159,24 @@ class Mesh(Renderable):
         self.update_vertices(value)
 
     @property
-    def faces(self) -> np.ndarray:
+    def faces(self) -> AnyArray:
         """(F, 3) int32 triangles (after triangulation)."""
         return self._faces
 
     @property
-    def face_polygon(self) -> np.ndarray:
+    def face_polygon(self) -> AnyArray:
         """(F,) int32: the input polygon each triangle came from."""
         return self._face_polygon
 
     @property
-    def faces_material(self) -> np.ndarray | None:
+    def faces_material(self) -> AnyArray | None:
         """(F,) int32 material index per TRIANGLE, or None (one material)."""
         if self._faces_material_poly is None:
             return None
         return self._faces_material_poly[self._face_polygon]
 
     @property
-    def polygon_faces_material(self) -> np.ndarray | None:
+    def polygon_faces_material(self) -> AnyArray | None:
         """(M,) int32 material index per input polygon, or None."""
         return self._faces_material_poly
 
@@ -189,14 +190,17 @@ class Mesh(Renderable):
                 return c.uv_map
         return None
 
-    def triangle_uvs(self, uv_map: UVMap | None = None) -> np.ndarray | None:
+    def triangle_uvs(self, uv_map: UVMap | None = None) -> AnyArray | None:
         """(F, 3, 2) float32 UV per triangle corner for ``uv_map`` (default: :attr:`uv_map`)."""
         uv = uv_map or self.uv_map
         if uv is None:
             return None
+        corners: AnyArray
         if isinstance(uv, VertexUV):
-            return uv.data[self._faces]
-        return uv.data[self._face_polygon[:, None], self._face_corner]
+            corners = uv.data[self._faces]
+        else:
+            corners = uv.data[self._face_polygon[:, None], self._face_corner]
+        return corners
 
     @property
     def smooth(self) -> bool:
@@ -212,7 +216,7 @@ class Mesh(Renderable):
         self._smooth = as_bool("smooth", smooth)
         self._bump("geometry")
 
-    def vertex_normals(self) -> np.ndarray:
+    def vertex_normals(self) -> AnyArray:
         return vertex_normals(self._vertices, self._faces)
 
     def update_vertices(self, vertices: Any) -> None:
@@ -221,7 +225,7 @@ class Mesh(Renderable):
         self._vertices = v
         self._bump("geometry")
 
-    def world_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+    def world_bounds(self) -> tuple[AnyArray, AnyArray]:
         if len(self._vertices) == 0:
             return self.translation.copy(), self.translation.copy()
         lo, hi = bounds_memo(self._vertices, _column_bounds)
@@ -239,7 +243,7 @@ class Mesh(Renderable):
             smooth=self._smooth,
         )
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         d = self._base_dict(arrays, prefix)
         arrays[prefix + "vertices"] = self._vertices
         # store the triangulation with its polygon structure so FacesUV round-trips exactly

@@ -13,6 +13,7 @@ from blendify_core.ir.renderables.base import Renderable
 from blendify_core.ir.renderables.primitives import _RADIUS
 from blendify_core.ir.transforms import ValidatedParam
 from blendify_core.ir.validate import as_array, as_bool, as_float
+from blendify_core.typing import AnyArray
 
 __all__ = ["ParametricPrimitive", "SphereNURBS", "EllipsoidNURBS", "CurveBezier", "PARAMETRIC"]
 
@@ -33,12 +34,12 @@ class ParametricPrimitive(Renderable):
         if not as_bool("smooth", smooth):
             raise InvalidSceneError(f"smooth: a {type(self).__name__} is always smooth-shaded")
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         d = self._base_dict(arrays, prefix)
         d["params"] = self._params(arrays, prefix)
         return d
 
-    def _params(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:  # pragma: no cover
+    def _params(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:  # pragma: no cover
         raise NotImplementedError
 
 
@@ -56,7 +57,7 @@ class SphereNURBS(ParametricPrimitive):
     def to_mesh(self, segments: int = 64, rings: int = 32) -> TriMesh:
         return uv_sphere(self.radius, segments, rings)
 
-    def _params(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def _params(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         return {"radius": self.radius}
 
 
@@ -67,7 +68,7 @@ class EllipsoidNURBS(ParametricPrimitive):
     prefix = "Ellipsoid"
 
     @staticmethod
-    def _check_radius(obj: Any, name: str, value: Any) -> np.ndarray:
+    def _check_radius(obj: Any, name: str, value: Any) -> AnyArray:
         r = as_array(name, value, shape=(3,))
         if np.any(r <= 0):
             raise InvalidSceneError(f"{name}: expected three positive semi-axes, got {r.tolist()}")
@@ -86,7 +87,7 @@ class EllipsoidNURBS(ParametricPrimitive):
         m.normals = n / np.linalg.norm(n, axis=1, keepdims=True)
         return m
 
-    def _params(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def _params(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         return {"radius": self.radius.tolist()}
 
 
@@ -98,7 +99,7 @@ class CurveBezier(ParametricPrimitive):
     prefix = "Curve"
 
     @staticmethod
-    def _check_keypoints(obj: Any, name: str, value: Any) -> np.ndarray:
+    def _check_keypoints(obj: Any, name: str, value: Any) -> AnyArray:
         k = as_array(name, value, ndim=2)
         if k.shape[1] != 3 or k.shape[0] < 2:
             raise InvalidSceneError(f"{name}: expected shape (K >= 2, 3), got {_describe(k)}")
@@ -117,7 +118,7 @@ class CurveBezier(ParametricPrimitive):
     def to_mesh(self, segments: int = 16) -> TriMesh:
         return tube_along_polyline(self.keypoints, self.radius, segments)
 
-    def _params(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def _params(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         arrays[prefix + "keypoints"] = self.keypoints
         return {"keypoints": prefix + "keypoints", "radius": self.radius}
 

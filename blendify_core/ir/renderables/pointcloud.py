@@ -14,6 +14,7 @@ from blendify_core.ir.geometry import TriMesh, icosphere
 from blendify_core.ir.renderables.base import Renderable, _column_bounds
 from blendify_core.ir.transforms import ValidatedParam
 from blendify_core.ir.validate import as_array, as_choice, as_float, raw_array
+from blendify_core.typing import AnyArray
 
 __all__ = ["PointCloud"]
 
@@ -50,7 +51,7 @@ class PointCloud(Renderable):
         self.particle_emission_strength = particle_emission_strength
         super().__init__(material, colors, tag, **pose)
 
-    def _check_size(self, point_size: Any) -> float | np.ndarray:
+    def _check_size(self, point_size: Any) -> float | AnyArray:
         if raw_array("point_size", point_size).ndim == 0:
             return as_float("point_size", point_size, min_value=0.0, exclusive_min=True)
         s = as_array("point_size", point_size, shape=(len(self._vertices),), min_value=0.0)
@@ -64,7 +65,7 @@ class PointCloud(Renderable):
             raise InvalidSceneError(f"colors: expected one colour per point ({len(self._vertices)}), got {len(c)}")
 
     @property
-    def vertices(self) -> np.ndarray:
+    def vertices(self) -> AnyArray:
         """(N, 3) float64 point positions (a read-only array; assigning calls update_vertices)."""
         return self._vertices
 
@@ -77,7 +78,7 @@ class PointCloud(Renderable):
         return len(self._vertices)
 
     @property
-    def point_size(self) -> float | np.ndarray:
+    def point_size(self) -> float | AnyArray:
         return self._point_size
 
     @point_size.setter
@@ -85,7 +86,7 @@ class PointCloud(Renderable):
         self._point_size = self._check_size(value)
         self._bump("geometry")
 
-    def radii(self) -> np.ndarray:
+    def radii(self) -> AnyArray:
         """(N,) float64 sphere radii."""
         s = self._point_size
         return np.full(len(self._vertices), s / 2.0) if np.ndim(s) == 0 else np.asarray(s) / 2.0
@@ -115,7 +116,7 @@ class PointCloud(Renderable):
         normals = np.broadcast_to(base.normals, (n, nv, 3)).reshape(-1, 3)  # type: ignore[arg-type]
         return TriMesh(vertices=verts, faces=faces, normals=normals, smooth=True)
 
-    def world_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+    def world_bounds(self) -> tuple[AnyArray, AnyArray]:
         if len(self._vertices) == 0:
             return self.translation.copy(), self.translation.copy()
         # cheap on millions of points: the object-space box grown by the largest radius, then its corners
@@ -127,7 +128,7 @@ class PointCloud(Renderable):
         v = corners @ self.rotation_matrix.T + self.translation
         return v.min(axis=0), v.max(axis=0)
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         d = self._base_dict(arrays, prefix)
         arrays[prefix + "vertices"] = self._vertices
         if np.ndim(self._point_size):

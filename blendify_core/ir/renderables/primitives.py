@@ -11,6 +11,7 @@ from blendify_core.ir.geometry import TriMesh, triangulate_polygons, vertex_norm
 from blendify_core.ir.renderables.base import Renderable
 from blendify_core.ir.transforms import ValidatedParam
 from blendify_core.ir.validate import as_array, as_bool, as_choice, as_float, as_int
+from blendify_core.typing import AnyArray
 
 __all__ = ["MeshPrimitive", "CubeMesh", "CircleMesh", "CylinderMesh", "PlaneMesh", "FILL_TYPES", "PRIMITIVES"]
 
@@ -65,7 +66,7 @@ class MeshPrimitive(Renderable):
     def _supports_multi_material(self) -> bool:
         return True
 
-    def _polygons(self) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | None]:  # pragma: no cover
+    def _polygons(self) -> tuple[AnyArray, list[AnyArray], AnyArray | None]:  # pragma: no cover
         """Vertices, polygons and optional per-vertex normals (hard edges are split vertices)."""
         raise NotImplementedError
 
@@ -97,12 +98,12 @@ class MeshPrimitive(Renderable):
         )
 
     @property
-    def faces_material(self) -> np.ndarray | None:
+    def faces_material(self) -> AnyArray | None:
         if self._faces_material_poly is None:
             return None
         return self._faces_material_poly[self.to_mesh().face_polygon]
 
-    def to_dict(self, arrays: dict[str, np.ndarray], prefix: str) -> dict[str, Any]:
+    def to_dict(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         d = self._base_dict(arrays, prefix)
         d["smooth"] = self._smooth
         d["faces_material"] = None if self._faces_material_poly is None else self._faces_material_poly.tolist()
@@ -124,10 +125,10 @@ class CubeMesh(MeshPrimitive):
         self.size = as_float("size", size, min_value=0.0, exclusive_min=True)
         super().__init__(material, colors, faces_material, tag, **pose)
 
-    def _polygons(self) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | None]:
+    def _polygons(self) -> tuple[AnyArray, list[AnyArray], AnyArray | None]:
         h = self.size / 2.0
-        verts: list[np.ndarray] = []
-        polys: list[np.ndarray] = []
+        verts: list[AnyArray] = []
+        polys: list[AnyArray] = []
         for axis in range(3):
             for sign in (-1.0, 1.0):
                 u, w = [a for a in range(3) if a != axis]
@@ -149,12 +150,12 @@ class CubeMesh(MeshPrimitive):
         return {"size": self.size}
 
 
-def _ring(radius: float, n: int, z: float = 0.0) -> np.ndarray:
+def _ring(radius: float, n: int, z: float = 0.0) -> AnyArray:
     a = np.linspace(0, 2 * np.pi, n, endpoint=False)
     return np.stack([radius * np.cos(a), radius * np.sin(a), np.full(n, z)], axis=1)
 
 
-def _fill(ring_idx: np.ndarray, verts: list[np.ndarray], centre: np.ndarray, fill: str, flip: bool) -> list[np.ndarray]:
+def _fill(ring_idx: AnyArray, verts: list[AnyArray], centre: AnyArray, fill: str, flip: bool) -> list[AnyArray]:
     if fill == "NOTHING":
         return []
     if fill == "NGON":
@@ -193,7 +194,7 @@ class CircleMesh(MeshPrimitive):
         self.fill_type = as_choice("fill_type", fill_type, FILL_TYPES)
         super().__init__(material, colors, faces_material, tag, **pose)
 
-    def _polygons(self) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | None]:
+    def _polygons(self) -> tuple[AnyArray, list[AnyArray], AnyArray | None]:
         verts = list(_ring(self.radius, self.num_vertices))
         polys = _fill(np.arange(self.num_vertices), verts, np.zeros(3), self.fill_type, flip=False)
         return np.array(verts), polys, None
@@ -229,7 +230,7 @@ class CylinderMesh(MeshPrimitive):
         self.fill_type = as_choice("fill_type", fill_type, FILL_TYPES)
         super().__init__(material, colors, faces_material, tag, **pose)
 
-    def _polygons(self) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | None]:
+    def _polygons(self) -> tuple[AnyArray, list[AnyArray], AnyArray | None]:
         n, h = self.num_vertices, self.height / 2.0
         bottom, top = _ring(self.radius, n, -h), _ring(self.radius, n, h)
         verts = list(bottom) + list(top)
@@ -286,7 +287,7 @@ class PlaneMesh(MeshPrimitive):
         self._shadow_catcher = as_bool("shadow_catcher", value)
         self._bump("appearance")
 
-    def _polygons(self) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | None]:
+    def _polygons(self) -> tuple[AnyArray, list[AnyArray], AnyArray | None]:
         h = self.size / 2.0
         v = np.array([[-h, -h, 0.0], [h, -h, 0.0], [h, h, 0.0], [-h, h, 0.0]])
         return v, [np.arange(4)], None
