@@ -118,6 +118,7 @@ def render_built(built: BuiltScene, settings: RenderSettings, verbose: bool = Fa
         t2 = time.perf_counter()
         timings["passes_setup"] = t1 - t0
         timings["cycles"] = t2 - t1
+        timings["render"] = t2 - t0  # set-up and the Cycles render (a common timing key)
         result = RenderResult()
         rgba = _read_exr(_find(directory, "rgba"))
         if "rgb" in outputs:
@@ -149,7 +150,7 @@ def render_built(built: BuiltScene, settings: RenderSettings, verbose: bool = Fa
             if miss is not None:
                 albedo[miss] = 0.0
             result.albedo = albedo
-        timings["read_outputs"] = time.perf_counter() - t2
+        timings["read_back"] = time.perf_counter() - t2  # the EXR passes read back (a common timing key)
         result.instance_tags = list(built.instance_tags)
         result.meta["timings"] = timings
         result.meta["engine_settings"] = dict(built.engine_settings)
