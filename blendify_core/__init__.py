@@ -47,6 +47,7 @@ from blendify_core.ir.materials import (
     PrincipledBSDFMaterial,
     PrincipledBSDFWireframeMaterial,
 )
+from blendify_core.ir.params import BlenderClampWarning
 from blendify_core.ir.renderables import (
     CircleMesh,
     CubeMesh,
@@ -144,4 +145,5 @@ __all__ = [
     "BackendUnavailableError",
     "RenderError",
     "OutputError",
+    "BlenderClampWarning",
 ]
