@@ -5,6 +5,7 @@ Every builder returns a fresh :class:`~blendify_core.Scene`; small resolutions b
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,9 @@ from blendify_core.ir.scene import Scene
 __all__ = [
     "DATA_DIR",
     "data_path",
+    "third_party_path",
+    "THIRD_PARTY_DIR",
+    "THIRD_PARTY_ENV",
     "marker_scene",
     "plane_scene",
     "depth_plane_scene",
@@ -54,6 +58,31 @@ def data_path(name: str) -> Path:
             "blendify-core (tests/data), not with an installed package"
         )
     return path
+
+
+#: the environment variable naming the local folder of third-party test scenes that are not committed
+#: (their licence or size does not allow it); tests/third_party/SOURCES.md lists every third-party scene
+#: (committed or not), where it comes from and its licence
+THIRD_PARTY_ENV = "BLENDIFY_THIRD_PARTY_DIR"
+THIRD_PARTY_DIR = Path(__file__).resolve().parents[1] / "tests" / "third_party"
+"""Third-party scenes committed with the repository (open licences, small), one folder per source."""
+
+
+def third_party_path(relative: str) -> Path:
+    """A third-party test file: committed under ``tests/third_party/<relative>``, or else found in the local
+    cache folder named by ``$BLENDIFY_THIRD_PARTY_DIR`` (same relative path). Raises FileNotFoundError saying
+    which: tests catch it and skip with that reason (``pytest.skip(str(exc))``)."""
+    committed = THIRD_PARTY_DIR / relative
+    if committed.exists():
+        return committed
+    cache = os.environ.get(THIRD_PARTY_ENV)
+    if cache and (Path(cache) / relative).exists():
+        return Path(cache) / relative
+    where = f"${THIRD_PARTY_ENV}={cache!r}" if cache else f"${THIRD_PARTY_ENV} is not set"
+    raise FileNotFoundError(
+        f"third-party test file {relative!r} is not committed and not in the local cache ({where}); "
+        "tests/third_party/SOURCES.md says where to get it"
+    )
 
 
 def look_at_camera(
