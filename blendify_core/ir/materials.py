@@ -136,6 +136,14 @@ PRINCIPLED: tuple[Param, ...] = (
     Param("roughness_map", None, "texture", nullable=True, doc="Texture driving roughness through the mesh's UVs"),
     Param("metallic_map", None, "texture", nullable=True, doc="Texture driving metallic through the mesh's UVs"),
     Param("normal_map", None, "normal_map", nullable=True, doc="Tangent-space normal map (OpenGL convention)"),
+    Param(
+        "distribution",
+        "MULTI_GGX",
+        "choice",
+        choices=("GGX", "MULTI_GGX"),
+        doc="Microfacet distribution of the specular, metallic and transmission lobes: 'MULTI_GGX' (Blender's "
+        "default, GGX with the energy lost to single scattering restored) or 'GGX' (single scattering)",
+    ),
 )
 
 WIREFRAME: tuple[Param, ...] = (
@@ -255,7 +263,9 @@ class Material(Declared):
 class PrincipledBSDFMaterial(Material):
     """Blender's Principled BSDF. ``specular_ior`` is Blender's "Specular IOR Level" (0.5 = IOR unchanged,
     0 = no specular layer), as in blendify. Optional ``roughness_map``/``metallic_map`` (TextureMap) and
-    ``normal_map`` (NormalMap) drive those inputs from textures through the mesh's UVs."""
+    ``normal_map`` (NormalMap) drive those inputs from textures through the mesh's UVs. ``distribution``
+    is the node's microfacet distribution ("MULTI_GGX", Blender's default, or "GGX"); what every
+    parameter means is written down in docs/conventions.md ("Materials")."""
 
     _declared = PRINCIPLED + (MATERIAL_COLOR_SPACE,)
     kind = "principled"

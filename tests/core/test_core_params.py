@@ -250,6 +250,7 @@ def test_unknown_repeated_surplus_and_missing_arguments_raise_naming_them():
 
 def test_choices_are_case_insensitive_and_stored_as_declared():
     assert bf.GlossyBSDFMaterial(distribution="beckmann").distribution == "BECKMANN"
+    assert bf.PrincipledBSDFMaterial(distribution="ggx").distribution == "GGX"
     assert bf.Scene().lights.add_area("Square", 1.0).shape == "square"
 
 
@@ -388,3 +389,16 @@ def test_docs_list_every_declared_parameter_with_its_clamp():
     assert "| `coat_ior` | float | 1.5 | [1, 4] | - | [0, 1) -> 1 |" in text
     conventions = (REPO / "docs" / "conventions.md").read_text(encoding="utf-8")
     assert "## Validation policy" in conventions and "BlenderClampWarning" in conventions
+
+
+def test_principled_distribution_is_blenders_default_and_only_ggx_or_multi_ggx():
+    for cls in (bf.PrincipledBSDFMaterial, bf.MetalMaterial, bf.PlasticMaterial, bf.PlasticWireframeMaterial):
+        assert cls().distribution == "MULTI_GGX"
+    mat = bf.MetalMaterial()
+    mat.distribution = "GGX"
+    assert mat.distribution == "GGX" and mat.revision == 1
+    with pytest.raises(InvalidSceneError, match="distribution"):
+        bf.PrincipledBSDFMaterial(distribution="BECKMANN")  # Blender's Principled node offers GGX and MULTI_GGX only
+    with pytest.raises(InvalidSceneError, match="distribution"):
+        mat.distribution = None
+    assert mat.distribution == "GGX"

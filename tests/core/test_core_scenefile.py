@@ -98,7 +98,7 @@ def full_scene(folder: Path, data_dir: Path, *, env_from_file: bool = False, ort
     r.add_circle_mesh(0.2, bf.PrincipledBSDFWireframeMaterial(), bf.UniformColors((0.5, 0.5, 0.5)), fill_type="TRIFAN")
     r.add_pointcloud(
         np.linspace(0, 1, 30).reshape(10, 3),
-        bf.PrincipledBSDFMaterial(),
+        bf.PrincipledBSDFMaterial(distribution="GGX"),
         bf.UniformColors((0.3, 0.3, 0.9)),
         point_size=np.linspace(0.01, 0.05, 10),
         particle_emission_strength=0.5,

@@ -225,8 +225,10 @@ class MaterialBuilder:
         entry: Any,
         emission_from_color: float,
     ) -> Any:
-        """A Principled BSDF node with every input of ``material`` (its texture maps through the UVs)."""
+        """A Principled BSDF node with every input of ``material`` (its texture maps through the UVs) and its
+        microfacet ``distribution``."""
         bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+        bsdf.distribution = material.distribution
         for key, socket in PRINCIPLED_INPUTS.items():
             if key == "alpha":
                 continue

@@ -127,6 +127,7 @@ def test_principled_inputs_and_wireframe(cycles, bpy):
     assert p["Specular IOR Level"].default_value == pytest.approx(0.5)
     assert p["Coat Weight"].default_value == pytest.approx(0.3)
     assert p["Emission Strength"].default_value == pytest.approx(2.0)
+    assert bsdfs[0].distribution == bsdfs[1].distribution == "MULTI_GGX"  # the IR's default, Blender's too
     assert tuple(p["Emission Color"].default_value)[:3] == pytest.approx((1.0, 0.0, 0.0))
     wire = [n for n in nt.nodes if n.bl_idname == "ShaderNodeWireframe"]
     assert len(wire) == 1 and wire[0].inputs["Size"].default_value == pytest.approx(0.01)
@@ -140,6 +141,19 @@ def test_principled_inputs_and_wireframe(cycles, bpy):
     assert g.distribution == "BECKMANN" and g.inputs["Roughness"].default_value == pytest.approx(0.1)
     me = _obj(bpy, "s").data
     assert me.has_custom_normals and len(me.vertices) > 1000  # the IR's shared sphere tessellation
+
+
+def test_principled_distribution_reaches_the_node(cycles, bpy):
+    scene = bf.Scene()
+    for tag, dist in (("single", "ggx"), ("multi", "MULTI_GGX")):
+        scene.renderables.add_sphere_nurbs(
+            0.5, bf.PrincipledBSDFMaterial(distribution=dist), bf.UniformColors((0.5, 0.5, 0.5)), tag=tag
+        )
+    scene.set_perspective_camera((16, 16), fov_x=0.8, translation=(0, 0, 5))
+    cycles.translate(scene, resolve_settings())
+    for tag, want in (("single", "GGX"), ("multi", "MULTI_GGX")):
+        nodes = _obj(bpy, tag).material_slots[0].material.node_tree.nodes
+        assert [n.distribution for n in nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"] == [want]
 
 
 def test_identical_primitives_share_one_mesh(cycles, bpy):
