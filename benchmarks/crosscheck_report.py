@@ -321,6 +321,11 @@ def main(argv: list[str] | None = None) -> int:
         "ref.z_test(bf.render(scene, backend='mitsuba', samples=16, seed=99).rgb).passed",
         "```",
         "",
+        "In a notebook a CompareReport and a CrosscheckReport display themselves: verdict, metric (or verdict) "
+        "table and contact sheet (`_repr_html_`, `_repr_png_`). `bf.crosscheck` and `estimate_reference` show a "
+        "progress bar over their renders on a terminal or in a notebook (`progress=False` turns it off, "
+        "`progress=True` forces it; `TQDM_DISABLE=1` turns every bar off).",
+        "",
         "Command line: `blendify crosscheck scene.npz -o out/ [--backends cycles,mitsuba] [--samples 256]` "
         "(exit code 0 when every pair passes, 1 otherwise).",
         "",

@@ -16,6 +16,7 @@ import numpy as np
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
 from blendify_core.evaluate.compare import compare
+from blendify_core.evaluate.progress import progress_bar
 from blendify_core.evaluate.report import CompareReport, CrosscheckReport
 from blendify_core.evaluate.stats import ReferenceEstimate
 from blendify_core.evaluate.tiers import TIERS, _delta_lights, choose_tier, is_path_tracer
@@ -39,6 +40,7 @@ def crosscheck(
     backend_options: Mapping[str, Mapping[str, Any]] | None = None,
     scene_name: str = "scene",
     repeats: int = 1,
+    progress: bool | None = None,
     **settings: Any,
 ) -> CrosscheckReport:
     """Render ``scene`` with each of ``backends`` and compare every pair.
@@ -58,10 +60,14 @@ def crosscheck(
     variance estimate go to ``report.estimates``, and every path-tracer pair also gets a two-sample
     statistical test (:meth:`ReferenceEstimate.compare`) in ``report.ztests``, which must pass too: are
     the two engines' expected images equal, given their noise?
+
+    ``progress``: a progress bar over the renders (None: only on a terminal or in a notebook; see
+    :mod:`blendify_core.evaluate.progress`).
     """
     backends, outs = _checked_arguments(scene, backends, outputs, settings, repeats)
     renders = _Renders(scene, samples, seed, repeats, settings, dict(backend_options or {}))
     status = available_backends()
+    usable = []
     for name in backends:
         st = status.get(name)
         if st is None:
@@ -69,7 +75,13 @@ def crosscheck(
         elif not st.available:
             renders.skipped[name] = st.reason or "unavailable"
         else:
+            usable.append(name)
+    renders.bar = progress_bar(sum(renders.planned(n) for n in usable), "crosscheck", progress)
+    try:
+        for name in usable:
             renders.render(name, list(outs))
+    finally:
+        renders.bar.close()
     names = list(renders.results)
     n_pt = sum(is_path_tracer(n) for n in names)
     if n_pt >= 1 and samples is not None and samples * max(repeats, 1) < 128 and not _delta_lights(scene):
@@ -146,9 +158,17 @@ class _Renders:
     errors: dict[str, str] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     estimates: dict[str, ReferenceEstimate] = field(default_factory=dict)
+    bar: Any = None  # the progress bar (crosscheck sets it)
+    done: int = 0  # renders made
+
+    def planned(self, name: str) -> int:
+        """How many renders backend ``name`` is planned to make."""
+        return self.repeats if self.repeats > 1 and is_path_tracer(name) else 1
 
     def _render(self, name: str, seed: int, outputs: tuple[str, ...]) -> RenderResult:
-        return render(
+        if self.bar is not None:
+            self.bar.set_postfix_str(f"{name} seed {seed}")
+        result = render(
             self.scene,
             backend=name,
             samples=self.samples,
@@ -158,10 +178,22 @@ class _Renders:
             **self.settings,
             **dict(self.backend_options.get(name, {})),
         )
+        self.done += 1
+        if self.bar is not None:
+            self.bar.update(1)
+        return result
 
     def render(self, name: str, outs: list[str]) -> None:
         """Render with backend ``name``, dropping outputs it does not support (noted) and, for a path
         tracer with ``repeats`` > 1, averaging the colour of the repeats."""
+        before = self.done
+        try:
+            self._render_all(name, outs)
+        finally:
+            if self.bar is not None:  # a skipped or failed backend: its planned renders count as done
+                self.bar.update(max(self.planned(name) - (self.done - before), 0))
+
+    def _render_all(self, name: str, outs: list[str]) -> None:
         while True:
             try:
                 self.results[name] = result = self._render(name, self.seed, tuple(outs))

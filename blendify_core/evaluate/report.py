@@ -4,10 +4,13 @@ backends), with summaries, contact sheets and saving.
 
 from __future__ import annotations
 
+import base64
+import html
+import io
 import json
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -113,20 +116,39 @@ class CompareReport:
         )
         return out
 
+    def contact_sheet(self, tile: int = 160) -> np.ndarray:
+        """(H, W, 3) uint8 labelled sheet: one column per compared output; a row for each compared result
+        (when the report keeps them) and a row of heat maps, each marked ok/FAIL against the tier."""
+        rows: list[tuple[str, list[tuple[str, np.ndarray]]]] = []
+        if self.results is not None:
+            for label, r in zip(self.names, self.results):
+                row = [(o, img) for o in self.diff_images if (img := _output_tile(r, o)) is not None]
+                rows.append((label, row))
+        diffs = [(f"{o} diff: {'ok' if _output_ok(self, o) else 'FAIL'}", img) for o, img in self.diff_images.items()]
+        rows.append((f"{self.tier}\n{'PASS' if self.passed else 'FAIL'}", diffs))
+        return _draw_sheet(rows, tile)
+
+    def _repr_png_(self) -> bytes:
+        """The contact sheet (notebooks show it when they cannot show HTML)."""
+        return _png(self.contact_sheet())
+
+    def _repr_html_(self) -> str:
+        """The verdict, failures, notes, the metric table and the contact sheet (shown by notebooks)."""
+        a, b = self.names
+        colour = _GREEN if self.passed else _RED
+        parts = [
+            f"<div><b>{html.escape(a)} vs {html.escape(b)} (reference): "
+            f'<span style="color:{colour}">{"PASS" if self.passed else "FAIL"}</span></b> at tier '
+            f"<code>{html.escape(self.tier)}</code></div>",
+            _html_list([f"FAIL: {f}" for f in self.failures] + [f"note: {n}" for n in self.notes]),
+            _metric_table(self),
+            _html_image(self.contact_sheet()),
+        ]
+        return "<div>" + "".join(parts) + "</div>"
+
     def __repr__(self) -> str:
         head = f"CompareReport({self.names[0]} vs {self.names[1]}: {'PASS' if self.passed else 'FAIL'}"
-        key = []
-        for out, metric in (
-            ("rgb", "mean_rel_error"),
-            ("depth", "rel_diff_q99"),
-            ("mask", "iou"),
-            ("normal", "angle_q99_deg"),
-            ("instance", "agreement"),
-            ("albedo", "mean_rel_error"),
-        ):
-            if metric in self.metrics.get(out, {}) and not math.isnan(self.metrics[out][metric]):
-                key.append(f"{out}.{metric}={_fmt(self.metrics[out][metric])}")
-        text = f"{head} at tier {self.tier!r}; " + ", ".join(key)
+        text = f"{head} at tier {self.tier!r}; " + _key_metrics(self)
         if self.failures:
             text += "; failures: " + "; ".join(self.failures)
         return text + ")"
@@ -213,21 +235,13 @@ class CrosscheckReport:
         """(H, W, 3) uint8 labelled sheet: one row per backend (colour over a checkerboard, depth, normal,
         albedo, instance ids) and one row per pair (the heat maps of every compared output, each tile
         marked ok/FAIL against the pair's tier). Tiles are scaled (nearest) to ``tile`` px wide."""
-        from PIL import Image, ImageDraw
-
         rows: list[tuple[str, list[tuple[str, np.ndarray]]]] = []
         for name, r in self.results.items():
-            row = []
-            if r.rgba is not None:
-                row.append(("rgb", _over_checker(r)))
-            if r.depth is not None:
-                row.append(("depth", np.repeat(depth_to_image(r.depth)[..., None], 3, axis=-1)))
-            if r.normal is not None:
-                row.append(("normal", np.round(np.clip(r.normal * 0.5 + 0.5, 0, 1) * 255).astype(np.uint8)))
-            if r.albedo is not None:
-                row.append(("albedo", np.round(linear_to_srgb(r.albedo) * 255).astype(np.uint8)))
-            if r.instance is not None:
-                row.append(("instance", instance_to_image(r.instance)))
+            row = [
+                (o, img)
+                for o in ("rgb", "depth", "normal", "albedo", "instance")
+                if (img := _output_tile(r, o)) is not None
+            ]
             rows.append((name, row))
         for (a, b), rep in self.pairs.items():
             row = [
@@ -235,27 +249,52 @@ class CrosscheckReport:
             ]
             verdict = "PASS" if rep.passed else "FAIL"
             rows.append((f"{a}\nvs {b}\n{rep.tier}\n{verdict}", row))
-        if not any(row for _, row in rows):
-            return np.zeros((32, 32, 3), dtype=np.uint8)
-        h0, w0 = next(img for _, row in rows for _, img in row).shape[:2]
-        tw = max(int(tile), 16)
-        th = max(int(round(h0 * tw / max(w0, 1))), 1)
-        label_h, pad, head_w = 14, 4, 110
-        ncols = max(len(row) for _, row in rows)
-        width = head_w + ncols * (tw + pad) + pad
-        height = len(rows) * (th + label_h + pad) + pad
-        sheet = Image.new("RGB", (width, height), (255, 255, 255))
-        draw = ImageDraw.Draw(sheet)
-        for ri, (head, row) in enumerate(rows):
-            y = pad + ri * (th + label_h + pad)
-            colour = (180, 0, 0) if head.endswith("FAIL") else (0, 0, 0)
-            draw.multiline_text((pad, y + label_h), head, fill=colour, spacing=2)
-            for ci, (label, img) in enumerate(row):
-                x = head_w + ci * (tw + pad)
-                im = Image.fromarray(np.ascontiguousarray(img[..., :3])).resize((tw, th), Image.Resampling.NEAREST)
-                sheet.paste(im, (x, y + label_h))
-                draw.text((x + 1, y + 1), label, fill=(180, 0, 0) if label.endswith("FAIL") else (0, 0, 0))
-        return np.asarray(sheet)
+        return _draw_sheet(rows, tile)
+
+    def _repr_png_(self) -> bytes:
+        """The contact sheet (notebooks show it when they cannot show HTML)."""
+        return _png(self.contact_sheet())
+
+    def _repr_html_(self) -> str:
+        """The verdict, a table of the backends (rendered, skipped, failed), a table of the pairs' verdicts
+        with their key metrics, the notes and the contact sheet (shown by notebooks)."""
+        colour = _GREEN if self.passed else _RED
+        parts = [
+            f"<div><b>Crosscheck of {html.escape(self.scene_name)}: "
+            f'<span style="color:{colour}">{"PASS" if self.passed else "FAIL"}</span></b></div>'
+        ]
+        if self.settings:
+            parts.append(
+                "<div>Settings: "
+                + ", ".join(f"<code>{html.escape(f'{k}={v}')}</code>" for k, v in self.settings.items())
+                + "</div>"
+            )
+        backends = [("backend", "status", "render time (s)")]
+        for name, r in self.results.items():
+            t = r.meta.get("timings", {}) if isinstance(r.meta, dict) else {}
+            backends.append((name, "rendered", f"{sum(v for v in t.values() if isinstance(v, (int, float))):.2f}"))
+        backends += [(name, f"skipped: {why}", "") for name, why in self.skipped.items()]
+        backends += [(name, f"ERROR: {why}", "") for name, why in self.errors.items()]
+        parts.append(_html_table(backends))
+        if self.pairs:
+            verdicts = [("a", "b (reference)", "tier", "verdict", "key metrics", "failures")]
+            for (a, b), rep in self.pairs.items():
+                z = self.ztests.get((a, b))
+                fails = list(rep.failures) + ([] if z is None or z.passed else ["statistical test: DIFFERENT"])
+                verdicts.append(
+                    (
+                        a,
+                        b,
+                        rep.tier,
+                        "PASS" if rep.passed and (z is None or z.passed) else "FAIL",
+                        _key_metrics(rep),
+                        "; ".join(fails),
+                    )
+                )
+            parts.append(_html_table(verdicts, verdict_column=3))
+        parts.append(_html_list(self.notes))
+        parts.append(_html_image(self.contact_sheet()))
+        return "<div>" + "".join(parts) + "</div>"
 
     def save(self, folder: str | os.PathLike[str], name: str = "crosscheck") -> Path:
         """Write ``<name>.png`` (contact sheet), ``<name>.md`` (report) and per-pair diff folders, each file
@@ -293,3 +332,120 @@ def _over_checker(r: RenderResult) -> np.ndarray:
     cb = ((np.indices((h, w)) // 4).sum(axis=0) % 2) * 0.15 + 0.6
     lin = rgba[..., :3] + (1 - rgba[..., 3:4]) * cb[..., None] ** 2.2
     return np.round(linear_to_srgb(lin) * 255).astype(np.uint8)
+
+
+_GREEN, _RED = "#067d17", "#b00020"
+#: the metric shown for each output in one-line summaries
+_KEY_METRICS = (
+    ("rgb", "mean_rel_error"),
+    ("depth", "rel_diff_q99"),
+    ("mask", "iou"),
+    ("normal", "angle_q99_deg"),
+    ("instance", "agreement"),
+    ("albedo", "mean_rel_error"),
+)
+
+
+def _key_metrics(rep: CompareReport) -> str:
+    """``rgb.mean_rel_error=0.01, depth.rel_diff_q99=2e-05, ...`` for the outputs the report measured."""
+    return ", ".join(
+        f"{out}.{metric}={_fmt(rep.metrics[out][metric])}"
+        for out, metric in _KEY_METRICS
+        if metric in rep.metrics.get(out, {}) and not math.isnan(rep.metrics[out][metric])
+    )
+
+
+def _output_tile(r: RenderResult, output: str) -> np.ndarray | None:
+    """(H, W, 3) uint8 view of one output of a result (None when the result has no such output)."""
+    if output == "rgb":
+        return None if r.rgba is None else _over_checker(r)
+    if output == "mask":
+        m = r.mask
+        return None if m is None else np.repeat((m.astype(np.uint8) * 255)[..., None], 3, axis=-1)
+    data = getattr(r, output, None) if output in ("depth", "normal", "albedo", "instance") else None
+    if data is None:
+        return None
+    if output == "depth":
+        return np.repeat(depth_to_image(data)[..., None], 3, axis=-1)
+    if output == "normal":
+        return np.round(np.clip(data * 0.5 + 0.5, 0, 1) * 255).astype(np.uint8)
+    if output == "albedo":
+        return np.round(np.clip(linear_to_srgb(data), 0, 1) * 255).astype(np.uint8)
+    return instance_to_image(data)
+
+
+def _draw_sheet(rows: list[tuple[str, list[tuple[str, np.ndarray]]]], tile: int) -> np.ndarray:
+    """Rows of labelled tiles (scaled, nearest, to ``tile`` px wide) under a row heading each."""
+    from PIL import Image, ImageDraw
+
+    if not any(row for _, row in rows):
+        return np.zeros((32, 32, 3), dtype=np.uint8)
+    h0, w0 = next(img for _, row in rows for _, img in row).shape[:2]
+    tw = max(int(tile), 16)
+    th = max(int(round(h0 * tw / max(w0, 1))), 1)
+    label_h, pad, head_w = 14, 4, 110
+    ncols = max(len(row) for _, row in rows)
+    width = head_w + ncols * (tw + pad) + pad
+    height = len(rows) * (th + label_h + pad) + pad
+    sheet = Image.new("RGB", (width, height), (255, 255, 255))
+    draw = ImageDraw.Draw(sheet)
+    for ri, (head, row) in enumerate(rows):
+        y = pad + ri * (th + label_h + pad)
+        colour = (180, 0, 0) if head.endswith("FAIL") else (0, 0, 0)
+        draw.multiline_text((pad, y + label_h), head, fill=colour, spacing=2)
+        for ci, (label, img) in enumerate(row):
+            x = head_w + ci * (tw + pad)
+            im = Image.fromarray(np.ascontiguousarray(img[..., :3])).resize((tw, th), Image.Resampling.NEAREST)
+            sheet.paste(im, (x, y + label_h))
+            draw.text((x + 1, y + 1), label, fill=(180, 0, 0) if label.endswith("FAIL") else (0, 0, 0))
+    return np.asarray(sheet)
+
+
+def _png(image: np.ndarray) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(image).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def _html_image(image: np.ndarray) -> str:
+    data = base64.b64encode(_png(image)).decode("ascii")
+    return f'<img src="data:image/png;base64,{data}" style="max-width:100%;image-rendering:pixelated"/>'
+
+
+def _html_list(items: list[str]) -> str:
+    if not items:
+        return ""
+    return "<ul>" + "".join(f"<li>{html.escape(i)}</li>" for i in items) + "</ul>"
+
+
+def _html_table(rows: Sequence[tuple[str, ...]], verdict_column: int | None = None) -> str:
+    """The first row is the header; cells are escaped; the verdict column is coloured PASS/FAIL."""
+    head, *body = rows
+    out = ["<table><thead><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr></thead><tbody>"]
+    for row in body:
+        cells = []
+        for i, cell in enumerate(row):
+            style = ""
+            if i == verdict_column:
+                style = f' style="color:{_GREEN if cell == "PASS" else _RED};font-weight:bold"'
+            cells.append(f"<td{style}>{html.escape(str(cell))}</td>")
+        out.append("<tr>" + "".join(cells) + "</tr>")
+    return "".join(out) + "</tbody></table>"
+
+
+def _metric_table(rep: CompareReport) -> str:
+    """Every metric with the threshold applied to it (failed checks in red)."""
+    limits = {(o, k): (op, t, ok) for o, k, _, op, t, ok in rep.checks}
+    out = ["<table><thead><tr><th>output</th><th>metric</th><th>value</th><th>threshold</th></tr></thead><tbody>"]
+    for o, ms in rep.metrics.items():
+        for k, v in ms.items():
+            lim = limits.get((o, k))
+            th = "" if lim is None else f"{lim[0]} {_fmt(lim[1])}"
+            style = "" if lim is None or lim[2] else f' style="color:{_RED};font-weight:bold"'
+            out.append(
+                f"<tr{style}><td>{html.escape(o)}</td><td>{html.escape(k)}</td><td>{_fmt(v)}</td>"
+                f"<td>{html.escape(th)}</td></tr>"
+            )
+    return "".join(out) + "</tbody></table>"

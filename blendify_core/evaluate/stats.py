@@ -48,6 +48,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.evaluate.progress import progress_bar
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.render import render as bf_render
 from blendify_core.pipeline.result import RenderResult
@@ -322,6 +323,7 @@ def estimate_reference(
     seed0: int = 1000,
     output: str = "rgb",
     backend: str | None = None,
+    progress: bool | None = None,
     **render_kwargs: Any,
 ) -> ReferenceEstimate:
     """Estimate a reference mean and variance from ``k`` independent renders.
@@ -330,6 +332,8 @@ def estimate_reference(
     :class:`~blendify_core.Scene`, rendered ``k`` times with ``bf.render(scene, backend=backend,
     samples=samples, seed=seed0 + i, denoise=False, adaptive=False, **render_kwargs)``. ``output``
     picks the array of a RenderResult ("rgb" = premultiplied linear RGB, or "rgba", "albedo", ...).
+    ``progress``: a progress bar over the ``k`` renders (None: only on a terminal or in a notebook; see
+    :mod:`blendify_core.evaluate.progress`).
     """
     if not isinstance(k, (int, np.integer)) or k < 2:
         raise InvalidSceneError(f"k: expected an integer >= 2 independent renders, got {k!r}")
@@ -349,15 +353,26 @@ def estimate_reference(
 
     images = []
     seeds = [seed0 + i for i in range(int(k))]
-    for s in seeds:
-        out = render_fn(s)
-        if isinstance(out, RenderResult):
-            if output in ("rgb", "rgba"):
-                arr = out.rgba if output == "rgba" else out.rgb
-            else:
-                arr = getattr(out, output, None)
-            if arr is None:
-                raise InvalidSceneError(f"output: the render has no {output!r} output")
-            out = arr
-        images.append(np.asarray(out, dtype=np.float64))
+    bar = progress_bar(len(seeds), "estimate_reference", progress)
+    try:
+        for s in seeds:
+            bar.set_postfix_str(f"seed {s}")
+            images.append(_output_image(render_fn(s), output))
+            bar.update(1)
+    finally:
+        bar.close()
     return ReferenceEstimate.from_images(images, samples, seeds)
+
+
+def _output_image(out: ArrayLike | RenderResult, output: str) -> Float64Array:
+    """The array ``output`` of a render (a RenderResult or an image), as float64."""
+    if isinstance(out, RenderResult):
+        arr: ArrayLike | None
+        if output in ("rgb", "rgba"):
+            arr = out.rgba if output == "rgba" else out.rgb
+        else:
+            arr = getattr(out, output, None)
+        if arr is None:
+            raise InvalidSceneError(f"output: the render has no {output!r} output")
+        out = arr
+    return np.asarray(out, dtype=np.float64)
