@@ -31,7 +31,7 @@ from blendify_core.registry import BackendStatus
 from . import capabilities as _capabilities
 from .render import render_native
 from .session import DEFAULT_MAX_ANALYTIC_SPHERES, MitsubaNative, MitsubaSession
-from .translate import MitsubaTranslator
+from .translate import DEFAULT_SAMPLER, MitsubaTranslator
 from .variant import KNOWN_VARIANTS, VariantChoice, describe
 
 __all__ = ["MitsubaBackend", "MitsubaNative", "MitsubaTranslator", "DEFAULT_MAX_ANALYTIC_SPHERES"]
@@ -45,7 +45,8 @@ class MitsubaBackend(Backend):
     back to ``scalar_rgb`` with the reason in ``result.meta["variant_reason"]``),
     ``max_analytic_spheres`` (point clouds up to this size are analytic spheres, larger ones the IR's merged
     icosphere mesh; None = the measured default of the variant, see DEFAULT_MAX_ANALYTIC_SPHERES) and
-    ``sampler`` (Mitsuba's sampler plugin, one of :attr:`SAMPLERS`).
+    ``sampler`` (Mitsuba's sampler plugin, one of :attr:`SAMPLERS`; default ``multijitter``, measured in
+    benchmarks/results/mitsuba_noise.md).
     """
 
     path_tracer = True  # target_error: independent passes until the estimated error is reached
@@ -60,7 +61,7 @@ class MitsubaBackend(Backend):
         self,
         variant: str | None = None,
         max_analytic_spheres: int | None = None,
-        sampler: str = "independent",
+        sampler: str = DEFAULT_SAMPLER,
         **options: Any,
     ) -> None:
         super().__init__(**options)

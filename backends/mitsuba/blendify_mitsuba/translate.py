@@ -72,7 +72,16 @@ __all__ = [
     "Translation",
     "build_mesh",
     "wire_tubes",
+    "DEFAULT_SAMPLER",
+    "BACKGROUND_SAMPLING_WEIGHT",
 ]
+
+#: Mitsuba's sampler plugin by default: ``multijitter`` (correlated multi-jittered) has 1/2 (sun) to 1/4
+#: (area light) of ``independent``'s per-pixel noise at equal spp, within Cycles' (its Sobol-Burley
+#: pattern), for 1.2x (llvm) to 1.9x (scalar) the time per sample (benchmarks/results/mitsuba_noise.md)
+DEFAULT_SAMPLER = "multijitter"
+#: the uniform background's light-sampling weight beside the other emitters' 1 (see background_light)
+BACKGROUND_SAMPLING_WEIGHT = 1e-3
 
 #: camera frame change OpenCV (+Z forward, +Y down, +X right) -> Mitsuba (+Z forward, +Y up, +X left)
 MI_FROM_CV = np.diag([-1.0, -1.0, 1.0, 1.0])
@@ -472,7 +481,7 @@ class MitsubaTranslator(Translator):
         settings: RenderSettings | None = None,
         *,
         max_analytic_spheres: int = 100_000,
-        sampler: str = "independent",
+        sampler: str = DEFAULT_SAMPLER,
     ) -> None:
         self.settings = resolve_settings() if settings is None else settings
         self.max_analytic_spheres = int(max_analytic_spheres)
@@ -1087,10 +1096,16 @@ class MitsubaTranslator(Translator):
     # -- the world --------------------------------------------------------------------------------------
     @handles(BackgroundLight, features={"light.background": _exact("constant emitter")})
     def background_light(self, light: BackgroundLight, ctx: MitsubaContext) -> dict[str, Any] | None:
-        """A ``constant`` emitter (unused when an environment map is present: it is added to the map)."""
+        """A ``constant`` emitter (unused when an environment map is present: it is added to the map).
+
+        Its light-sampling weight is :data:`BACKGROUND_SAMPLING_WEIGHT` (other emitters: 1): Mitsuba picks
+        one emitter per light sample in proportion to these weights, and with equal weights half of a sun's
+        samples went to the uniform sky, which BSDF sampling (multiple importance sampling) already finds
+        as well as light sampling does; the sun's direct light then came at 0 or 2x its value and its
+        noise was 16x Cycles' (benchmarks/results/mitsuba_noise.md). Alone it is still sampled."""
         if light.strength <= 0:
             return None
-        return {"type": "constant", "radiance": _rgb(light.radiance)}
+        return {"type": "constant", "radiance": _rgb(light.radiance), "sampling_weight": BACKGROUND_SAMPLING_WEIGHT}
 
     @handles(
         EnvironmentMap, features={"light.environment": _exact("envmap rotated to Blender's equirectangular mapping")}
