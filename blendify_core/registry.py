@@ -9,6 +9,8 @@ backend instance needs it.
 Backends may also declare the file formats they can export a scene to and attach to a scene
 (``file_formats = ("blend",)`` on the class): :func:`backend_for_format` finds the backend that handles
 one, so the IR reaches format-specific code (``scene.export_blend``) without knowing any backend.
+Formats the core writes itself, without an engine (glTF, the HTML viewer), are named here as
+``"module:function"`` and imported on first use, the same way: :func:`exporter_for_format` finds either.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ __all__ = [
     "available_backends",
     "backend_for_format",
     "backend_names",
+    "core_tool",
+    "exporter_for_format",
     "close_backends",
     "get_backend",
     "get_backend_class",
@@ -167,3 +171,38 @@ def backend_for_format(file_format: str) -> Any:
         f"no available backend handles .{file_format} files" + (f" ({'; '.join(tried)})" if tried else ""),
         feature=f"file.{file_format}",
     )
+
+
+#: what the core writes without an engine ("module:function", imported on first use); suffix -> format in
+#: :data:`FORMAT_SUFFIXES`
+_CORE_TOOLS = {
+    "glb": "blendify_core.export.gltf:export_gltf",
+    "gltf": "blendify_core.export.gltf:export_gltf",
+    "html": "blendify_core.export.html:export_html",
+    "show": "blendify_core.export.viewer:show",
+}
+#: file-name suffix -> format name (``scene.export`` picks the format from the suffix)
+FORMAT_SUFFIXES = {".glb": "glb", ".gltf": "gltf", ".html": "html", ".blend": "blend", ".xml": "mitsuba"}
+
+
+def core_tool(name: str) -> Any:
+    """The core function registered as ``name`` (``"glb"``, ``"html"``, ``"show"``, ...), imported now."""
+    target = _CORE_TOOLS.get(name)
+    if target is None:
+        raise InvalidSceneError(f"name: unknown core tool {name!r}; known: {sorted(_CORE_TOOLS)}")
+    module_name, _, attr = target.partition(":")
+    return getattr(importlib.import_module(module_name), attr)
+
+
+def exporter_for_format(file_format: str) -> Any:
+    """A function ``(scene, path, **kwargs)`` writing ``file_format``: the core's own exporter (glTF,
+    HTML) or, for engine formats (``blend``, ``mitsuba``), the ``export_file`` of the first available
+    backend declaring it (UnsupportedFeatureError naming the format and what was tried otherwise)."""
+    if file_format in _CORE_TOOLS and file_format != "show":
+        return core_tool(file_format)
+    cls = backend_for_format(file_format)
+
+    def export(scene: Any, path: Any, **kwargs: Any) -> Any:
+        return cls.export_file(scene, file_format, path, **kwargs)
+
+    return export

@@ -72,6 +72,13 @@ def _part(mesh: Any) -> tuple[AnyArray, AnyArray, Any]:
                 arr = np.clip(arr.astype(np.float64) * f_lin[: arr.shape[2]], 0, 255).astype(np.uint8)
             return v, f, ("texture", arr, np.asarray(uv, dtype=np.float64))
         color = np.asarray(visual.material.main_color, dtype=np.float64) / 255.0
+        vc = getattr(visual, "vertex_attributes", {}).get("color")  # glTF COLOR_0 next to a material
+        if vc is not None and len(vc) == len(v):
+            vc = np.asarray(vc)
+            vc = vc / 255.0 if vc.dtype == np.uint8 else vc / 65535.0 if vc.dtype == np.uint16 else vc
+            rgba = np.ones((len(v), 4))
+            rgba[:, : vc.shape[1]] = vc
+            return v, f, ("vertex", rgba * color[None, : rgba.shape[1]])  # glTF: COLOR_0 x baseColorFactor
         return v, f, ("uniform", color)
     if kind == "vertex":
         vc = np.asarray(visual.vertex_colors, dtype=np.float64) / 255.0
@@ -84,16 +91,34 @@ def _part(mesh: Any) -> tuple[AnyArray, AnyArray, Any]:
     return v, f, ("uniform", np.array(_DEFAULT_COLOR + (1.0,)))
 
 
-def _colors(desc: Any, n_total: int, offset: int, n: int) -> Colors:
+def _dump(scene: Any) -> list[Any]:
+    """The scene's geometries in world space (``Scene.dump``, but keeping the vertex colours trimesh
+    stores beside a glTF material, which its copies drop)."""
+    out = []
+    for node in scene.graph.nodes_geometry:
+        transform, name = scene.graph[node]
+        geometry = scene.geometry[name]
+        moved = geometry.copy()
+        moved.apply_transform(transform)
+        color = getattr(getattr(geometry, "visual", None), "vertex_attributes", {}).get("color")
+        if color is not None and hasattr(moved.visual, "vertex_attributes"):
+            moved.visual.vertex_attributes["color"] = np.asarray(color).copy()
+        out.append(moved)
+    return out
+
+
+def _colors(desc: Any, n_total: int, offset: int, n: int, color_space: str = "srgb") -> Colors:
+    """The colour source of one part; ``color_space`` is how the file stores vertex and factor colours
+    (glTF: linear; textures are always sRGB images)."""
     kind = desc[0]
     if kind == "uniform":
         rgba = np.clip(desc[1], 0, 1)
-        return UniformColors(rgba if rgba[3] < 1 else rgba[:3])
+        return UniformColors(rgba if rgba[3] < 1 else rgba[:3], color_space=color_space)
     if kind == "vertex":
         vc = np.zeros((n_total, 4))
         vc[:, 3] = 1.0
         vc[offset : offset + n] = np.clip(desc[1], 0, 1)
-        return VertexColors(vc if np.any(vc[:, 3] < 1) else vc[:, :3])
+        return VertexColors(vc if np.any(vc[:, 3] < 1) else vc[:, :3], color_space=color_space)
     uv = np.zeros((n_total, 2))
     uv[offset : offset + n] = desc[2]
     return TextureColors(desc[1], VertexUV(uv))
@@ -114,12 +139,15 @@ def add_trimesh(
     import trimesh
 
     obj = load_trimesh(mesh_or_path) if isinstance(mesh_or_path, (str, os.PathLike)) else mesh_or_path
+    # glTF stores vertex colours and colour factors linear (the spec); other formats sRGB-encoded
+    gltf = isinstance(mesh_or_path, (str, os.PathLike)) and Path(mesh_or_path).suffix.lower() in (".glb", ".gltf")
+    space = kwargs.pop("_color_space", "linear" if gltf else "srgb")
     if isinstance(obj, trimesh.PointCloud):
         pts = np.asarray(obj.vertices, dtype=np.float64)
         if colors is None:
             c = getattr(obj, "colors", None)
             colors = (
-                VertexColors(np.asarray(c)[:, :3])
+                VertexColors(np.asarray(c)[:, :3], color_space=space)
                 if c is not None and len(c) == len(pts)
                 else UniformColors(_DEFAULT_COLOR)
             )
@@ -127,16 +155,25 @@ def add_trimesh(
             pts, material or PrincipledBSDFMaterial(), colors, point_size=point_size, **kwargs
         )
     if isinstance(obj, trimesh.Scene):
-        geoms = [g for g in obj.dump(concatenate=False) if isinstance(g, (trimesh.Trimesh, trimesh.PointCloud))]
+        geoms = [g for g in _dump(obj) if isinstance(g, (trimesh.Trimesh, trimesh.PointCloud))]
         if not geoms:
             raise InvalidSceneError("mesh_or_path: the trimesh scene holds no mesh or point cloud")
         meshes = [g for g in geoms if isinstance(g, trimesh.Trimesh) and len(g.faces)]
         clouds = [g for g in geoms if isinstance(g, trimesh.PointCloud)]
-        out = [add_trimesh(collection, c, material, colors, point_size=point_size) for c in clouds]
+        # the parts added one by one share the pose (and the tag, when there is only one part)
+        single = len(clouds) + (len(meshes) if not merge else min(len(meshes), 1)) == 1
+        shared = {k: v for k, v in kwargs.items() if single or k in ("rotation_mode", "rotation", "translation")}
+        out = [
+            add_trimesh(collection, c, material, colors, point_size=point_size, _color_space=space, **shared)
+            for c in clouds
+        ]
         if not meshes:
             return out[0] if len(out) == 1 else out
         if not merge:
-            out += [add_trimesh(collection, m, material, colors, smooth=smooth) for m in meshes]
+            out += [
+                add_trimesh(collection, m, material, colors, smooth=smooth, _color_space=space, **shared)
+                for m in meshes
+            ]
             return out
         parts = [_part(m) for m in meshes]
         mats = [material or _material_of(m.visual) for m in meshes]
@@ -158,7 +195,7 @@ def add_trimesh(
     if colors is not None:
         cols: list[Colors] = [colors] * len(parts) if not isinstance(colors, (list, tuple)) else list(colors)
     else:
-        cols = [_colors(p[2], n_total, o, s) for p, o, s in zip(parts, offsets, sizes)]
+        cols = [_colors(p[2], n_total, o, s, space) for p, o, s in zip(parts, offsets, sizes)]
     if len(parts) == 1:
         result = collection.add_mesh(vertices, faces, mats[0], cols[0], smooth=smooth, **kwargs)
     else:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -15,7 +16,7 @@ from blendify_core.ir.lights import LightsCollection
 from blendify_core.ir.renderables import RenderablesCollection
 from blendify_core.ir.serialize import fingerprint, load_scene, save_scene
 from blendify_core.ir.validate import strict_arguments
-from blendify_core.registry import backend_for_format
+from blendify_core.registry import FORMAT_SUFFIXES, backend_for_format, core_tool, exporter_for_format
 from blendify_core.typing import AnyArray
 
 __all__ = ["Scene"]
@@ -172,6 +173,35 @@ class Scene:
     def attach_blend(self, path: str | os.PathLike[str], with_camera: bool = False, **kwargs: Any) -> Any:
         """Import a .blend file's meshes, materials, lights (and camera) into this scene (needs ``cycles``)."""
         return backend_for_format("blend").attach_file(self, "blend", path, with_camera=with_camera, **kwargs)
+
+    # -- standard formats and a look before rendering (docs/export.md) -------------------------------
+    def export(self, path: str | os.PathLike[str], format: str | None = None, **kwargs: Any) -> Any:  # noqa: A002
+        """Write the scene to ``path`` in the format its suffix names: ``.glb`` / ``.gltf`` (glTF 2.0,
+        written by the core), ``.html`` (the offline viewer page), ``.blend`` (needs ``cycles``), ``.xml``
+        (a Mitsuba 3 scene, needs ``mitsuba``); ``format`` overrides the suffix. ``kwargs`` go to the
+        exporter (e.g. ``y_up=False`` for glTF). Returns the written path."""
+        if format is None:
+            suffix = Path(os.fspath(path)).suffix.lower()
+            format = FORMAT_SUFFIXES.get(suffix)
+            if format is None:
+                raise InvalidSceneError(
+                    f"path: cannot tell the format from the suffix {suffix!r}; expected one of "
+                    f"{sorted(FORMAT_SUFFIXES)} or format=..."
+                )
+        elif format not in FORMAT_SUFFIXES.values():
+            raise InvalidSceneError(f"format: expected one of {sorted(set(FORMAT_SUFFIXES.values()))}, got {format!r}")
+        return exporter_for_format(format)(self, path, **kwargs)
+
+    def export_mitsuba(self, path: str | os.PathLike[str], **kwargs: Any) -> Any:
+        """Write a Mitsuba 3 scene file (``mitsuba.load_file`` renders it as the ``mitsuba`` backend does);
+        meshes go to ``.ply`` files in a folder beside it. Needs the ``mitsuba`` backend."""
+        return self.export(path, format="mitsuba", **kwargs)
+
+    def show(self, **kwargs: Any) -> Any:
+        """Look at the scene before rendering: pyrender's interactive viewer when a display exists,
+        otherwise a self-contained HTML page (three.js, offline) shown inline in a notebook or written
+        to a file. See :func:`blendify_core.export.viewer.show` for the keywords."""
+        return core_tool("show")(self, **kwargs)
 
     # -- summaries -------------------------------------------------------------------------------
     def bounds(self) -> tuple[AnyArray, AnyArray] | None:

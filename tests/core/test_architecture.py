@@ -21,7 +21,7 @@ LAYERS = [
     {"blendify_core.ir"},
     {"blendify_core.pipeline"},
     {"blendify_core.evaluate", "blendify_core.batch", "blendify_core.testing"},
-    {"blendify_core.utils"},
+    {"blendify_core.utils", "blendify_core.export"},
     {"blendify_core.cli", "blendify_core", "blendify_core.__main__"},
 ]
 
