@@ -2,8 +2,11 @@
 
 ``compare(a, b)`` returns a :class:`~blendify_core.evaluate.report.CompareReport`: per-output metrics
 (:mod:`.metrics`), a verdict against a named tolerance tier (:mod:`.tiers`), human-readable failures and a
-heat-map diff image per output. Statistical (noise-aware) comparison of path-traced images lives in
-:mod:`.stats`.
+heat-map diff image per output. When both results carry the noise of their colour (``rgb_var``, measured
+from independent passes: ``bf.crosscheck`` and :func:`~blendify_core.evaluate.noise.render_passes` keep
+it), the colour verdict of the path-tracer tiers is the noise-aware test of :mod:`.noise` (agree within
+noise up to a small margin, fail on a bias) instead of fixed tolerances. Per-pixel statistical tests
+against a reference live in :mod:`.stats`.
 """
 
 from __future__ import annotations
@@ -31,8 +34,9 @@ from blendify_core.evaluate.metrics import (
     hit_mask,
     interior_mask,
 )
+from blendify_core.evaluate.noise import NoiseTest, noise_test
 from blendify_core.evaluate.report import CompareReport, _fmt
-from blendify_core.evaluate.tiers import _resolve_tier
+from blendify_core.evaluate.tiers import NOISE_MARGINS, _resolve_tier
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.typing import AnyArray, BoolArray
@@ -55,6 +59,7 @@ def compare(
     outputs: Iterable[str] | None = None,
     names: tuple[str, str] | None = None,
     scene: Scene | None = None,
+    noise: bool | None = None,
 ) -> CompareReport:
     """Compare render ``a`` with reference ``b``; see the module docstring for the metrics.
 
@@ -64,6 +69,12 @@ def compare(
     ``outputs``: the outputs to compare (from "rgb", "depth", "mask", "normal", "albedo", "instance");
     default: every output present in both ("mask" whenever a hit mask can be derived from both).
     Requesting an output one of the results lacks raises :class:`InvalidSceneError`.
+
+    ``noise``: None (default) = the noise-aware colour verdict whenever both results carry ``rgb_var``
+    and the tier is a path-tracer tier (margins :data:`~blendify_core.evaluate.tiers.NOISE_MARGINS`);
+    True = require it (an error when a result has no ``rgb_var``); False = the tier's fixed thresholds.
+    The test's outcome is ``report.noise``; its checks appear as ``rgb.noise_tiles_rejected`` (<= 0) and
+    ``rgb.noise_global_excess`` (<= its critical value).
     """
     if not isinstance(a, RenderResult) or not isinstance(b, RenderResult):
         raise InvalidSceneError(f"compare: expected two RenderResult, got {type(a).__name__} and {type(b).__name__}")
@@ -72,6 +83,12 @@ def compare(
     ma, mb = hit_mask(a), hit_mask(b)
     wanted = _wanted_outputs(a, b, ma, mb, outputs)
     metrics, diffs, legends = _measure(a, b, ma, mb, wanted)
+    nt = _noise_verdict(a, b, tier_name, noise) if "rgb" in wanted else None
+    if nt is not None:
+        metrics["rgb"]["noise_tiles_rejected"] = float(nt.n_tile_reject)
+        metrics["rgb"]["noise_global_excess"] = nt.global_excess
+        metrics["rgb"]["noise_global_rel_diff"] = float(np.max(np.abs(nt.global_rel_diff)))
+        thresholds = {**thresholds, "rgb": {"noise_tiles_rejected": 0.0, "noise_global_excess": nt.global_crit}}
     verdict = _Verdict(tier_name)
     for out, ms in thresholds.items():
         if out not in metrics:
@@ -94,8 +111,45 @@ def compare(
         diff_images=diffs,
         legends=legends,
         names=_labels(a, b, names),
-        notes=verdict.notes,
+        notes=verdict.notes
+        + ([f"rgb: noise-aware verdict: {'; '.join(nt.reasons) or 'agree within noise'}"] if nt else []),
         results=(a, b),
+        noise=nt,
+    )
+
+
+def _noise_verdict(a: RenderResult, b: RenderResult, tier_name: str, noise: bool | None) -> NoiseTest | None:
+    """The noise-aware colour test, when asked for (``noise``) or possible (both results carry ``rgb_var``
+    and the tier is a path-tracer tier)."""
+    if noise is False:
+        return None
+    have = a.rgb_var is not None and b.rgb_var is not None and a.rgba is not None and b.rgba is not None
+    if noise is None and not (have and tier_name in NOISE_MARGINS):
+        return None
+    if not have:
+        raise InvalidSceneError(
+            "noise=True: both results need the colour and its noise (rgb_var, from independent passes: "
+            "bf.crosscheck or blendify_core.evaluate.noise.render_passes)"
+        )
+    margin_global, margin_tile = NOISE_MARGINS.get(tier_name, NOISE_MARGINS["pathtracer"])
+    dofs = []
+    for label, r in (("a", a), ("b", b)):
+        k = r.meta.get("passes") if isinstance(r.meta, dict) else None
+        if not isinstance(k, (int, np.integer)) or k < 2:
+            raise InvalidSceneError(
+                f"result {label}: rgb_var needs meta['passes'] (the number of independent passes, >= 2), got {k!r}"
+            )
+        dofs.append(float(k - 1))
+    assert a.rgba is not None and b.rgba is not None and a.rgb_var is not None and b.rgb_var is not None
+    return noise_test(
+        a.rgba[..., :3],
+        a.rgb_var,
+        dofs[0],
+        b.rgba[..., :3],
+        b.rgb_var,
+        dofs[1],
+        margin_global=margin_global,
+        margin_tile=margin_tile,
     )
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
 from blendify_core.evaluate.compare import compare
+from blendify_core.evaluate.noise import DEFAULT_PASSES, combine_passes, pass_samples
 from blendify_core.evaluate.progress import progress_bar
 from blendify_core.evaluate.report import CompareReport, CrosscheckReport
 from blendify_core.evaluate.stats import ReferenceEstimate
@@ -25,7 +26,6 @@ from blendify_core.pipeline.render import render
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import _outputs
 from blendify_core.registry import available_backends
-from blendify_core.typing import Float32Array
 
 __all__ = ["crosscheck", "crosscheck_main"]
 
@@ -41,6 +41,7 @@ def crosscheck(
     scene_name: str = "scene",
     repeats: int = 1,
     progress: bool | None = None,
+    passes: int = DEFAULT_PASSES,
     **settings: Any,
 ) -> CrosscheckReport:
     """Render ``scene`` with each of ``backends`` and compare every pair.
@@ -55,7 +56,13 @@ def crosscheck(
     backend whose render raises is reported in ``report.errors`` (and the report does not pass).
     Pairs (a, b) follow the order of ``backends``; the later backend is the reference b.
 
-    ``repeats`` (>= 2): each path tracer renders the scene ``repeats`` times with seeds ``seed``,
+    ``passes`` (default 4): each path tracer splits its ``samples`` into ``passes`` independent passes
+    (seeds ``seed``, ``seed + 1``, ...; about the cost of one render); its colour is their mean and
+    ``result.rgb_var`` the variance of that mean, so every path-tracer pair gets the noise-aware colour
+    verdict (:mod:`blendify_core.evaluate.noise`: passes when the engines agree within noise up to a small
+    margin, fails on a bias) instead of fixed colour tolerances. ``passes=1``: one render, fixed tolerances.
+
+    ``repeats`` (>= 2; instead of ``passes``): each path tracer renders the scene ``repeats`` times with seeds ``seed``,
     ``seed + 1``, ...; its colour becomes the mean of the renders (geometry from the first), its mean and
     variance estimate go to ``report.estimates``, and every path-tracer pair also gets a two-sample
     statistical test (:meth:`ReferenceEstimate.compare`) in ``report.ztests``, which must pass too: are
@@ -65,7 +72,9 @@ def crosscheck(
     :mod:`blendify_core.evaluate.progress`).
     """
     backends, outs = _checked_arguments(scene, backends, outputs, settings, repeats)
-    renders = _Renders(scene, samples, seed, repeats, settings, dict(backend_options or {}))
+    if not isinstance(passes, (int, np.integer)) or passes < 1:
+        raise InvalidSceneError(f"passes: expected a positive integer, got {passes!r}")
+    renders = _Renders(scene, samples, seed, repeats, settings, dict(backend_options or {}), passes=int(passes))
     status = available_backends()
     usable = []
     for name in backends:
@@ -84,7 +93,13 @@ def crosscheck(
         renders.bar.close()
     names = list(renders.results)
     n_pt = sum(is_path_tracer(n) for n in names)
-    if n_pt >= 1 and samples is not None and samples * max(repeats, 1) < 128 and not _delta_lights(scene):
+    if (
+        n_pt >= 1
+        and passes < 2
+        and samples is not None
+        and samples * max(repeats, 1) < 128
+        and not _delta_lights(scene)
+    ):
         renders.notes.append(
             f"samples={samples}: the colour tiers for area/sky light were measured at 256 spp; at fewer samples "
             "Monte-Carlo noise alone may fail them (use more samples, or repeats=k for the statistical test)"
@@ -95,6 +110,8 @@ def crosscheck(
     used_settings: dict[str, Any] = {"samples": samples, "seed": seed, **FIXED_SETTINGS, **settings}
     if repeats > 1:
         used_settings["repeats"] = repeats
+    elif passes > 1:
+        used_settings["passes"] = passes
     return CrosscheckReport(
         results=renders.results,
         pairs=pairs,
@@ -158,12 +175,25 @@ class _Renders:
     errors: dict[str, str] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     estimates: dict[str, ReferenceEstimate] = field(default_factory=dict)
+    passes: int = DEFAULT_PASSES
     bar: Any = None  # the progress bar (crosscheck sets it)
     done: int = 0  # renders made
 
     def planned(self, name: str) -> int:
         """How many renders backend ``name`` is planned to make."""
-        return self.repeats if self.repeats > 1 and is_path_tracer(name) else 1
+        return self.renders_of(name)
+
+    def renders_of(self, name: str) -> int:
+        """Renders of backend ``name``: ``repeats`` or ``passes`` for a path tracer, else 1."""
+        if not is_path_tracer(name):
+            return 1
+        return self.repeats if self.repeats > 1 else self.passes
+
+    def samples_of(self, name: str) -> int | None:
+        """Samples per render of backend ``name`` (``samples`` split over the passes of a path tracer)."""
+        if self.repeats > 1 or not is_path_tracer(name):
+            return self.samples
+        return pass_samples(self.samples, self.passes)
 
     def _render(self, name: str, seed: int, outputs: tuple[str, ...]) -> RenderResult:
         if self.bar is not None:
@@ -171,7 +201,7 @@ class _Renders:
         result = render(
             self.scene,
             backend=name,
-            samples=self.samples,
+            samples=self.samples_of(name),
             seed=seed,
             outputs=outputs,
             **FIXED_SETTINGS,
@@ -197,9 +227,12 @@ class _Renders:
         while True:
             try:
                 self.results[name] = result = self._render(name, self.seed, tuple(outs))
-                if self.repeats > 1 and is_path_tracer(name) and result.rgba is not None:
-                    extra = [self._render(name, self.seed + i, ("rgb",)).rgba for i in range(1, self.repeats)]
-                    self.estimates[name] = _average_repeats(result, extra, self.samples)
+                k = self.renders_of(name)
+                if k > 1 and result.rgba is not None:
+                    extra = [self._render(name, self.seed + i, ("rgb",)) for i in range(1, k)]
+                    if self.repeats > 1:
+                        self.estimates[name] = _repeats_estimate(result, extra, self.samples)
+                    combine_passes(result, extra)
                 return
             except UnsupportedFeatureError as exc:
                 feat = getattr(exc, "feature", None) or ""
@@ -231,13 +264,10 @@ def _compare_pairs(
     return pairs
 
 
-def _average_repeats(first: RenderResult, extra: list[Float32Array | None], samples: int | None) -> ReferenceEstimate:
-    """Replace ``first.rgba`` by the mean of all repeats; return the ReferenceEstimate of the colour."""
-    if first.rgba is None:
-        raise InvalidSceneError("crosscheck: repeats need the 'rgb' output")
-    stack = [first.rgba] + [x for x in extra if x is not None]
+def _repeats_estimate(first: RenderResult, extra: list[RenderResult], samples: int | None) -> ReferenceEstimate:
+    """The ReferenceEstimate of the colour of all repeats (``first`` records their number)."""
+    stack = [r.rgba for r in [first, *extra] if r.rgba is not None]
     est = ReferenceEstimate.from_images([x[..., :3] for x in stack], int(samples or 1))
-    first.rgba = np.mean(np.stack(stack), axis=0).astype(np.float32)
     first.meta["repeats"] = len(stack)
     return est
 
@@ -265,6 +295,13 @@ def crosscheck_main(argv: Sequence[str] | None = None) -> int:
         default=1,
         help="render each path tracer N times (seeds seed..seed+N-1) and add a statistical test per pair",
     )
+    p.add_argument(
+        "--passes",
+        type=int,
+        default=DEFAULT_PASSES,
+        help=f"split each path tracer's samples into N independent passes for the noise-aware verdict "
+        f"(default {DEFAULT_PASSES}; 1 = fixed tolerances)",
+    )
     try:
         args = p.parse_args(list(argv) if argv is not None else None)
     except SystemExit as exc:  # argparse exits on --help / errors; turn that into a return code
@@ -282,6 +319,7 @@ def crosscheck_main(argv: Sequence[str] | None = None) -> int:
             tier=args.tier,
             scene_name=Path(args.scene).name,
             repeats=args.repeats,
+            passes=args.passes,
             **extra,
         )
         folder = report.save(args.output)

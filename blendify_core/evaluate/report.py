@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from blendify_core.evaluate.noise import NoiseTest
 from blendify_core.evaluate.stats import ReferenceEstimate, ZTestResult
 from blendify_core.io.output import atomic_write, ensure_folder
 from blendify_core.ir.colorspace import linear_to_srgb
@@ -60,6 +61,8 @@ class CompareReport:
     notes: list[str] = field(default_factory=list)
     #: the compared results (a, b), kept so :meth:`save` can write them next to the diff maps
     results: tuple[RenderResult, RenderResult] | None = field(default=None, repr=False, compare=False)
+    #: the noise-aware colour test (both results carried ``rgb_var``), else None
+    noise: NoiseTest | None = field(default=None, repr=False, compare=False)
 
     def summary(self) -> str:
         """Markdown: verdict, failures, and a table of every metric with its threshold."""

@@ -98,7 +98,7 @@ class RenderMeta(TypedDict, total=False):
     estimated_error: float | None
     #: (core) how ``estimated_error`` was obtained, or why it was not
     estimated_error_kind: str
-    #: (core, ``target_error`` only) independent passes rendered
+    #: (core, ``target_error``; ``bf.crosscheck`` of a path tracer) independent passes rendered
     passes: int
     #: (core, ``target_error`` only) whether the estimate reached the target
     target_reached: bool

@@ -467,7 +467,8 @@ def fakes():
 
 def test_crosscheck_with_fakes(fakes, tmp_path):
     scene = depth_plane_scene()
-    rep = bf.crosscheck(scene, backends=("fake-a", "fake-b", "no-such-backend"), samples=4)
+    # passes=1: one render each, the tier's fixed colour tolerances (2 %: the 0.3 % difference passes)
+    rep = bf.crosscheck(scene, backends=("fake-a", "fake-b", "no-such-backend"), samples=4, passes=1)
     assert set(rep.results) == {"fake-a", "fake-b"}
     assert "no-such-backend" in rep.skipped
     assert list(rep.pairs) == [("fake-a", "fake-b")]
@@ -486,7 +487,17 @@ def test_crosscheck_with_fakes(fakes, tmp_path):
     assert (tmp_path / "xc" / "crosscheck.png").exists()
     md = (tmp_path / "xc" / "crosscheck.md").read_text()
     assert "no-such-backend" in md and "fake-a vs fake-b" in md
-    rep2 = bf.crosscheck(scene, backends=("fake-a", "fake-b"), samples=4, tier="pathtracer_delta")
+    assert pair.noise is None and rep.results["fake-a"].rgb_var is None
+    # default: 4 passes; the fakes are noise-free, so their 0.3 % difference exceeds the 0.25 % margin for sure
+    noisy = bf.crosscheck(scene, backends=("fake-a", "fake-b"), samples=4)
+    res = noisy.results["fake-a"]
+    assert res.meta["passes"] == 4 and res.meta["samples"] == 4 and np.all(res.rgb_var == 0)
+    nt = noisy.pairs[("fake-a", "fake-b")].noise
+    assert nt is not None and not nt.passed and not noisy.passed
+    assert nt.global_rel_diff == pytest.approx([-0.003 / 1.003] * 3, rel=1e-3)
+    assert "whole image differs by -0.30%" in nt.reasons[0]
+    assert "noise_global_excess" in noisy.pairs[("fake-a", "fake-b")].thresholds["rgb"]
+    rep2 = bf.crosscheck(scene, backends=("fake-a", "fake-b"), samples=4, tier="pathtracer_delta", passes=1)
     assert rep2.pairs[("fake-a", "fake-b")].tier == "pathtracer_delta"
     with pytest.raises(bf.InvalidSceneError, match="fixed by crosscheck"):
         bf.crosscheck(scene, backends=("fake-a",), denoise=True)
@@ -533,7 +544,9 @@ def test_crosscheck_main_cli(fakes, tmp_path, capsys):
     path = tmp_path / "scene.npz"
     depth_plane_scene().save(path)
     out = tmp_path / "out"
-    code = crosscheck_main([str(path), "-o", str(out), "--backends", "fake-a,fake-b", "--samples", "2"])
+    code = crosscheck_main(
+        [str(path), "-o", str(out), "--backends", "fake-a,fake-b", "--samples", "2", "--passes", "1"]
+    )
     assert code == 0
     assert (out / "crosscheck.png").exists() and (out / "crosscheck.md").exists()
     assert "fake-a/fake-b: PASS" in capsys.readouterr().out

@@ -158,7 +158,7 @@ def test_progress_is_automatic_forced_or_off(monkeypatch, flats):
     assert len(bars) == 1
     monkeypatch.setattr(sys, "stderr", type("Tty", (io.StringIO,), {"isatty": lambda self: True})())
     bf.crosscheck(scene, backends=("nb-flat-a",), samples=2, outputs=outs)
-    assert len(bars) == 2 and bars[1].n == bars[1].total == 1
+    assert len(bars) == 2 and bars[1].n == bars[1].total == 4  # a path tracer: 4 independent passes by default
     # the reference estimate: one step per render
     estimate_reference(lambda seed: np.full((4, 4, 3), 0.5 + 0.01 * seed), k=5, progress=True)
     assert (bars[2].desc, bars[2].total, bars[2].n, bars[2].closed) == ("estimate_reference", 5, 5, True)
