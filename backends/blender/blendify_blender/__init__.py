@@ -19,6 +19,10 @@ Options (``bf.render(scene, backend="cycles", verbose=True)`` or ``CyclesBackend
   file); Blender keeps some memory it never frees, so long runs should use it.
 - ``worker_max_renders`` (100): with ``isolate``, restart the worker after this many renders.
 - ``device`` ("CPU"): "CPU" or "GPU" (GPU falls back to CPU with a logged reason when none is found).
+- ``cycles_settings`` (None): Cycles scene properties set after blendify's own settings, for rendering an
+  attached .blend with the file's settings (``attach_blend(..., render_settings=True).cycles_settings``:
+  per-type bounces, the exact pixel filter, filter glossy, caustics, light threshold, ...); the keys are
+  those of :data:`blendify_blender.blendfile.settings.CYCLES_KEYS`.
 
 Translation (details in :mod:`.translate`, :mod:`.materials`, :mod:`.render`; formulas from
 ``shared/docs/CONVENTIONS.md``): meshes, colour attributes, UVs and texture pixels through bulk
@@ -65,7 +69,7 @@ from blendify_core.registry import BackendStatus
 from . import capabilities as _capabilities
 from .render import render_built
 from .session import BPY_LOCK, CyclesSession, TranslatedScene, bpy_module, defer_keyboard_interrupt, enable_gpu
-from .translate import CyclesTranslator
+from .translate import CyclesTranslator, apply_cycles_settings, check_cycles_settings
 from .worker import IsolatedScene, WorkerClient
 
 __all__ = ["CyclesBackend"]
@@ -104,6 +108,7 @@ class CyclesBackend(Backend):
         isolate: bool = False,
         worker_max_renders: int = 100,
         device: str = "CPU",
+        cycles_settings: dict[str, Any] | None = None,
         **options: Any,
     ) -> None:
         super().__init__(**options)
@@ -119,6 +124,9 @@ class CyclesBackend(Backend):
         self.isolate = isolate
         self.worker_max_renders = worker_max_renders
         self.device = device.upper()
+        self.cycles_settings = check_cycles_settings(cycles_settings)
+        if self.cycles_settings and isolate:
+            raise InvalidSceneError("cycles_settings: not available with isolate=True (the worker uses its own)")
         self._session: CyclesSession | None = None
         self._worker: WorkerClient | None = None
 
@@ -211,6 +219,8 @@ class CyclesBackend(Backend):
         session = self._ensure_session()
         with defer_keyboard_interrupt(), BPY_LOCK:
             built = session.current(native, self.verbose)
+            if self.cycles_settings:
+                apply_cycles_settings(built, self.cycles_settings)
             return render_built(built, settings, self.verbose)
 
     def clear(self) -> None:

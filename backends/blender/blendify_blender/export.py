@@ -11,12 +11,14 @@ This module sits above the translator, which sits above the .blend parsing and s
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import Any
 
 from blendify_blender import session
 from blendify_blender.blendfile.common import TAG_PROPERTY
+from blendify_blender.blendfile.settings import PORTABLE_KEYS, SETTINGS_PROPERTY
 from blendify_blender.translate import build_scene
 from blendify_core.errors import InvalidSceneError, RenderError
 from blendify_core.ir.scene import Scene
@@ -47,6 +49,8 @@ def export_blend(scene: Any, path: str | os.PathLike[str], pack_textures: bool =
             with session.capture_output("export .blend") as cap, session.engine_errors("export_blend", cap):
                 _tag_objects(scene, built)
                 bl_scene = built.bscene
+                # the blendify settings, read back by attach_blend(render_settings=True) as given
+                bl_scene[SETTINGS_PROPERTY] = json.dumps({k: getattr(render_settings, k) for k in PORTABLE_KEYS})
                 for img in _scene_images(bpy, bl_scene):
                     # in-memory images (no file behind them) are always packed, files only when asked
                     in_memory = img.source == "GENERATED" or not (img.filepath_raw or img.filepath)

@@ -44,6 +44,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from blendify_blender.blendfile import append_blend_scenes
+from blendify_blender.blendfile.settings import CYCLES_KEYS
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.attachments import Attachment
 from blendify_core.ir.cameras import OrthographicCamera, PerspectiveCamera
@@ -80,7 +81,16 @@ from blendify_core.pipeline.translator import EXACT, TranslationContext, Transla
 from .materials import ALBEDO_AOV, MaterialBuilder
 from .session import BPY_LOCK, BuiltScene, _Entry, bpy_module, capture_output, engine_errors, factory_reset, generation
 
-__all__ = ["ALBEDO_AOV", "BuiltScene", "ColorFeed", "CyclesTranslator", "apply_engine_settings", "build_scene"]
+__all__ = [
+    "ALBEDO_AOV",
+    "BuiltScene",
+    "ColorFeed",
+    "CyclesTranslator",
+    "apply_cycles_settings",
+    "apply_engine_settings",
+    "build_scene",
+    "check_cycles_settings",
+]
 
 _COLOR_ATTR = "bf_color_{}"
 _RADIUS_ATTR = "bf_radius"
@@ -990,6 +1000,38 @@ def apply_engine_settings(
         "effects_used": eff is not None,
         "geometry_only": geometry_only,
     }
+
+
+def check_cycles_settings(value: Any) -> dict[str, Any]:
+    """The ``cycles_settings`` backend option validated: a dict of :data:`CYCLES_KEYS` -> value of the
+    property's type (an empty dict for None)."""
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise InvalidSceneError(f"cycles_settings: expected a dict of Cycles settings or None, got {value!r}")
+    out: dict[str, Any] = {}
+    for k, v in value.items():
+        if k not in CYCLES_KEYS:
+            raise InvalidSceneError(f"cycles_settings: unknown key {k!r}; expected names from {list(CYCLES_KEYS)}")
+        if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+            if not (isinstance(v, bool) and k in ("caustics_reflective", "caustics_refractive", "use_light_tree")):
+                raise InvalidSceneError(f"cycles_settings[{k!r}]: expected a number, a name or a bool, got {v!r}")
+        out[k] = v
+    return out
+
+
+def apply_cycles_settings(built: BuiltScene, overrides: dict[str, Any]) -> None:
+    """Set ``overrides`` (checked by :func:`check_cycles_settings`) on the built scene's Cycles settings after
+    :func:`apply_engine_settings`; recorded in ``result.meta["engine_settings"]``."""
+    cy = built.bscene.cycles
+    for k, v in overrides.items():
+        try:
+            setattr(cy, k, v)
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise InvalidSceneError(f"cycles_settings[{k!r}]: Blender refuses {v!r} ({exc})") from None
+        built.engine_settings[k] = getattr(cy, k)
+    if "pixel_filter_type" in overrides or "filter_width" in overrides:
+        built.engine_settings["pixel_filter"] = (cy.pixel_filter_type, cy.filter_width)
 
 
 # ---------------------------------------------------------------------------------------------------

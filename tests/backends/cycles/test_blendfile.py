@@ -581,36 +581,14 @@ def test_export_orthographic_camera_and_bad_inputs(tmp_path: Path):
     assert not (tmp_path / "x.blend").exists()
 
 
-RENDER_BLEND = """
-import bpy, sys, json
-import numpy as np
-import OpenEXR
-path, out = sys.argv[1:3]
-bpy.ops.wm.open_mainfile(filepath=path)
-sc = bpy.context.scene
-sc.render.image_settings.media_type = "IMAGE"
-sc.render.image_settings.file_format = "OPEN_EXR"
-sc.render.image_settings.color_depth = "32"
-sc.render.use_compositing = False
-sc.render.filepath = out
-bpy.ops.render.render(write_still=True)
-with OpenEXR.File(out) as f:
-    ch = f.channels()
-    rgba = np.asarray(ch["RGBA"].pixels, dtype=np.float32)
-np.save(out + ".npy", rgba)
-print(json.dumps({"engine": sc.render.engine, "samples": sc.cycles.samples}))
-"""
-
-
-def test_exported_blend_renders_the_same_picture(tmp_path: Path):
+def test_exported_blend_renders_the_same_picture(tmp_path: Path, blender_render):
     import blendify_core as bf
 
     src = round_trip_scene(scale=0.5)
     res = bf.render(src, backend="cycles", samples=4, seed=3, outputs=("rgba",))
     out = export_blend(src, tmp_path / "r.blend", samples=4, seed=3, outputs=("rgba",))
-    info = run_bpy_script(RENDER_BLEND, str(out), str(tmp_path / "r.exr"))
+    info, img = blender_render(out, tmp_path / "r.exr")
     assert info["engine"] == "CYCLES" and info["samples"] == 4
-    img = np.load(tmp_path / "r.exr.npy")
     ref = np.asarray(res.rgba, dtype=np.float32)
     assert img.shape == ref.shape
     assert ref[..., 3].mean() > 0.15 and ref[..., :3].mean() > 0.03  # the objects are in view and lit
@@ -1008,7 +986,7 @@ print(json.dumps({"ok": True}))
 """
 
 
-def test_attached_scene_renders_like_the_file(tmp_path: Path):
+def test_attached_scene_renders_like_the_file(tmp_path: Path, blender_render):
     """End to end: a hand-built .blend (vertex colours, packed texture, every light type and area shape,
     world colour, shifted camera) rendered by Blender itself, and the same file attached to the IR and
     rendered by the cycles backend, give the same picture."""
@@ -1016,13 +994,17 @@ def test_attached_scene_renders_like_the_file(tmp_path: Path):
 
     path = tmp_path / "file.blend"
     run_bpy_script(RENDER_FILE, str(path))
-    run_bpy_script(RENDER_BLEND, str(path), str(tmp_path / "file.exr"))
-    ref = np.load(tmp_path / "file.exr.npy")
+    _info, ref = blender_render(path, tmp_path / "file.exr")
     scene = Scene()
     with warnings.catch_warnings():
         warnings.simplefilter("error", BlendAttachWarning)
-        attach_blend(scene, path, with_camera=True)
-    img = np.asarray(bf.render(scene, backend="cycles", samples=16, seed=1, max_bounces=0, outputs=("rgba",)).rgba)
+        att = attach_blend(scene, path, with_camera=True, render_settings=True)
+    assert att.render_settings is not None and att.cycles_settings is not None
+    assert att.render_settings["samples"] == 16 and att.render_settings["seed"] == 1
+    assert att.render_settings["max_bounces"] == 0 and att.render_settings["pixel_filter"] == "box"
+    assert att.cycles_settings["blur_glossy"] == 1.0  # the file's filter glossy, Blender's default
+    settings = {**att.render_settings, "outputs": ("rgba",)}
+    img = np.asarray(bf.render(scene, backend="cycles", cycles_settings=att.cycles_settings, **settings).rgba)
     assert img.shape == ref.shape == (36, 48, 4)
     assert ref[..., :3].mean() > 0.05  # a lit scene, not a black frame
     assert np.abs(img - ref)[..., :3].mean() < 0.005 * ref[..., :3].mean()

@@ -42,14 +42,12 @@ from blendify_blender.blendfile.images import ImageReader
 from blendify_blender.blendfile.lights import light_spec, world_specs
 from blendify_blender.blendfile.nodes import MaterialReader
 from blendify_blender.blendfile.safety import (
-    all_ids,
+    appended_blend,
     check_blend_path,
     loaded_blend,
-    new_ids_since,
     scripts_auto_execute_disabled,
-    strip_python,
-    unreadable_blend,
 )
+from blendify_blender.blendfile.settings import describe_unimported, file_render_settings
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.attachments import Attachment
 from blendify_core.ir.scene import Scene
@@ -69,7 +67,9 @@ class AttachedBlend(list):  # type: ignore[type-arg]
 
     Attributes: ``path`` (resolved .blend path), ``lights`` (added lights), ``camera`` (the new camera or
     None), ``background`` (the new background light / environment or None), ``unparsed`` (the warning
-    lines), ``texture_dir`` (where packed textures were unpacked, or None), ``scene_name``.
+    lines), ``texture_dir`` (where packed textures were unpacked, or None), ``scene_name``;
+    ``render_settings`` / ``cycles_settings`` (with ``render_settings=True``: the file's render settings as
+    ``bf.render`` keywords / the Cycles backend's ``cycles_settings`` option; else None).
     """
 
     def __init__(self, renderables: list[Any]) -> None:
@@ -81,6 +81,8 @@ class AttachedBlend(list):  # type: ignore[type-arg]
         self.background: Any = None
         self.unparsed: list[str] = []
         self.texture_dir: str | None = None
+        self.render_settings: dict[str, Any] | None = None
+        self.cycles_settings: dict[str, Any] | None = None
 
 
 @dataclass
@@ -95,6 +97,8 @@ class _Pending:
     lights: list[tuple[str, str, dict[str, Any]]] = field(default_factory=list)
     camera: tuple[str, dict[str, Any]] | None = None
     world: list[tuple[str, dict[str, Any]]] = field(default_factory=list)
+    render_settings: dict[str, Any] | None = None
+    cycles_settings: dict[str, Any] | None = None
 
 
 def attach_blend(
@@ -106,6 +110,7 @@ def attach_blend(
     with_world: bool | None = None,
     texture_dir: str | os.PathLike[str] | None = None,
     warn: bool = True,
+    render_settings: bool = False,
 ) -> AttachedBlend:
     """Append a .blend's content into the IR ``scene``; returns the added renderables (see module docs).
 
@@ -120,6 +125,12 @@ def attach_blend(
         texture_dir: where PACKED images are unpacked (default:
             :func:`blendify_blender.blendfile.images.default_texture_cache_dir`).
         warn: emit one :class:`BlendAttachWarning` listing what could not be parsed.
+        render_settings: read the file scene's render settings into ``result.render_settings`` (``bf.render``
+            keywords: samples, seed, max_bounces, pixel_filter, clamps, adaptive, denoise,
+            transparent_background) and ``result.cycles_settings`` (the Cycles-only rest: per-type bounces,
+            exact pixel filter, filter glossy, caustics, ...: the Cycles backend's ``cycles_settings``
+            option). Off by default: the settings that differ from ``bf.render``'s are then named in the
+            warning as not imported.
     """
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core Scene, got {type(scene).__name__}")
@@ -129,13 +140,15 @@ def attach_blend(
         raise InvalidSceneError(f"with_world: expected True, False or None, got {with_world!r}")
     if scene_name is not None and not isinstance(scene_name, str):
         raise InvalidSceneError(f"scene_name: expected a scene name (str) or None, got {scene_name!r}")
+    if not isinstance(render_settings, bool):
+        raise InvalidSceneError(f"render_settings: expected True or False, got {render_settings!r}")
     if texture_dir is not None and not isinstance(texture_dir, (str, os.PathLike)):
         raise InvalidSceneError(f"texture_dir: expected a directory path or None, got {texture_dir!r}")
     p = check_blend_path(path)
     bpy = session.bpy_module()
     with session.BPY_LOCK, session.capture_output("attach .blend") as cap:
         with session.engine_errors(f"attach_blend({str(p)!r})", cap):
-            pend = _parse_blend(bpy, scene, p, with_camera, scene_name, with_world, texture_dir)
+            pend = _parse_blend(bpy, scene, p, with_camera, scene_name, with_world, texture_dir, render_settings)
     result = _commit(scene, p, pend, with_camera)
     if warn and pend.notes:
         lines = "\n  - ".join(pend.notes)
@@ -153,21 +166,9 @@ def append_blend_scenes(path: str | os.PathLike[str]) -> tuple[list[Any], list[s
     protections as :func:`attach_blend` (auto-run off during the load, Python drivers and text blocks
     removed). Returns (appended bpy scenes, notes about removed Python). The caller owns the new
     datablocks and must keep auto-run off while evaluating them (drivers are already gone)."""
-    bpy = session.bpy_module()
     p = check_blend_path(path)
-    with session.BPY_LOCK, scripts_auto_execute_disabled():
-        before = set(all_ids(bpy))
-        try:
-            with bpy.data.libraries.load(str(p), link=False) as (src, dst):
-                dst.scenes = list(src.scenes)
-        except (OSError, RuntimeError, ValueError) as exc:
-            raise unreadable_blend(p, exc) from None
-        try:
-            removed = strip_python(bpy, new_ids_since(bpy, before))
-        except BaseException:
-            bpy.data.batch_remove(new_ids_since(bpy, before))
-            raise
-    return [s for s in dst.scenes if s is not None], removed
+    with session.BPY_LOCK, scripts_auto_execute_disabled(), appended_blend(p) as (scenes, notes, _new):
+        return [sc for _name, sc in scenes], notes
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -183,6 +184,7 @@ def _parse_blend(
     scene_name: str | None,
     with_world: bool | None,
     texture_dir: str | os.PathLike[str] | None,
+    render_settings: bool,
 ) -> _Pending:
     pend = _Pending(notes=Notes())
     notes = pend.notes
@@ -191,6 +193,14 @@ def _parse_blend(
     with scripts_auto_execute_disabled(), loaded_blend(p) as (scenes, removed, new_ids):
         notes.extend(removed)
         pend.scene_label, sc = _pick_scene(scenes, scene_name, p, notes)
+        portable, cycles, setting_notes = file_render_settings(sc)
+        if render_settings:
+            pend.render_settings, pend.cycles_settings = portable, cycles
+            notes.extend(setting_notes)
+        else:
+            line = describe_unimported(portable, cycles)
+            if line:
+                notes.add(line)
         view_layer = next((vl for vl in sc.view_layers if vl.use), sc.view_layers[0])
         for msg in _render_visibility(bpy, new_ids, view_layer):
             notes.add(msg)
@@ -381,6 +391,8 @@ def _commit(scene: Any, p: Path, pend: _Pending, with_camera: bool) -> AttachedB
     result.background = background
     result.unparsed = list(pend.notes)
     result.texture_dir = str(pend.texture_dir) if pend.texture_dir is not None else None
+    result.render_settings = pend.render_settings
+    result.cycles_settings = pend.cycles_settings
     return result
 
 

@@ -216,7 +216,14 @@ class MaterialReader:
         if node.type == "BSDF_DIFFUSE":
             col = self._color_source(node.inputs["Color"], where)
             self._ignore_links(node, ("Color",), where)
-            return PrincipledBSDFMaterial(color_space="linear", roughness=1.0, specular_ior=0.0), col
+            # Blender's Diffuse BSDF roughness is the Oren-Nayar roughness of the Principled diffuse lobe
+            rough = self._clip("diffuse_roughness", node.inputs["Roughness"].default_value, where)
+            m = PrincipledBSDFMaterial(color_space="linear", roughness=1.0, specular_ior=0.0, diffuse_roughness=rough)
+            return m, col
+        if node.type == "BSDF_TRANSPARENT":
+            self._ignore_links(node, (), where)
+            self._transparent_tint(node, where)
+            return PrincipledBSDFMaterial(color_space="linear", alpha=0.0), dict(_DEFAULT_GREY)
         if node.type == "BSDF_GLOSSY":
             col = self._color_source(node.inputs["Color"], where)
             self._ignore_links(node, ("Color",), where)
@@ -279,6 +286,7 @@ class MaterialReader:
     ) -> tuple[Any, dict[str, Any]] | None:
         """Mix(factor, a, b) with a Transparent BSDF on one side -> the other shader with an alpha."""
         other = b if a.type == "BSDF_TRANSPARENT" else a
+        self._transparent_tint(a if other is b else b, where)
         parsed = self._shader(other, where)
         if parsed is None:
             return None
@@ -294,6 +302,21 @@ class MaterialReader:
         if "alpha" in m.parameter_names():
             m = m.copy(alpha=float(m.alpha) * alpha)
         return m, col
+
+    def _transparent_tint(self, node: Any, where: str) -> None:
+        """Note a Transparent BSDF that is not white: the IR's alpha lets light through untinted."""
+        sock = node.inputs["Color"]
+        rgb = tuple(float(x) for x in sock.default_value[:3])
+        if sock.is_linked:
+            self.notes.add(
+                f"{where}: {node.name} colour is driven by nodes; read as untinted transparency (the IR's alpha)"
+            )
+        elif min(rgb) < 0.999:
+            tint = ", ".join(f"{x:.3g}" for x in rgb)
+            self.notes.add(
+                f"{where}: {node.name} is tinted ({tint}); approximated by untinted transparency (the IR's alpha "
+                "has no colour)"
+            )
 
     def _ignore_links(self, node: Any, handled: tuple[str, ...], where: str) -> None:
         for sock in node.inputs:
@@ -325,6 +348,10 @@ class MaterialReader:
         sock = inputs.get("Subsurface Radius")
         if sock is not None:
             params["subsurface_radius"] = tuple(max(float(x), 0.0) for x in sock.default_value)
+        if node.distribution in ("GGX", "MULTI_GGX"):
+            params["distribution"] = node.distribution
+        else:  # pragma: no cover - Blender 5 offers only these two
+            self.notes.add(f"{where}: Principled distribution {node.distribution} read as MULTI_GGX")
         nm = self._normal_map(inputs.get("Normal"), where)
         if nm is not None:
             params["normal_map"] = nm

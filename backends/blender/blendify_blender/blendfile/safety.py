@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -29,9 +31,11 @@ from blendify_core.errors import InvalidSceneError
 
 __all__ = [
     "all_ids",
+    "appended_blend",
     "check_blend_path",
     "loaded_blend",
     "new_ids_since",
+    "readable_copy",
     "scripts_auto_execute_disabled",
     "strip_python",
     "unreadable_blend",
@@ -151,37 +155,106 @@ def unreadable_blend(path: Path, exc: Exception) -> InvalidSceneError:
     return InvalidSceneError(f"path: Blender cannot read {str(path)!r} as a .blend file ({exc})")
 
 
+#: datablock kinds of a library whose names are not kept (never loaded, or handled separately)
+_NAMES_NOT_KEPT = ("scenes", "screens", "workspaces", "texts", "version", "window_managers", "brushes", "palettes")
+
+
+def _keep_file_names(bpy: Any, src: Any, renamed: list[tuple[Any, str]]) -> None:
+    """Rename, for the duration of a load, the session's datablocks whose names the file uses, so the
+    appended datablocks keep the names they have in the file (warnings and IR tags use them); the
+    renamed ones are collected in ``renamed`` and restored by :func:`_restore_names`."""
+    k = 0
+    for kind in dir(src):
+        if kind.startswith("_") or kind in _NAMES_NOT_KEPT:
+            continue
+        coll, names = getattr(bpy.data, kind, None), getattr(src, kind, None)
+        if coll is None or not isinstance(names, list):
+            continue
+        for nm in names:
+            existing = coll.get(nm)
+            if existing is not None and existing.library is None:
+                renamed.append((existing, nm))
+                existing.name = f"~bf{k}~{nm}"[:60]
+                k += 1
+
+
+def _restore_names(renamed: list[tuple[Any, str]]) -> None:
+    for idb, nm in reversed(renamed):
+        idb.name = nm
+
+
 @contextlib.contextmanager
-def loaded_blend(path: Path) -> Iterator[tuple[list[tuple[str, Any]], list[str], list[Any]]]:
-    """Append all scenes of ``path`` safely; yields ((name in the file, scene) sorted by name,
-    removed-Python notes, all new IDs); removes every new ID on exit. Auto-run must already be forced
-    off by the caller (:func:`scripts_auto_execute_disabled`)."""
+def readable_copy(path: Path) -> Iterator[tuple[Path, list[str]]]:
+    """(path to load, notes): ``path`` itself, or a temporary copy when it is bpy's current main file
+    (Blender refuses to append from the open file); the copy holds what was saved, which is noted when
+    the open file has unsaved changes."""
+    bpy = session.bpy_module()
+    main = bpy.data.filepath
+    if not main or not Path(main).exists() or not Path(main).resolve().samefile(path):
+        yield path, []
+        return
+    notes = []
+    if bpy.data.is_dirty:
+        notes.append(f"{str(path)!r} is bpy's current main file and has unsaved changes: the file as saved was read")
+    with tempfile.TemporaryDirectory(prefix="blendify_main_") as tmp:
+        copy = Path(tmp) / path.name
+        try:
+            shutil.copyfile(path, copy)
+        except OSError as exc:
+            raise InvalidSceneError(
+                f"path: {str(path)!r} is bpy's current main file and could not be copied to be read ({exc})"
+            ) from None
+        yield copy, notes
+
+
+@contextlib.contextmanager
+def appended_blend(path: Path) -> Iterator[tuple[list[tuple[str, Any]], list[str], list[Any]]]:
+    """Append all scenes of ``path`` safely, the datablocks keeping the names they have in the file for
+    the duration of the block (session datablocks with those names are renamed meanwhile and get their
+    names back on exit); yields ((name in the file, scene) sorted by name, notes about removed Python
+    and the file, all new IDs). The new IDs stay (the caller owns them). Auto-run must already be
+    forced off by the caller (:func:`scripts_auto_execute_disabled`)."""
     bpy = session.bpy_module()
     before = set(all_ids(bpy))
     renamed: list[tuple[Any, str]] = []
     try:
+        with readable_copy(path) as (readable, notes):
+            try:
+                with bpy.data.libraries.load(str(readable), link=False) as (src, dst):
+                    src_names = list(src.scenes)
+                    dst.scenes = list(src_names)
+                    _keep_file_names(bpy, src, renamed)
+            except (OSError, RuntimeError, ValueError) as exc:
+                raise unreadable_blend(path, exc) from None
         try:
-            with bpy.data.libraries.load(str(path), link=False) as (src, dst):
-                src_names = list(src.scenes)
-                dst.scenes = list(src_names)
-                # session objects whose names the file uses are renamed for the duration, so the
-                # appended objects keep their own names (they become the IR tags)
-                for i, nm in enumerate(src.objects):
-                    existing = bpy.data.objects.get(nm)
-                    if existing is not None and existing.library is None:
-                        renamed.append((existing, nm))
-                        existing.name = f"~bf{i}~{nm}"[:60]
-        except (OSError, RuntimeError, ValueError) as exc:
-            raise unreadable_blend(path, exc) from None
-        removed = strip_python(bpy, new_ids_since(bpy, before))
+            removed = strip_python(bpy, new_ids_since(bpy, before))
+        except BaseException:
+            bpy.data.batch_remove(new_ids_since(bpy, before))
+            raise
         # (name in the file, appended scene): appended scenes are renamed when the session has the name
         scenes = sorted(((n, sc) for n, sc in zip(src_names, dst.scenes) if sc is not None), key=lambda x: x[0])
-        if not scenes:
-            raise InvalidSceneError(f"path: {str(path)!r} contains no scene")
-        yield scenes, removed, new_ids_since(bpy, before)
+        yield scenes, notes + removed, new_ids_since(bpy, before)
+    finally:
+        if renamed:
+            # the appended datablocks give the names back to the session's own
+            for idb in new_ids_since(bpy, before):
+                if any(idb.name == nm for _o, nm in renamed):
+                    idb.name = f"{idb.name}.bf"[:60]
+            _restore_names(renamed)
+
+
+@contextlib.contextmanager
+def loaded_blend(path: Path) -> Iterator[tuple[list[tuple[str, Any]], list[str], list[Any]]]:
+    """:func:`appended_blend`, and every datablock the load created is removed on exit, so the session
+    is left as it was (the file must contain a scene)."""
+    bpy = session.bpy_module()
+    before = set(all_ids(bpy))
+    try:
+        with appended_blend(path) as (scenes, notes, new_ids):
+            if not scenes:
+                raise InvalidSceneError(f"path: {str(path)!r} contains no scene")
+            yield scenes, notes, new_ids
     finally:
         leftover = new_ids_since(bpy, before)
         if leftover:
             bpy.data.batch_remove(leftover)
-        for obj, nm in renamed:
-            obj.name = nm
