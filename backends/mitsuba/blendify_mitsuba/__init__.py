@@ -54,6 +54,8 @@ class MitsubaBackend(Backend):
     engine = "mitsuba"
     qualities = ("final", "draft", "preview")
     translator_class = MitsubaTranslator
+    #: ``scene.export_mitsuba("x.xml")`` / ``scene.export("x.xml")`` (see :mod:`blendify_mitsuba.export`)
+    file_formats = ("mitsuba",)
 
     SAMPLERS = ("independent", "stratified", "multijitter", "ldsampler", "orthogonal")
 
@@ -99,6 +101,15 @@ class MitsubaBackend(Backend):
     @classmethod
     def capabilities(cls) -> dict[str, Capability]:
         return _capabilities.capabilities()
+
+    @classmethod
+    def export_file(cls, scene: Any, file_format: str, path: Any, **kwargs: Any) -> Any:
+        """Write ``scene`` as a Mitsuba 3 XML file (see :func:`blendify_mitsuba.export.export_mitsuba`)."""
+        if file_format != "mitsuba":
+            return super().export_file(scene, file_format, path, **kwargs)
+        from .export import export_mitsuba
+
+        return export_mitsuba(scene, path, **kwargs)
 
     # -- the session's state -----------------------------------------------------------------------
     @property

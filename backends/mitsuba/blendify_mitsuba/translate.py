@@ -22,6 +22,7 @@ engine; the session (:mod:`blendify_mitsuba.session`) sets the variant before an
 
 from __future__ import annotations
 
+import contextvars
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -101,8 +102,17 @@ def _exact(note: str) -> Capability:
     return Capability("exact", note)
 
 
+#: the engine the translator builds with: None = the mitsuba module; the XML exporter
+#: (:mod:`blendify_mitsuba.export`) sets a stand-in that keeps the plain dictionaries and arrays instead
+ENGINE: contextvars.ContextVar[Any] = contextvars.ContextVar("blendify_mitsuba_engine", default=None)
+
+
 def _mi() -> Any:
-    """The mitsuba module (its variant is set by the session before any translation)."""
+    """The mitsuba module (its variant is set by the session before any translation), or the stand-in
+    engine set in :data:`ENGINE`."""
+    engine = ENGINE.get()
+    if engine is not None:
+        return engine
     import mitsuba
 
     return mitsuba
@@ -233,6 +243,8 @@ def build_mesh(
 ) -> Any:
     """A ``mi.Mesh`` from numpy buffers (world-space vertices; ``uv`` per vertex, already v-flipped)."""
     mi = _mi()
+    if hasattr(mi, "build_mesh"):  # the exporter's stand-in engine keeps the buffers
+        return mi.build_mesh(name, vertices, faces, normals, uv, attributes, bsdf, emitter)
     props = mi.Properties()
     if bsdf is not None:
         props["bsdf"] = bsdf
