@@ -248,10 +248,14 @@ class PerspectiveCamera(Camera):
         elif focal_dist is not None:
             fx = fy = as_float("focal_dist", focal_dist, min_value=0.0, exclusive_min=True)
         elif fov_x is not None:
-            a = as_float("fov_x", fov_x, min_value=0.0, max_value=np.pi, exclusive_min=True, exclusive_max=True)
+            a = as_float(
+                "fov_x", fov_x, min_value=0.0, max_value=np.pi, exclusive_min=True, exclusive_max=True, unit="rad"
+            )
             fx = fy = w / (2.0 * np.tan(a / 2.0))
         else:
-            a = as_float("fov_y", fov_y, min_value=0.0, max_value=np.pi, exclusive_min=True, exclusive_max=True)
+            a = as_float(
+                "fov_y", fov_y, min_value=0.0, max_value=np.pi, exclusive_min=True, exclusive_max=True, unit="rad"
+            )
             fx = fy = h / (2.0 * np.tan(a / 2.0))
         if not (fx > 0 and fy > 0 and np.isfinite(fx) and np.isfinite(fy)):
             raise InvalidSceneError(f"K: expected positive finite focal lengths, got fx={fx}, fy={fy}")
@@ -279,7 +283,7 @@ class PerspectiveCamera(Camera):
 
     @fov_x.setter
     def fov_x(self, value: float) -> None:
-        a = as_float("fov_x", value, min_value=0.0, max_value=np.pi, exclusive_min=True, exclusive_max=True)
+        a = as_float("fov_x", value, min_value=0.0, max_value=np.pi, exclusive_min=True, exclusive_max=True, unit="rad")
         self.fx = self.fy = self.width / (2.0 * float(np.tan(a / 2.0)))
 
     @property
@@ -289,7 +293,7 @@ class PerspectiveCamera(Camera):
 
     @fov_y.setter
     def fov_y(self, value: float) -> None:
-        a = as_float("fov_y", value, min_value=0.0, max_value=np.pi, exclusive_min=True, exclusive_max=True)
+        a = as_float("fov_y", value, min_value=0.0, max_value=np.pi, exclusive_min=True, exclusive_max=True, unit="rad")
         self.fx = self.fy = self.height / (2.0 * float(np.tan(a / 2.0)))
 
     def _scale_intrinsics(self, sx: float, sy: float) -> None:

@@ -265,11 +265,22 @@ class VertexUV(UVMap):
 
 
 class FacesUV(UVMap):
-    """One UV per face corner: (M, k, 2) for M faces of k corners (per original polygon)."""
+    """One UV per face corner: (M, k, 2) for M faces of k corners (per original polygon). For polygons of
+    mixed sizes: (M, k_max, 2) where a face of k corners uses its first k rows, or a list of M per-face
+    (k, 2) arrays (padded to that shape)."""
 
     kind = "faces_uv"
 
     def __init__(self, data: Any):
+        if isinstance(data, (list, tuple)) and data and len({np.shape(f) for f in data}) > 1:
+            faces = [as_array(f"uv_map[{i}]", f, dtype=np.float32, ndim=2) for i, f in enumerate(data)]
+            k_max = max(f.shape[0] for f in faces)
+            padded = np.zeros((len(faces), k_max, 2), dtype=np.float32)
+            for i, f in enumerate(faces):
+                if f.shape[1] != 2 or f.shape[0] < 3:
+                    raise InvalidSceneError(f"uv_map[{i}]: expected shape (k>=3, 2), got {_describe(f)}")
+                padded[i, : f.shape[0]] = f
+            data = padded
         self.data = as_array("uv_map", data, dtype=np.float32, ndim=3)
         if self.data.shape[2] != 2 or self.data.shape[1] < 3:
             raise InvalidSceneError(f"uv_map: expected shape (M, k>=3, 2) for FacesUV, got {_describe(self.data)}")

@@ -219,12 +219,21 @@ class SpotLight(Light):
 
 class AreaLight(Light):
     """A one-sided area light emitting along local -Z with total power ``strength`` W (Blender's
-    normalised area light). ``shape``: "square"/"circle" take a float ``size`` (edge / diameter),
+    normalised area light). ``shape``: "square"/"circle" take a float ``size`` (edge / diameter; Blender's
+    "disk" is accepted for "circle", the capability key is ``light.area.disk``),
     "rectangle"/"ellipse" a pair (size_x, size_y)."""
 
     SHAPES = ("square", "circle", "rectangle", "ellipse")
     _declared = (
-        Param("shape", REQUIRED, "choice", choices=SHAPES, fixed=True, doc="Outline of the emitter"),
+        Param(
+            "shape",
+            REQUIRED,
+            "choice",
+            choices=SHAPES,
+            aliases=(("disk", "circle"),),
+            fixed=True,
+            doc="Outline of the emitter (Blender's name 'disk' is accepted for 'circle')",
+        ),
         Param(
             "size",
             REQUIRED,

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import NormalMap, TextureMap
-from blendify_core.ir.validate import as_array, as_bool, as_choice, as_float, as_int
+from blendify_core.ir.validate import UNIT_NAMES, as_array, as_bool, as_choice, as_float, as_int, unit_hint
 from blendify_core.typing import AnyArray
 
 __all__ = [
@@ -146,6 +146,8 @@ class Param:
     clamps: tuple[Clamp, ...] = ()
     #: choice: the options (matched case-insensitively, stored as declared)
     choices: tuple[str, ...] = ()
+    #: choice: other accepted spellings, (alias, option) pairs (e.g. Blender's "disk" for "circle")
+    aliases: tuple[tuple[str, str], ...] = ()
     #: color: the channel counts accepted; ``keep_channels`` stores only the first N (lights keep RGB)
     channels: tuple[int, ...] = (3, 4)
     keep_channels: int | None = None
@@ -235,9 +237,11 @@ class Param:
 # ---------------------------------------------------------------------------------------------------
 
 
-def _out_of_range(p: Param, label: str, shown: str) -> InvalidSceneError:
+def _out_of_range(p: Param, label: str, shown: str, value: float | None = None) -> InvalidSceneError:
     extra = f" (Blender's clamp ranges {p.clamp_text()} are accepted with a warning)" if p.clamps else ""
-    return InvalidSceneError(f"{label}: expected a value in {p.range_text()}{extra}, got {shown}")
+    what = f"{UNIT_NAMES.get(p.unit, p.unit)} in" if p.unit in UNIT_NAMES else "a value in"
+    hint = "" if value is None else unit_hint(p.unit, value, p.max_value)
+    return InvalidSceneError(f"{label}: expected {what} {p.range_text()}{extra}, got {shown}{hint}")
 
 
 def _warn_clamped(label: str, value: float, clamp: Clamp) -> None:
@@ -263,7 +267,7 @@ def _check_float(p: Param, label: str, value: Any, obj: Any) -> float:
         if v in clamp:
             _warn_clamped(label, v, clamp)
             return float(clamp.to)
-    raise _out_of_range(p, label, f"{v:g}")
+    raise _out_of_range(p, label, f"{v:g}", v)
 
 
 def _check_int(p: Param, label: str, value: Any, obj: Any) -> int:
@@ -293,6 +297,8 @@ def _check_vec3(p: Param, label: str, value: Any, obj: Any) -> tuple[float, ...]
 
 
 def _check_choice(p: Param, label: str, value: Any, obj: Any) -> str:
+    if isinstance(value, str):
+        value = next((option for alias, option in p.aliases if alias == value.lower()), value)
     return as_choice(label, value, p.choices)
 
 

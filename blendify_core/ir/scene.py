@@ -21,6 +21,15 @@ from blendify_core.typing import AnyArray
 
 __all__ = ["Scene"]
 
+#: blendify 2.1's Scene methods that blendify-core spells differently
+_BLENDIFY_METHODS = {
+    "render": "bf.render(scene, backend, quality='final', samples=..., outputs=(...)) (returns a RenderResult)",
+    "preview": "bf.render(scene, quality='preview')",
+    "read_image": "the arrays of the RenderResult (result.rgba, result.depth, ...)",
+    "read_exr_distmap": "result.depth of bf.render(scene, outputs=('rgb', 'depth'))",
+    "check_any_exists": "pathlib.Path(...).exists()",
+}
+
 
 class Scene:
     """A scene described in plain numpy: ``scene.renderables``, ``scene.lights`` and ``scene.camera``."""
@@ -212,6 +221,12 @@ class Scene:
         lo = np.min([b[0] for b in boxes], axis=0)
         hi = np.max([b[1] for b in boxes], axis=0)
         return lo, hi
+
+    def __getattr__(self, name: str) -> Any:
+        # only reached for attributes the scene does not have: blendify 2.1's scene methods say what to call
+        if name in _BLENDIFY_METHODS:
+            raise AttributeError(f"Scene.{name}: blendify 2.1's method; did you mean {_BLENDIFY_METHODS[name]}?")
+        raise AttributeError(f"'Scene' object has no attribute {name!r}")
 
     def __repr__(self) -> str:
         cam = type(self._camera).__name__ if self._camera else "no camera"

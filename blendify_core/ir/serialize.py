@@ -194,8 +194,7 @@ def scene_from_header(scene: Any, h: dict[str, Any], arrays: dict[str, AnyArray]
             params = dict(d["params"])
             adder = getattr(coll, f"add_{kind}_mesh")
             obj = adder(material=material, colors=colors, faces_material=d["faces_material"], **params, **pose)
-            if d.get("smooth"):
-                obj.set_smooth(True)
+            obj.set_smooth(bool(d.get("smooth", False)))
         elif kind in PARAMETRIC:
             params = dict(d["params"])
             if kind == "curve":

@@ -117,10 +117,11 @@ def as_float(
     exclusive_min: bool = False,
     exclusive_max: bool = False,
     finite: bool = True,
+    unit: str = "",
 ) -> float:
     """Check a real scalar within an optional range. Booleans, strings, bytes, complex numbers, dates and
     durations are refused (``float("1.5")`` would accept a string); NaN is always refused, infinities
-    unless ``finite=False``."""
+    unless ``finite=False``. ``unit`` is named in a range error ("rad": with the conversion from degrees)."""
     if isinstance(value, (bool, np.bool_, np.datetime64, np.timedelta64) + _NOT_NUMBERS) or value is None:
         raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}")
     if isinstance(value, np.ndarray):  # float() of a 1-element array is deprecated in numpy
@@ -133,13 +134,31 @@ def as_float(
         raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}") from None
     if math.isnan(out) or (finite and math.isinf(out)):
         raise InvalidSceneError(f"{name}: expected a finite number, got {out}")
+    what = f"{UNIT_NAMES.get(unit, unit)} " if unit else "a value "
     if min_value is not None and (out < min_value or (exclusive_min and out == min_value)):
         op = ">" if exclusive_min else ">="
-        raise InvalidSceneError(f"{name}: expected a value {op} {min_value}, got {out:g}")
+        raise InvalidSceneError(f"{name}: expected {what}{op} {_bound(min_value)}, got {out:g}")
     if max_value is not None and (out > max_value or (exclusive_max and out == max_value)):
         op = "<" if exclusive_max else "<="
-        raise InvalidSceneError(f"{name}: expected a value {op} {max_value}, got {out:g}")
+        raise InvalidSceneError(
+            f"{name}: expected {what}{op} {_bound(max_value)}, got {out:g}{unit_hint(unit, out, max_value)}"
+        )
     return out
+
+
+#: how a range error names a unit
+UNIT_NAMES = {"rad": "radians", "m": "metres", "W": "watts", "nm": "nanometres"}
+
+
+def _bound(x: float) -> str:
+    return "pi" if x == math.pi else ("2 pi" if x == 2 * math.pi else f"{x:g}")
+
+
+def unit_hint(unit: str, value: float, max_value: float | None) -> str:
+    """'; did you mean np.deg2rad(40)?' for a value above a radian range that reads as degrees, else ''."""
+    if unit == "rad" and max_value is not None and max_value < value <= 360.0:
+        return f"; did you mean np.deg2rad({value:g})?"
+    return ""
 
 
 def as_int(name: str, value: Any, *, min_value: int | None = None, max_value: int | None = None) -> int:

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import abc
 import contextlib
+import dataclasses
+import inspect
 import logging
 import os
 import time
@@ -16,6 +18,7 @@ from typing import Any, ClassVar
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError, UnsupportedFeatureError
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.pipeline.compat import suggest
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
 from blendify_core.pipeline.translator import Translator
@@ -54,8 +57,23 @@ class Backend(abc.ABC):
 
     def __init__(self, **options: Any) -> None:
         if options:
-            raise InvalidSceneError(f"{type(self).__name__}: unknown option(s) {sorted(options)}")
+            raise InvalidSceneError(
+                f"{type(self).__name__}: unknown option(s) {sorted(options)}"
+                + "".join(suggest(name, self.option_names()) for name in sorted(options))
+            )
         self._closed = False
+
+    @classmethod
+    def option_names(cls) -> list[str]:
+        """The keyword options this backend's constructor takes, and the render settings' names (the
+        candidates of "did you mean" for an unknown option)."""
+        names = {f.name for f in dataclasses.fields(RenderSettings)} | {"quality", "backend"}
+        for klass in cls.__mro__:
+            init = klass.__dict__.get("__init__")
+            if init is not None:
+                params = inspect.signature(init).parameters.values()
+                names |= {p.name for p in params if p.kind is p.KEYWORD_ONLY or p.kind is p.POSITIONAL_OR_KEYWORD}
+        return sorted(names - {"self", "extra"})
 
     # -- discovery ---------------------------------------------------------------------------------
     @classmethod

@@ -83,6 +83,9 @@ class RenderMeta(TypedDict, total=False):
     effects: dict[str, bool | dict[str, str]]
     #: (core) what light transport was simulated and why
     simulated: Simulated
+    #: (core) what makes a path tracer's picture converge to something other than the unbiased one (clamps,
+    #: Filter Glossy, denoiser, adaptive stop, bounce limits; ``settings_bias``); empty for ``final``
+    bias: list[str]
     #: (core) sorted notes on every feature the backend only approximates for this scene
     approximations: list[str]
     #: (core) warnings about the scene or the settings (clipping, precision, target_error on a raster backend)

@@ -17,12 +17,13 @@ from blendify_core.ir.cameras import Camera, OrthographicCamera, PerspectiveCame
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import scene_features
+from blendify_core.pipeline.compat import map_legacy_keywords
 from blendify_core.pipeline.distortion import margin_camera, remap_result
 from blendify_core.pipeline.effects import Effects, analyse_effects
 from blendify_core.pipeline.meta import RenderMeta, Simulated, complete_timings
 from blendify_core.pipeline.recentre import Bounds, _scene_scale, needs_recentring, recentred_view
 from blendify_core.pipeline.result import RenderResult
-from blendify_core.pipeline.settings import RenderSettings, resolve_settings
+from blendify_core.pipeline.settings import RenderSettings, resolve_settings, settings_bias
 from blendify_core.pipeline.translator import check_handlers
 from blendify_core.registry import available_backends, shared_backend
 from blendify_core.typing import Float64Array, FloatArray
@@ -178,6 +179,7 @@ def render(
     t_start = time.perf_counter()
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
+    outputs, kwargs = map_legacy_keywords(outputs, kwargs)
     setting_kwargs = {k: v for k, v in kwargs.items() if k in _SETTING_NAMES}
     options = {k: v for k, v in kwargs.items() if k not in _SETTING_NAMES}
     settings = resolve_settings(
@@ -319,6 +321,7 @@ def _record_meta(
     meta["settings"] = settings.to_dict()
     meta.setdefault("effects", pre.effects.to_dict())
     meta["simulated"] = _simulated(settings, pre.effects)
+    meta.setdefault("bias", settings_bias(settings) if inst.path_tracer else [])
     meta["approximations"] = sorted(set(pre.approximations) | set(meta.get("approximations", [])))
     if pre.fallback_notes:
         meta["backend_fallback"] = pre.fallback_notes

@@ -10,10 +10,12 @@ from typing import Any, TypedDict
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.validate import as_bool, as_choice, as_float, as_int
 
-__all__ = ["RenderSettings", "QUALITIES", "OUTPUTS", "resolve_settings"]
+__all__ = ["RenderSettings", "QUALITIES", "OUTPUTS", "PIXEL_FILTERS", "resolve_settings", "settings_bias"]
 
-QUALITIES = ("preview", "draft", "final")
+QUALITIES = ("preview", "draft", "final", "blendify")
 OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
+#: pixel reconstruction filters and their default widths (pixels)
+PIXEL_FILTERS = {"box": 1.0, "gaussian": 1.5, "blackman_harris": 1.5}
 
 
 # Presets are backend-independent. A path tracer asked for a preview renders few samples, denoised.
@@ -21,16 +23,42 @@ OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
 # its accuracy is stated by measurement (benchmarks/results/accuracy_vs_time.md: relative MSE against a
 # converged reference), not estimated per render; pass ``target_error=`` for a per-render estimate and a
 # guaranteed bound (independent passes until the estimated relative RMS error is below it).
-class _Preset(TypedDict):
+#
+# "blendify" = the picture blendify 2.1 users had: Blender's own Cycles defaults as blendify 2.1 left them
+# (128 samples, adaptive sampling with noise threshold 0.01, indirect light clamped at 10, Filter Glossy 1,
+# bounces 12 / diffuse 4 / glossy 4 / transmission 12 / transparent 8, Blackman-Harris 1.5 px pixel filter;
+# no denoiser, which blendify's render left off unless use_denoiser=True). Biased: meta["bias"] says how.
+class _Preset(TypedDict, total=False):
     samples: int
     denoise: bool
     max_bounces: int
+    diffuse_bounces: int
+    glossy_bounces: int
+    transmission_bounces: int
+    transparent_bounces: int
+    pixel_filter: str
+    clamp_indirect: float
+    filter_glossy: float
+    adaptive: bool
 
 
 _PRESETS: dict[str, _Preset] = {
     "preview": {"samples": 8, "denoise": True, "max_bounces": 4},
     "draft": {"samples": 32, "denoise": True, "max_bounces": 8},
     "final": {"samples": 256, "denoise": False, "max_bounces": 12},
+    "blendify": {
+        "samples": 128,
+        "denoise": False,
+        "max_bounces": 12,
+        "diffuse_bounces": 4,
+        "glossy_bounces": 4,
+        "transmission_bounces": 12,
+        "transparent_bounces": 8,
+        "pixel_filter": "blackman_harris",
+        "clamp_indirect": 10.0,
+        "filter_glossy": 1.0,
+        "adaptive": True,
+    },
 }
 
 
@@ -39,8 +67,12 @@ class RenderSettings:
     """Everything that decides how a scene is rendered (recorded in ``result.meta["settings"]``).
 
     ``samples``: samples per pixel (path tracers) or supersampling/anti-aliasing level hint (raster).
-    ``pixel_filter``: "box" (1 px, the default: comparable across engines) or "gaussian" (1.5 px).
+    ``pixel_filter``: "box" (1 px, the default: comparable across engines), "gaussian" (1.5 px) or
+    "blackman_harris" (1.5 px, Blender's default); ``pixel_filter_width`` overrides the width (pixels).
     ``clamp_direct`` / ``clamp_indirect``: 0 = off (unbiased). ``adaptive``: adaptive sampling on/off.
+    ``filter_glossy``: Blender's Filter Glossy (blurs glossy reflections seen after a diffuse or rough
+    bounce; 0 = off, unbiased). ``diffuse_bounces`` / ``glossy_bounces`` / ``transmission_bounces`` /
+    ``transparent_bounces``: per-kind limits (None = ``max_bounces``; the transparent default: 8 or more).
     ``effects``: True = simulate only what the scene needs (effect analysis); False = full settings.
     """
 
@@ -54,9 +86,15 @@ class RenderSettings:
     time_limit: float | None = None
     target_error: float | None = None
     pixel_filter: str = "box"
+    pixel_filter_width: float = 1.0
     clamp_direct: float = 0.0
     clamp_indirect: float = 0.0
+    filter_glossy: float = 0.0
     adaptive: bool = False
+    diffuse_bounces: int | None = None
+    glossy_bounces: int | None = None
+    transmission_bounces: int | None = None
+    transparent_bounces: int | None = None
     transparent_background: bool = True
     effects: bool = True
     strict: bool = False
@@ -72,6 +110,45 @@ class RenderSettings:
 
     def wants(self, output: str) -> bool:
         return output in self.outputs
+
+    def bounces(self, kind: str) -> int:
+        """The bounce limit of ``kind`` ("diffuse", "glossy", "transmission", "transparent")."""
+        value = getattr(self, f"{kind}_bounces")
+        if value is not None:
+            return int(value)
+        return max(self.max_bounces, 8) if kind == "transparent" else self.max_bounces
+
+
+def settings_bias(settings: RenderSettings) -> list[str]:
+    """What makes a render with ``settings`` converge to something other than the unbiased picture
+    (``result.meta["bias"]``; empty for ``final``)."""
+    out = []
+    if settings.denoise:
+        out.append("denoise: the denoiser smooths noise and fine detail")
+    if settings.clamp_direct:
+        out.append(f"clamp_direct={settings.clamp_direct:g}: direct light samples brighter than this are clamped")
+    if settings.clamp_indirect:
+        out.append(
+            f"clamp_indirect={settings.clamp_indirect:g}: indirect light samples brighter than this are clamped "
+            "(fewer fireflies, darker caustics and highlights)"
+        )
+    if settings.filter_glossy:
+        out.append(
+            f"filter_glossy={settings.filter_glossy:g}: glossy reflections after a diffuse or rough bounce are "
+            "blurred (fewer fireflies, softer caustics)"
+        )
+    if settings.adaptive:
+        out.append("adaptive: pixels stop sampling at a noise threshold (0.01), not at the sample count")
+    if settings.time_limit:
+        out.append(f"time_limit={settings.time_limit:g}: sampling stops at the time limit")
+    capped = [
+        f"{kind} {settings.bounces(kind)}"
+        for kind in ("diffuse", "glossy", "transmission")
+        if settings.bounces(kind) < settings.max_bounces
+    ]
+    if capped:
+        out.append("bounce limits below max_bounces (" + ", ".join(capped) + "): light of longer paths is missing")
+    return out
 
 
 def _outputs(value: object) -> tuple[str, ...]:
@@ -99,17 +176,36 @@ def resolve_settings(
     max_bounces: int | None = None,
     time_limit: float | None = None,
     target_error: float | None = None,
-    pixel_filter: str = "box",
+    pixel_filter: str | None = None,
+    pixel_filter_width: float | None = None,
     clamp_direct: float = 0.0,
-    clamp_indirect: float = 0.0,
-    adaptive: bool = False,
+    clamp_indirect: float | None = None,
+    filter_glossy: float | None = None,
+    adaptive: bool | None = None,
     transparent_background: bool = True,
     effects: bool = True,
     strict: bool = False,
+    diffuse_bounces: int | None = None,
+    glossy_bounces: int | None = None,
+    transmission_bounces: int | None = None,
+    transparent_bounces: int | None = None,
 ) -> RenderSettings:
-    """Resolve a quality preset and explicit overrides into :class:`RenderSettings` (validated)."""
+    """Resolve a quality preset and explicit overrides into :class:`RenderSettings` (validated). An
+    argument left at None takes the preset's value (or the :class:`RenderSettings` default)."""
     q = as_choice("quality", quality, QUALITIES)
     preset = _PRESETS[q]
+    defaults: dict[str, Any] = dict(preset)
+    pf_value = defaults.get("pixel_filter", "box") if pixel_filter is None else pixel_filter
+    pf = as_choice("pixel_filter", pf_value, tuple(PIXEL_FILTERS))
+    if pixel_filter_width is None:
+        width = PIXEL_FILTERS[pf]
+    else:
+        width = as_float("pixel_filter_width", pixel_filter_width, min_value=0.01, max_value=10.0)
+
+    def per_kind(kind: str, value: int | None) -> int | None:
+        value = defaults.get(kind) if value is None else value
+        return None if value is None else as_int(kind, value, min_value=0, max_value=1024)
+
     s = preset["samples"] if samples is None else as_int("samples", samples, min_value=1, max_value=1 << 24)
     if threads is not None:
         threads = as_int("threads", threads, min_value=1, max_value=4096)
@@ -129,11 +225,26 @@ def resolve_settings(
         target_error=None
         if target_error is None
         else as_float("target_error", target_error, min_value=0.0, exclusive_min=True),
-        pixel_filter=as_choice("pixel_filter", pixel_filter, ("box", "gaussian")),
+        pixel_filter=pf,
+        pixel_filter_width=width,
         clamp_direct=as_float("clamp_direct", clamp_direct, min_value=0.0),
-        clamp_indirect=as_float("clamp_indirect", clamp_indirect, min_value=0.0),
-        adaptive=as_bool("adaptive", adaptive),
+        clamp_indirect=as_float(
+            "clamp_indirect",
+            defaults.get("clamp_indirect", 0.0) if clamp_indirect is None else clamp_indirect,
+            min_value=0.0,
+        ),
+        filter_glossy=as_float(
+            "filter_glossy",
+            defaults.get("filter_glossy", 0.0) if filter_glossy is None else filter_glossy,
+            min_value=0.0,
+            max_value=10.0,
+        ),
+        adaptive=as_bool("adaptive", defaults.get("adaptive", False) if adaptive is None else adaptive),
         transparent_background=as_bool("transparent_background", transparent_background),
         effects=as_bool("effects", effects),
         strict=as_bool("strict", strict),
+        diffuse_bounces=per_kind("diffuse_bounces", diffuse_bounces),
+        glossy_bounces=per_kind("glossy_bounces", glossy_bounces),
+        transmission_bounces=per_kind("transmission_bounces", transmission_bounces),
+        transparent_bounces=per_kind("transparent_bounces", transparent_bounces),
     )

@@ -900,6 +900,10 @@ class CyclesTranslator(Translator):
 # ---------------------------------------------------------------------------------------------------
 
 
+#: RenderSettings.pixel_filter -> Cycles' pixel filter type
+_PIXEL_FILTERS = {"box": "BOX", "gaussian": "GAUSSIAN", "blackman_harris": "BLACKMAN_HARRIS"}
+
+
 def apply_engine_settings(
     sc: Any, settings: RenderSettings, scene: Scene, device: str = "CPU", compute_device_type: str = ""
 ) -> dict[str, Any]:
@@ -926,13 +930,11 @@ def apply_engine_settings(
     cy.adaptive_threshold = 0.01
     cy.adaptive_min_samples = 0
     cy.time_limit = float(settings.time_limit) if settings.time_limit else 0.0
-    if settings.pixel_filter == "box":
-        cy.pixel_filter_type, cy.filter_width = "BOX", 1.0
-    else:
-        cy.pixel_filter_type, cy.filter_width = "GAUSSIAN", 1.5
+    cy.pixel_filter_type = _PIXEL_FILTERS[settings.pixel_filter]
+    cy.filter_width = float(settings.pixel_filter_width)
     cy.sample_clamp_direct = float(settings.clamp_direct)
     cy.sample_clamp_indirect = float(settings.clamp_indirect)
-    cy.blur_glossy = 0.0
+    cy.blur_glossy = float(settings.filter_glossy)
     cy.use_light_tree = True
     mb = int(settings.max_bounces)
     # attached .blend content is not in the IR: the effect analysis cannot see it (volumes, hair, ...)
@@ -940,11 +942,11 @@ def apply_engine_settings(
     eff = analyse_effects(scene) if settings.effects and not attached else None
     bounces = {
         "max_bounces": mb,
-        "diffuse_bounces": mb,
-        "glossy_bounces": mb,
-        "transmission_bounces": mb,
+        "diffuse_bounces": settings.bounces("diffuse"),
+        "glossy_bounces": settings.bounces("glossy"),
+        "transmission_bounces": settings.bounces("transmission"),
         "volume_bounces": mb if attached else 0,
-        "transparent_max_bounces": max(mb, 8),
+        "transparent_max_bounces": settings.bounces("transparent"),
         "caustics_reflective": True,
         "caustics_refractive": True,
     }
@@ -992,7 +994,7 @@ def apply_engine_settings(
         "pixel_filter": (cy.pixel_filter_type, cy.filter_width),
         "clamp_direct": cy.sample_clamp_direct,
         "clamp_indirect": cy.sample_clamp_indirect,
-        "blur_glossy": 0.0,
+        "blur_glossy": cy.blur_glossy,
         **bounces,
         "threads": r.threads if settings.threads else "auto",
         "film_transparent": r.film_transparent,

@@ -101,6 +101,8 @@ def render_native(
         "sampler": session.sampler,
         "seed": settings.seed,
         "pixel_filter": settings.pixel_filter,
+        # Mitsuba applies none of the biased settings (no clamp, denoiser, adaptive stop: see "notes")
+        "bias": [],
         "alpha_compositing": native.coverage_scene is not None,
         "shadow_catcher_emulated": native.catcher_scene is not None,
         "analytic_spheres": native.n_analytic_spheres,
@@ -119,6 +121,16 @@ def render_native(
         )
     if settings.clamp_direct or settings.clamp_indirect:
         meta.setdefault("notes", []).append("sample clamping is not supported by Mitsuba (unclamped)")
+    if settings.filter_glossy:
+        meta.setdefault("notes", []).append("filter_glossy is not supported by Mitsuba (glossy not blurred)")
+    if settings.pixel_filter == "blackman_harris":
+        meta.setdefault("notes", []).append(
+            "pixel_filter 'blackman_harris': Mitsuba has none; a Gaussian of the same standard deviation is used"
+        )
+    if any(settings.bounces(k) < settings.max_bounces for k in ("diffuse", "glossy", "transmission")):
+        meta.setdefault("notes", []).append(
+            "per-kind bounce limits are not supported by Mitsuba: max_bounces applies to every kind"
+        )
     return RenderResult(
         rgba=out.get("rgba"),
         depth=out.get("depth"),

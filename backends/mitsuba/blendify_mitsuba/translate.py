@@ -468,6 +468,19 @@ def wire_tubes(vertices: np.ndarray, faces: np.ndarray, thickness: float) -> tup
 _IR_TESSELLATION = _exact("IR tessellation")
 
 
+#: standard deviation of Cycles' pixel filters in pixels per pixel of ``pixel_filter_width``: Cycles'
+#: Gaussian is exp(-8 x^2 / w^2) (sigma w/4), its Blackman-Harris window spans [-w, w] (sigma 0.277 w)
+_FILTER_SIGMA = {"gaussian": 0.25, "blackman_harris": 0.277}
+
+
+def pixel_filter(settings: RenderSettings) -> dict[str, Any]:
+    """Mitsuba's reconstruction filter for ``settings.pixel_filter``: the box as it is; Gaussian and
+    Blackman-Harris as a Gaussian of Cycles' filter's standard deviation (Mitsuba has no Blackman-Harris)."""
+    if settings.pixel_filter == "box":
+        return {"type": "box"}
+    return {"type": "gaussian", "stddev": _FILTER_SIGMA[settings.pixel_filter] * settings.pixel_filter_width}
+
+
 class MitsubaTranslator(Translator):
     """The IR as a Mitsuba scene dictionary: one handler per IR type, capabilities declared beside them.
 
@@ -606,7 +619,7 @@ class MitsubaTranslator(Translator):
             "width": int(camera.width),
             "height": int(camera.height),
             "pixel_format": "rgba",
-            "rfilter": {"type": "box"} if self.settings.pixel_filter == "box" else {"type": "gaussian"},
+            "rfilter": pixel_filter(self.settings),
         }
 
     def _sampler(self, ctx: MitsubaContext) -> dict[str, Any]:

@@ -133,9 +133,17 @@ class Mesh(Renderable):
                 raise InvalidSceneError(
                     f"{name}: expected one UV set per face ({self.n_polygons}), got {uv.data.shape[0]}"
                 )
-            if self.polygon_size is None or uv.data.shape[1] != self.polygon_size:
+            if self.polygon_size is not None and uv.data.shape[1] != self.polygon_size:
                 raise InvalidSceneError(
-                    f"{name}: expected {self.polygon_size or 'equal-sized'} corners per face, got {uv.data.shape[1]}"
+                    f"{name}: expected {self.polygon_size} corners per face, got {uv.data.shape[1]}"
+                )
+            # polygons of mixed sizes: (M, k_max, 2), a face of k corners uses its first k UVs (FacesUV pads
+            # a list of per-face (k, 2) arrays this way)
+            k_max = int(self._face_corner.max()) + 1 if self._face_corner.size else 0
+            if self.polygon_size is None and uv.data.shape[1] != k_max:
+                raise InvalidSceneError(
+                    f"{name}: the faces have from 3 to {k_max} corners: expected (M, {k_max}, 2) UVs (a face of k "
+                    f"corners uses its first k) or a list of per-face (k, 2) arrays, got {uv.data.shape[1]} per face"
                 )
 
     def _validate_colors(self) -> None:

@@ -44,11 +44,17 @@ _FILL_TYPE = ValidatedParam(_fixed(lambda name, v: as_choice(name, v, FILL_TYPES
 
 class MeshPrimitive(Renderable):
     """A parametric mesh (cube, circle, cylinder, plane). Colours: UniformColors (one per material).
-    ``faces_material`` indexes the primitive's polygons (cube: 6 faces, plane: 1, ...)."""
+    ``faces_material`` indexes the primitive's polygons (cube: 6 faces, plane: 1, ...).
+
+    Shaded as blendify 2.1 shades them: smooth with an edge split at 30 degrees (a cylinder of 12 or more
+    sides is round, its caps and a cube's edges stay sharp); ``set_smooth(False)`` gives flat faces."""
+
+    #: blendify 2.1's EDGE_SPLIT angle: edges between faces meeting at a larger angle stay sharp
+    SPLIT_ANGLE = 30.0
 
     def __init__(self, material: Any, colors: Any, faces_material: Any = None, tag: str = "", **pose: Any):
         super().__init__(material, colors, tag, **pose)
-        self._smooth = False
+        self._smooth = True
         poly = self._polygons()[1]
         n = len(poly)
         if faces_material is None:
@@ -80,7 +86,8 @@ class MeshPrimitive(Renderable):
         self.set_smooth(value)
 
     def set_smooth(self, smooth: bool = True) -> None:
-        """Smooth shading with sharp edges kept (the primitives' vertices are split at hard edges)."""
+        """Smooth shading with edges sharper than :attr:`SPLIT_ANGLE` kept (the default, as blendify 2.1's
+        shade-smooth + edge split) or flat faces (``False``)."""
         self._smooth = as_bool("smooth", smooth)
         self._bump("geometry")
 
@@ -233,9 +240,19 @@ class CylinderMesh(MeshPrimitive):
     def _polygons(self) -> tuple[AnyArray, list[AnyArray], AnyArray | None]:
         n, h = self.num_vertices, self.height / 2.0
         bottom, top = _ring(self.radius, n, -h), _ring(self.radius, n, h)
-        verts = list(bottom) + list(top)
-        normals = [np.array([p[0], p[1], 0.0]) / self.radius for p in bottom] * 2
-        polys = [np.array([j, (j + 1) % n, n + (j + 1) % n, n + j]) for j in range(n)]
+        if 360.0 / n <= self.SPLIT_ANGLE:  # round sides: shared vertices with radial normals
+            verts = list(bottom) + list(top)
+            normals = [np.array([p[0], p[1], 0.0]) / self.radius for p in bottom] * 2
+            polys = [np.array([j, (j + 1) % n, n + (j + 1) % n, n + j]) for j in range(n)]
+        else:  # the edge split keeps every side edge sharp: flat sides, vertices split per side
+            verts, normals, polys = [], [], []
+            for j in range(n):
+                k = (j + 1) % n
+                mid = (bottom[j] + bottom[k]) / 2.0
+                normal = np.array([mid[0], mid[1], 0.0]) / np.hypot(mid[0], mid[1])
+                polys.append(np.arange(len(verts), len(verts) + 4))
+                verts += [bottom[j], bottom[k], top[k], top[j]]
+                normals += [normal] * 4
         start = len(verts)  # caps get their own vertices (hard edge)
         verts += list(bottom) + list(top)
         normals += [np.array([0, 0, -1.0])] * n + [np.array([0, 0, 1.0])] * n
