@@ -32,6 +32,7 @@ __all__ = [
     "THIRD_PARTY_ENV",
     "marker_scene",
     "plane_scene",
+    "occluder_scene",
     "depth_plane_scene",
     "bunny_scene",
     "textured_quad_scene",
@@ -184,6 +185,21 @@ def plane_scene(light: str = "sun", resolution: tuple[int, int] = (64, 64), albe
         scene.lights.set_background_light(1.0, (1.0, 1.0, 1.0))
     else:
         raise ValueError(f"light: unknown light type {light!r}")
+    return scene
+
+
+def occluder_scene(
+    light: str = "point", use_shadow: bool = True, resolution: tuple[int, int] = (32, 32), occluder: bool = True
+) -> Scene:
+    """:func:`plane_scene` with a Lambertian cube (side 0.4, tagged "cube") between the light and the plane,
+    the light's ``use_shadow`` set: where the cube's shadow falls tells whether the light casts shadows."""
+    scene = plane_scene(light, resolution=resolution)
+    if occluder:
+        scene.renderables.add_cube_mesh(
+            0.4, DiffuseMaterial(), UniformColors((0.5,) * 3, color_space="linear"), translation=(0, 0, 0.8), tag="cube"
+        )
+    for lamp in scene.lights:
+        lamp.use_shadow = use_shadow
     return scene
 
 

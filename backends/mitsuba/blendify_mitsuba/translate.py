@@ -65,6 +65,7 @@ from blendify_core.pipeline.settings import RenderSettings, resolve_settings
 from blendify_core.pipeline.translator import EXACT, TranslationContext, Translator, approximate, handles, unsupported
 
 from .aniso import SquarePixelPlan, plan_square_pixels
+from .integrator import register as register_integrator
 
 __all__ = [
     "MitsubaContext",
@@ -165,6 +166,8 @@ class MitsubaContext(TranslationContext):
     bounds: Any = None  # the scene bounds (for point lights with a radius)
     aniso: SquarePixelPlan | None = None
     parallel_rays: bool = False  # set by the camera handler
+    #: emitter ids of the lights that cast no shadow (rendered by the integrator 'blendify_path')
+    no_shadow: list[str] = field(default_factory=list)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -493,7 +496,10 @@ class MitsubaTranslator(Translator):
     #: (blendify_mitsuba.render); per-object and per-light shadow switches are refused
     extra_capabilities = {
         "object.no_shadow": unsupported("Mitsuba has no per-object shadow visibility"),  # refused in translate()
-        "light.no_shadow": unsupported("Mitsuba lights always cast shadows"),
+        "light.no_shadow": _exact(
+            "integrator 'blendify_path' (blendify_mitsuba.integrator): Mitsuba's path tracer with no visibility "
+            "test for these lights' emitter samples; runs in Python, used only in scenes with such lights"
+        ),
         "output.rgb": EXACT,
         "output.depth": _exact("planar z from pixel-centre ray casts"),
         "output.normal": _exact("world shading normal (facing the camera) from pixel-centre ray casts"),
@@ -579,6 +585,13 @@ class MitsubaTranslator(Translator):
         max_depth = s.max_bounces + 2
         if s.effects and not (effects.indirect_diffuse or effects.glossy or effects.transmission or effects.caustics):
             max_depth = min(max_depth, 3 if ctx.null_light_surfaces else 2)
+        if ctx.no_shadow:
+            return {
+                "type": register_integrator(),
+                "max_depth": int(max_depth),
+                "hide_emitters": hide,
+                "no_shadow": ",".join(ctx.no_shadow),
+            }
         return {"type": "path", "max_depth": int(max_depth), "hide_emitters": hide}
 
     def emitters(self, ctx: MitsubaContext) -> dict[str, Any]:
@@ -588,7 +601,12 @@ class MitsubaTranslator(Translator):
         for i, light in enumerate(ctx.scene.lights):
             emitter = self.dispatch(light, ctx)
             if emitter is not None:
-                out[f"light{i:04d}"] = emitter
+                key = f"light{i:04d}"
+                out[key] = emitter
+                if not light.use_shadow:  # the integrator finds the emitter by its id
+                    if "emitter" in emitter:  # a shape's area emitter
+                        emitter["emitter"]["id"] = key = f"{key}_emitter"
+                    ctx.no_shadow.append(key)
         out.update(self.world(ctx))
         return out
 

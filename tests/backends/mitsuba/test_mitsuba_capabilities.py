@@ -94,7 +94,11 @@ FROZEN: dict[str, tuple[str, str]] = {
         " side only in scenes with emissive materials)",
     ),
     "light.area.disk": ("exact", "disk with radiance P / (pi A), one-sided, hidden from the camera as light.area"),
-    "light.no_shadow": ("unsupported", "Mitsuba lights always cast shadows"),
+    "light.no_shadow": (
+        "exact",
+        "integrator 'blendify_path' (blendify_mitsuba.integrator): Mitsuba's path tracer with no visibility "
+        "test for these lights' emitter samples; runs in Python, used only in scenes with such lights",
+    ),
     "light.background": ("exact", "constant emitter"),
     "light.environment": ("exact", "envmap rotated to Blender's equirectangular mapping"),
     "camera.perspective": ("exact", "perspective sensor with principal-point offsets"),

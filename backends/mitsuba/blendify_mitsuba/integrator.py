@@ -1,0 +1,161 @@
+"""A path tracer for scenes with lights that cast no shadow (Blender's ``use_shadow=False``).
+
+Mitsuba's own ``path`` integrator tests the visibility of every emitter sample. Blender's non-shadowing
+lights skip that test: their light reaches every surface point, occluded or not (at every bounce). This
+module registers the integrator ``blendify_path``: the same unidirectional path tracer as Mitsuba's
+``path`` (next-event estimation combined with BSDF sampling by the power heuristic, Russian roulette from
+``rr_depth`` on, ``hide_emitters`` hiding emission seen directly from the camera, the alpha set once a path
+continues from a non-null surface), except that next-event samples of the emitters named in ``no_shadow``
+(their ids, comma-separated) are not tested for visibility. BSDF-sampled rays still hit an area light only
+where nothing is in between (as in Cycles, which also only skips the shadow ray).
+
+The translator uses it only when a scene has such a light: it runs in Python (per sample in the scalar
+variants), so it is slower than ``path`` -- measured in benchmarks/results/mitsuba_no_shadow.md.
+
+Mitsuba is imported inside the functions; :func:`register` is called with the variant set (the session's
+engine lock held).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["INTEGRATOR", "register"]
+
+#: the plugin name of the integrator
+INTEGRATOR = "blendify_path"
+
+_REGISTERED: set[str] = set()
+
+
+def register() -> str:
+    """Register :data:`INTEGRATOR` for the current Mitsuba variant (once per variant); its name."""
+    import mitsuba as mi
+
+    variant = mi.variant()
+    if variant not in _REGISTERED:
+        cls = _integrator_class()
+        mi.register_integrator(INTEGRATOR, lambda props: cls(props))
+        _REGISTERED.add(variant)
+    return INTEGRATOR
+
+
+def _mis(a: Any, b: Any) -> Any:
+    """The power heuristic weight of a sample with pdf ``a`` against the other strategy's ``b``."""
+    import drjit as dr
+
+    a2 = a * a
+    den = a2 + b * b
+    w = a2 / dr.select(den > 0, den, 1.0)
+    return dr.detach(dr.select(dr.isfinite(w), w, 0.0))
+
+
+def _integrator_class() -> type:
+    """The integrator class for the current variant (Mitsuba's base classes differ per variant)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    class NoShadowPath(mi.SamplingIntegrator):  # type: ignore[misc,name-defined]
+        """``path`` with per-emitter visibility tests (see the module's documentation)."""
+
+        def __init__(self, props: Any) -> None:
+            # the base class warns that Python integrators are slow in scalar variants: the cost is
+            # measured and documented (benchmarks/results/mitsuba_no_shadow.md), not news at every render
+            logger = mi.logger()
+            level = logger.log_level()
+            logger.set_log_level(mi.LogLevel.Error)
+            try:
+                super().__init__(props)
+            finally:
+                logger.set_log_level(level)
+            self.max_depth = int(props.get("max_depth", -1))
+            self.rr_depth = int(props.get("rr_depth", 5))
+            self.hide = bool(props.get("hide_emitters", False))
+            self.no_shadow = {s for s in str(props.get("no_shadow", "")).split(",") if s}
+            self._jit = dr.is_jit_v(mi.Float)
+            self._pointers: dict[int, list[Any]] = {}
+            # a scalar variant's masks are Python bools (``~True == -2``)
+            self._not = (lambda m: ~m) if self._jit else (lambda m: not m)
+
+        def _shadowless(self, scene: Any, emitter: Any) -> Any:
+            """Whether the sampled ``emitter`` casts no shadow (a mask in the vectorised variants)."""
+            if not self._jit:
+                return emitter is not None and emitter.id() in self.no_shadow
+            key = id(scene)
+            if key not in self._pointers:
+                self._pointers[key] = [mi.EmitterPtr(e) for e in scene.emitters() if e.id() in self.no_shadow]
+            mask = mi.Bool(False)
+            for ptr in self._pointers[key]:
+                mask |= emitter == ptr
+            return mask
+
+        def sample(
+            self, scene: Any, sampler: Any, ray_: Any, medium: Any = None, active: Any = True
+        ) -> tuple[Any, Any, list[Any]]:
+            ctx = mi.BSDFContext()
+            ray = mi.Ray3f(ray_)
+            active = mi.Bool(active)
+            depth = mi.UInt32(0)
+            throughput = mi.Spectrum(1.0)
+            result = mi.Spectrum(0.0)
+            eta = mi.Float(1.0)
+            valid = mi.Bool((not self.hide) and scene.environment() is not None)
+            prev_si = dr.zeros(mi.Interaction3f)
+            prev_pdf = mi.Float(1.0)
+            prev_delta = mi.Bool(True)
+            max_depth = self.max_depth if self.max_depth >= 0 else 2**31 - 1
+            while dr.any(active):
+                si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=depth == 0, active=active)
+                # emission reached by the previous BSDF sample (or by the camera ray)
+                no = self._not
+                shown = active & no(mi.Bool(self.hide) & (depth == 0))
+                ds = mi.DirectionSample3f(scene, si=si, ref=prev_si)
+                if dr.any(shown & (ds.emitter != None)):  # noqa: E711 (a pointer array compares to None)
+                    em_pdf = scene.pdf_emitter_direction(prev_si, ds, no(prev_delta))
+                    em_pdf = dr.select(prev_delta, 0.0, em_pdf)
+                    emitted = ds.emitter.eval(si, (prev_pdf > 0) & shown)
+                    result = dr.select(shown, result + throughput * emitted * _mis(prev_pdf, em_pdf), result)
+                active_next = active & (depth + 1 < max_depth) & si.is_valid()
+                if not dr.any(active_next):
+                    break
+                bsdf = si.bsdf(ray)
+                # next-event estimation; shadowing emitters' samples are tested for visibility here
+                active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+                ds, em_weight = scene.sample_emitter_direction(si, sampler.next_2d(), False, active_em)
+                test = active_em & (ds.pdf != 0) & no(self._shadowless(scene, ds.emitter))
+                if dr.any(test):
+                    occluded = scene.ray_test(si.spawn_ray_to(ds.p), test)
+                    em_weight = dr.select(test & occluded, 0.0, em_weight)
+                wo = si.to_local(ds.d)
+                s1 = sampler.next_1d()
+                s2 = sampler.next_2d()
+                val, pdf, bs, weight = bsdf.eval_pdf_sample(ctx, si, wo, s1, s2, active_next)
+                mis_em = dr.select(ds.delta, 1.0, _mis(ds.pdf, pdf))
+                result = dr.select(active_em, result + throughput * val * em_weight * mis_em, result)
+                # the next vertex
+                ray = dr.select(active_next, si.spawn_ray(si.to_world(bs.wo)), ray)
+                prev_si = dr.select(active_next, mi.Interaction3f(si), prev_si)
+                prev_pdf = dr.select(active_next, bs.pdf, prev_pdf)
+                prev_delta = dr.select(active_next, mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta), prev_delta)
+                throughput = dr.select(active_next, throughput * weight, throughput)
+                eta = dr.select(active_next, eta * bs.eta, eta)
+                valid |= active_next & no(mi.has_flag(bs.sampled_type, mi.BSDFFlags.Null))
+                depth = dr.select(active_next, depth + 1, depth)
+                # Russian roulette
+                t_max = dr.max(throughput)
+                rr_prob = dr.minimum(t_max * eta * eta, 0.95)
+                rr_active = depth >= self.rr_depth
+                rr_go = sampler.next_1d() < rr_prob
+                throughput = dr.select(rr_active, throughput / dr.maximum(rr_prob, 1e-30), throughput)
+                active = active_next & (no(rr_active) | rr_go) & (t_max != 0)
+                if self._jit:
+                    dr.eval(ray, prev_si, prev_pdf, prev_delta, throughput, eta, valid, depth, result, active)
+            return result, valid, []
+
+        def aov_names(self) -> list[str]:
+            return []
+
+        def to_string(self) -> str:
+            return f"NoShadowPath[max_depth={self.max_depth}, no_shadow={sorted(self.no_shadow)}]"
+
+    return NoShadowPath
