@@ -5,6 +5,8 @@ Importing this package loads numpy and scipy only; engines are imported by their
 
 from __future__ import annotations
 
+import logging
+
 from blendify_core.batch.run import BatchReport, RenderJob, render_many
 from blendify_core.errors import (
     BackendUnavailableError,
@@ -75,6 +77,9 @@ from blendify_core.registry import (
     register_backend,
 )
 from blendify_core.utils.animation import render_frames as render_frames
+
+# a library logs, the application decides where to: no "No handlers could be found" output by default
+logging.getLogger("blendify_core").addHandler(logging.NullHandler())
 
 __version__ = "0.1.0"
 

@@ -16,6 +16,9 @@ __all__ = [
     "RenderError",
     "OutputError",
     "MissingFolderError",
+    "EXIT_CODES",
+    "exit_code",
+    "exit_code_epilog",
 ]
 
 
@@ -65,6 +68,34 @@ class OutputError(BlendifyError, OSError):
 class MissingFolderError(OutputError, InvalidSceneError):
     """The folder a file should be written into does not exist. An :class:`OutputError` (so an ``OSError``)
     like every failed write, and also an :class:`InvalidSceneError`, as a bad path argument always was."""
+
+
+#: the exit codes of every ``blendify`` subcommand (README, "Command line"); :func:`exit_code` picks one
+EXIT_CODES = {
+    0: "success (crosscheck: every pair agreed; batch: every job done or skipped)",
+    1: "the work failed: a render, an output file, a batch job, or a crosscheck pair that disagreed "
+    "(or fewer than two backends rendered)",
+    2: "bad usage or input: unknown option or bad value, a missing or invalid scene / jobs file, "
+    "an output folder that does not exist",
+    3: "the backend asked for is unavailable here (not installed, or no GPU with strict)",
+    130: "interrupted (Ctrl-C)",
+}
+
+
+def exit_code(exc: BaseException) -> int:
+    """The ``blendify`` exit code for an exception that ended a subcommand (see :data:`EXIT_CODES`)."""
+    if isinstance(exc, KeyboardInterrupt):
+        return 130
+    if isinstance(exc, BackendUnavailableError):
+        return 3
+    if isinstance(exc, (InvalidSceneError, FileNotFoundError, NotADirectoryError, IsADirectoryError)):
+        return 2
+    return 1
+
+
+def exit_code_epilog() -> str:
+    """The exit-code table as the epilog of every subcommand's ``--help``."""
+    return "exit codes (every subcommand):\n" + "\n".join(f"  {code:<4} {text}" for code, text in EXIT_CODES.items())
 
 
 def describe(value: object) -> str:

@@ -1,6 +1,8 @@
 """The ``blendify`` command line: ``info``, ``render``, ``demo``, ``batch``, ``crosscheck``.
 
-Every command has ``--help``; bad arguments print a one-line error and return a non-zero exit code.
+Every command has ``--help``; every error is one line ``blendify <command>: error: ...`` on stderr, and
+every command exits with the codes of :data:`blendify_core.errors.EXIT_CODES` (0 success, 1 the work
+failed, 2 bad usage or input, 3 backend unavailable, 130 interrupted).
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ import logging
 import platform
 import sys
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from blendify_core import __version__
 from blendify_core.batch.jobs import read_jobs
@@ -18,11 +20,12 @@ from blendify_core.batch.local import DEFAULT_RECYCLE_AFTER
 from blendify_core.batch.run import render_many
 from blendify_core.batch.worker import save_outputs
 from blendify_core.cli.demo import run_demo
-from blendify_core.errors import BlendifyError, InvalidSceneError
+from blendify_core.errors import BlendifyError, InvalidSceneError, exit_code, exit_code_epilog
 from blendify_core.evaluate.crosscheck import crosscheck_main
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.render import render
-from blendify_core.registry import available_backends, get_backend_class
+from blendify_core.pipeline.settings import QUALITIES
+from blendify_core.registry import available_backends, backend_names, get_backend_class
 
 __all__ = ["main"]
 
@@ -84,8 +87,8 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def _crosscheck(args: argparse.Namespace) -> int:
-    return int(crosscheck_main(args.rest) or 0)
+def _crosscheck(args: argparse.Namespace) -> int:  # reached only through main()'s own dispatch
+    return int(crosscheck_main(args.rest, parser_class=_Parser) or 0)
 
 
 def _batch(args: argparse.Namespace) -> int:
@@ -103,19 +106,37 @@ def _batch(args: argparse.Namespace) -> int:
     return 0 if report.ok else 1  # any failed job, even with others done, exits 1 (documented in --help)
 
 
+def _backend_argument(p: argparse.ArgumentParser) -> None:
+    names = backend_names()
+    p.add_argument(
+        "-b",
+        "--backend",
+        default=None,
+        choices=names,
+        metavar="BACKEND",
+        help=f"one of: {', '.join(names)} (default: the best available for the quality)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="blendify", description="blendify-core: one numpy scene, three renderers.")
+    parser = _Parser(
+        prog="blendify",
+        description="blendify-core: one numpy scene, three renderers.",
+        epilog=exit_code_epilog(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("--version", action="version", version=f"blendify-core {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log backend choices and engine messages")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    common: dict[str, Any] = {"epilog": exit_code_epilog(), "formatter_class": argparse.RawDescriptionHelpFormatter}
 
-    p = sub.add_parser("info", help="versions, available backends and why others are not")
+    p = sub.add_parser("info", help="versions, available backends and why others are not", **common)
     p.set_defaults(func=_info)
 
-    p = sub.add_parser("render", help="render a scene file (.npz) to an image")
+    p = sub.add_parser("render", help="render a scene file (.npz) to an image", **common)
     p.add_argument("scene", help="scene file written by Scene.save()")
-    p.add_argument("-b", "--backend", default=None, help="cycles, mitsuba, pyrender (default: best for the quality)")
-    p.add_argument("-q", "--quality", default="final", choices=("preview", "draft", "final"))
+    _backend_argument(p)
+    p.add_argument("-q", "--quality", default="final", choices=QUALITIES)
     p.add_argument("-o", "--output", default="render.png", help="output file: .png, .exr or .npz")
     p.add_argument("-s", "--samples", type=int, default=None, help="samples per pixel (overrides the preset)")
     p.add_argument("--seed", type=int, default=0)
@@ -123,10 +144,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--allow-outside", action="store_true", help="allow texture paths outside the scene's folder")
     p.set_defaults(func=_render)
 
-    p = sub.add_parser("demo", help="render the built-in donut demo into a labelled contact sheet")
+    p = sub.add_parser("demo", help="render the built-in donut demo into a labelled contact sheet", **common)
     p.add_argument("-o", "--output", default="blendify_demo.png")
-    p.add_argument("-b", "--backend", default=None)
-    p.add_argument("-q", "--quality", default="draft", choices=("preview", "draft", "final"))
+    _backend_argument(p)
+    p.add_argument("-q", "--quality", default="draft", choices=QUALITIES)
     p.add_argument("--size", type=int, default=256, help="panel size in pixels")
     p.add_argument("-s", "--samples", type=int, default=None)
     p.set_defaults(func=_demo)
@@ -136,8 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="render many scene files listed in a JSON-lines file, resumably",
         description="Render many scene files listed in a JSON-lines file, resumably (run it again to skip "
         "finished jobs and retry failed ones).",
-        epilog="exit code: 0 when every job is done or skipped; 1 when any job failed (the summary lists each "
-        "reason) or the batch could not run (one error line instead of the summary); 2 for bad arguments.",
+        epilog="any failed job, even with others done, exits 1 (the summary lists each reason).\n\n"
+        + exit_code_epilog(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("jobs", help='JSON lines: {"scene": "a.npz", "output": "a.png", "backend": ..., "samples": ...}')
     p.add_argument("--executor", default="local", help="local (process pool), ray, or ray:ADDRESS")
@@ -160,11 +182,15 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "crosscheck":  # its own parser: options may come before the scene path
         try:
-            return int(crosscheck_main(argv[1:]) or 0)
-        except BlendifyError as exc:
-            print(f"blendify crosscheck: error: {exc}", file=sys.stderr)
-            return 1
-    args = parser.parse_args(argv)
+            return int(crosscheck_main(argv[1:], parser_class=_Parser) or 0)
+        except KeyboardInterrupt:
+            print("blendify crosscheck: interrupted", file=sys.stderr)
+            return 130
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # named by the subcommand, as its other errors are
+        where = f"blendify {args.command}" if getattr(args, "command", None) else "blendify"
+        print(f"{where}: error: unrecognized arguments: {' '.join(unknown)}", file=sys.stderr)
+        return 2
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
     if not getattr(args, "command", None):
         parser.print_help()
@@ -176,15 +202,12 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     try:
         return int(args.func(args))
-    except BlendifyError as exc:
-        print(f"blendify {args.command}: error: {exc}", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
         print(f"blendify {args.command}: interrupted", file=sys.stderr)
         return 130
-    except OSError as exc:
+    except (BlendifyError, OSError) as exc:
         print(f"blendify {args.command}: error: {exc}", file=sys.stderr)
-        return 1
+        return exit_code(exc)
 
 
 def _entry() -> NoReturn:  # pragma: no cover - used by `python -m blendify_core`

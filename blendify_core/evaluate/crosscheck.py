@@ -14,7 +14,15 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core.errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
+from blendify_core.errors import (
+    BackendUnavailableError,
+    BlendifyError,
+    InvalidSceneError,
+    RenderError,
+    UnsupportedFeatureError,
+    exit_code,
+    exit_code_epilog,
+)
 from blendify_core.evaluate.compare import compare
 from blendify_core.evaluate.noise import DEFAULT_PASSES, combine_passes, pass_samples
 from blendify_core.evaluate.progress import progress_bar
@@ -25,7 +33,7 @@ from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.render import render
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import _outputs
-from blendify_core.registry import available_backends
+from blendify_core.registry import available_backends, backend_names
 
 __all__ = ["crosscheck", "crosscheck_main"]
 
@@ -272,18 +280,27 @@ def _repeats_estimate(first: RenderResult, extra: list[RenderResult], samples: i
     return est
 
 
-def crosscheck_main(argv: Sequence[str] | None = None) -> int:
+def crosscheck_main(
+    argv: Sequence[str] | None = None, parser_class: type[argparse.ArgumentParser] = argparse.ArgumentParser
+) -> int:
     """``blendify crosscheck SCENE [-o FOLDER] [--backends ...] [--samples N] ...``: render a scene file
     with every available backend, write the contact sheet and the markdown report into FOLDER. Returns
     0 when every pair passed, 1 when one failed (or fewer than two backends could render), 2 on bad
-    usage."""
-    p = argparse.ArgumentParser(
+    usage or a missing scene file, 3 when a backend asked for is unavailable (the ``blendify`` exit codes,
+    :data:`blendify_core.errors.EXIT_CODES`)."""
+    p = parser_class(
         prog="blendify crosscheck",
         description="Render a scene file with several backends and compare them pairwise.",
+        epilog=exit_code_epilog(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("scene", help="scene file written by Scene.save (.npz)")
     p.add_argument("-o", "--output", default="crosscheck_out", help="folder for the sheet and report")
-    p.add_argument("--backends", default="cycles,mitsuba,pyrender", help="comma-separated backend names")
+    p.add_argument(
+        "--backends",
+        default="cycles,mitsuba,pyrender",
+        help=f"comma-separated backend names from: {', '.join(backend_names())}",
+    )
     p.add_argument("--outputs", default="rgb,depth,normal,albedo,instance", help="comma-separated outputs")
     p.add_argument("--samples", type=int, default=256, help="samples per pixel (default 256)")
     p.add_argument("--seed", type=int, default=0)
@@ -323,9 +340,9 @@ def crosscheck_main(argv: Sequence[str] | None = None) -> int:
             **extra,
         )
         folder = report.save(args.output)
-    except (InvalidSceneError, FileNotFoundError, BackendUnavailableError) as exc:
-        sys.stderr.write(f"blendify crosscheck: {exc}\n")
-        return 2
+    except (BlendifyError, OSError) as exc:
+        sys.stderr.write(f"blendify crosscheck: error: {exc}\n")
+        return exit_code(exc)
     sys.stdout.write(f"{report!r}\n")
     if not report.pairs:
         sys.stderr.write(

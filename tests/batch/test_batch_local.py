@@ -299,9 +299,9 @@ def test_cli_batch(tmp_path, capsys):
     assert "2 jobs: 0 done, 2 skipped, 0 failed" in capsys.readouterr().out
 
     path.write_text('{"scene": "sc/c0.npz"}\n')
-    assert main(["batch", str(path)]) == 1
+    assert main(["batch", str(path)]) == 2  # a bad jobs file is bad input (the CLI's exit-code table)
     assert "missing 'output'" in capsys.readouterr().err
-    assert main(["batch", str(tmp_path / "nope.jsonl")]) == 1
+    assert main(["batch", str(tmp_path / "nope.jsonl")]) == 2
 
 
 def test_png_outputs_write_one_file_per_requested_output(tmp_path):

@@ -70,9 +70,7 @@ def _status(engine: str) -> str | None:
 
 def _render(engine: str, case: str) -> np.ndarray:
     name, options = ENGINES[engine]
-    result = bf.render(
-        CASES[case](), backend=name, samples=SAMPLES, seed=0, quality="final", denoise=False, **options
-    )
+    result = bf.render(CASES[case](), backend=name, samples=SAMPLES, seed=0, quality="final", denoise=False, **options)
     if "variant" in options:
         assert result.meta["variant"] == options["variant"], f"rendered with {result.meta['variant']}"
     return result.to_srgb8()

@@ -75,6 +75,8 @@ from .worker import IsolatedScene, WorkerClient
 __all__ = ["CyclesBackend"]
 
 log = logging.getLogger("blendify_blender")
+# a library logs, the application decides where to: no "No handlers could be found" output by default
+log.addHandler(logging.NullHandler())
 
 
 def _fix_bpy_tags() -> None:

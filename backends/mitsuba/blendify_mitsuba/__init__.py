@@ -16,6 +16,7 @@ aborts the process that uses it).
 from __future__ import annotations
 
 import importlib.util
+import logging
 from typing import Any
 
 import numpy as np
@@ -33,6 +34,9 @@ from .render import render_native
 from .session import DEFAULT_MAX_ANALYTIC_SPHERES, MitsubaNative, MitsubaSession
 from .translate import DEFAULT_SAMPLER, MitsubaTranslator
 from .variant import KNOWN_VARIANTS, VariantChoice, describe
+
+# a library logs, the application decides where to: no "No handlers could be found" output by default
+logging.getLogger("blendify_mitsuba").addHandler(logging.NullHandler())
 
 __all__ = ["MitsubaBackend", "MitsubaNative", "MitsubaTranslator", "DEFAULT_MAX_ANALYTIC_SPHERES"]
 

@@ -42,6 +42,7 @@ pixel centre).
 from __future__ import annotations
 
 import importlib.util
+import logging
 import threading
 from typing import Any
 
@@ -55,6 +56,9 @@ from blendify_core.registry import BackendStatus
 
 from .capabilities import capability_table
 from .translate import PyrenderTranslator
+
+# a library logs, the application decides where to: no "No handlers could be found" output by default
+logging.getLogger("blendify_pyrender").addHandler(logging.NullHandler())
 
 __all__ = ["PyrenderBackend", "ANTIALIAS_MODES"]
 
