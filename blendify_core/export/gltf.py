@@ -63,7 +63,7 @@ from blendify_core.ir.renderables.base import Renderable
 from blendify_core.ir.validate import as_bool, as_choice, as_float
 from blendify_core.typing import AnyArray
 
-__all__ = ["export_gltf", "gltf_document", "LUMENS_PER_WATT", "Y_UP_ROTATION"]
+__all__ = ["export_gltf", "glb_bytes", "gltf_document", "LUMENS_PER_WATT", "Y_UP_ROTATION"]
 
 LUMENS_PER_WATT = 683.0
 #: the root node's rotation (x, y, z, w): -90 degrees about X takes the IR's +Z up to glTF's +Y up
@@ -521,7 +521,8 @@ def gltf_document(
     return doc.gltf, bytes(doc.blob), list(doc.notes)
 
 
-def _glb(gltf: dict[str, Any], blob: bytes) -> bytes:
+def glb_bytes(gltf: dict[str, Any], blob: bytes) -> bytes:
+    """The binary glTF container (.glb) of a glTF JSON and its buffer."""
     text = json.dumps(gltf, separators=(",", ":")).encode("utf-8")
     text += b" " * (-len(text) % 4)
     chunks = struct.pack("<II", len(text), _JSON_CHUNK) + text
@@ -550,7 +551,7 @@ def export_gltf(
         raise InvalidSceneError(f"path: expected a .glb or .gltf file name, got {str(path)!r}")
     gltf, blob, notes = gltf_document(scene, y_up=y_up, points=points, lumens_per_watt=lumens_per_watt)
     if suffix == ".glb":
-        data = _glb(gltf, blob)
+        data = glb_bytes(gltf, blob)
         out = atomic_write(p, lambda tmp: Path(tmp).write_bytes(data))
     else:
         if blob:

@@ -147,6 +147,13 @@ class PyrenderBackend(Backend):
             return AntiAliasing("ssaa", 0, self.supersample)
         return AntiAliasing("msaa", msaa, 1)
 
+    @classmethod
+    def show_scene(cls, scene: Scene, **viewer_kwargs: Any) -> Any:
+        """Open pyrender's interactive Viewer on ``scene`` (see :mod:`blendify_pyrender.viewer`)."""
+        from .viewer import show_scene
+
+        return show_scene(scene, **viewer_kwargs)
+
     # -- Backend API -------------------------------------------------------------------------------
     def translate(self, scene: Scene, settings: RenderSettings) -> Any:
         """Update the cached pyrender scene from ``scene`` (only what changed) and return the frame
