@@ -89,6 +89,7 @@ from OpenGL.GL import (
     glDrawBuffers,
     glDrawElementsInstanced,
     glEnable,
+    glFlush,
     glFramebufferRenderbuffer,
     glGenFramebuffers,
     glGenRenderbuffers,
@@ -347,7 +348,13 @@ class FrameRenderer(pyrender.Renderer):
             return  # the map of this light is still valid (only the camera moved)
         self._shadow_light = light_node
         try:
-            super()._shadow_mapping_pass(scene, light_node, flags)
+            if self._sorted_mesh_nodes(scene):
+                super()._shadow_mapping_pass(scene, light_node, flags)
+            else:
+                # nothing casts a shadow from this light: a cleared map (pyrender's pass draws nothing and
+                # then fails on its unset shader program)
+                self._configure_shadow_mapping_viewport(light_node.light, flags)
+                glFlush()
         finally:
             self._shadow_light = None
         self._shadow_done[light_node] = (key, id(texture))
