@@ -270,6 +270,7 @@ def test_y_up_root_rotation_maps_z_up_to_y_up():
 def test_primitives_are_tessellated_flat_or_smooth(tmp_path):
     scene = bf.Scene()
     cube = scene.renderables.add_cube_mesh(1.0, bf.DiffuseMaterial(), bf.UniformColors((1, 0, 0)), tag="flat")
+    cube.set_smooth(False)
     cyl = scene.renderables.add_cylinder_mesh(0.5, 1.0, bf.DiffuseMaterial(), bf.UniformColors((0, 1, 0)), tag="cyl")
     cyl.set_smooth(True)
     gltf, blob, _ = gltf_document(scene)
