@@ -138,8 +138,11 @@ def _llvm_major(path: str | None) -> int | None:
 
 
 def libllvm_candidates() -> list[str]:
-    """Installed libLLVM shared libraries, newest version first (Debian/Ubuntu/Fedora layouts)."""
+    """Installed libLLVM shared libraries, newest version first: the Python environment's own ``lib``
+    folder (where the karellen-llvm-core wheel puts ``libLLVM.so.<version>``: no root needed), then the
+    Debian/Ubuntu/Fedora/Homebrew layouts."""
     patterns = [
+        os.path.join(glob.escape(sys.prefix), "lib", "libLLVM*.so*"),
         "/usr/lib/llvm-*/lib/libLLVM*.so*",
         "/usr/lib/x86_64-linux-gnu/libLLVM*.so*",
         "/usr/lib/aarch64-linux-gnu/libLLVM*.so*",
@@ -544,7 +547,9 @@ def _choose(requested: str | None, user_llvm: str | None) -> VariantChoice:
         candidates = libllvm_candidates()
         if not candidates:
             no_lib = True
-            reasons.append(f"{variant}: no libLLVM shared library found (install e.g. Debian's libllvm19)")
+            reasons.append(
+                f"{variant}: no libLLVM shared library found (pip install karellen-llvm-core, or Debian's libllvm19)"
+            )
         for lib in candidates[:3]:
             a = cached_probe(variant, lib)
             attempts.append(a)
@@ -570,8 +575,8 @@ def describe(requested: str | None = None) -> list[str]:
         lines.append(f"  {a.variant}{' with ' + lib if lib else ''}{ver}: {a.summary}{how}")
     if choice.variant.startswith("scalar") and requested is None:
         lines.append(
-            f"  for the llvm variants install libLLVM >= {MIN_LLVM} (Debian/Ubuntu: apt-get install libllvm19) "
-            "or point DRJIT_LIBLLVM_PATH at one"
+            f"  for the llvm variants install libLLVM >= {MIN_LLVM} (pip install karellen-llvm-core, no root; "
+            "Debian/Ubuntu: apt-get install libllvm19) or point DRJIT_LIBLLVM_PATH at one"
         )
     path = probe_cache_path()
     where = str(path) if path is not None else "off"

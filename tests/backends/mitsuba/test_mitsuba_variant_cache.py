@@ -285,3 +285,14 @@ def test_blendify_info_shows_the_variant(tmp_path):
     assert f"probe cache: {tmp_path / 'probes.json'}" in proc.stdout
     assert "TargetConstantPool" not in proc.stdout + proc.stderr
     assert "blendify info` for details" not in proc.stderr  # no advice to run the command being run
+
+
+def test_libllvm_in_the_python_environment_is_a_candidate(tmp_path, monkeypatch):
+    """A libLLVM installed by a wheel into the environment's own lib folder (karellen-llvm-core: no root
+    needed) is found, newest version first."""
+    (tmp_path / "lib").mkdir()
+    lib = tmp_path / "lib" / "libLLVM.so.23.1"
+    lib.write_bytes(b"")
+    monkeypatch.setattr(_variant.sys, "prefix", str(tmp_path))
+    found = _variant.libllvm_candidates()
+    assert found[0] == os.path.realpath(lib)
