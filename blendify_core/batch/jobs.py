@@ -17,6 +17,7 @@ from typing import Any
 from blendify_core.batch.worker import output_files
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import as_bool, strict_api
 from blendify_core.pipeline.settings import RenderSettings, resolve_settings
 
 __all__ = ["RenderJob", "JobStatus", "BatchReport", "read_jobs", "job_key", "STATUSES"]
@@ -27,6 +28,7 @@ _OUTPUT_SUFFIXES = (".png", ".exr", ".npz")
 STATUSES = ("done", "skipped", "failed")
 
 
+@strict_api
 class RenderJob:
     """One frame to render: a scene (a :class:`Scene` or the path of a scene file) and where to write it.
 
@@ -72,7 +74,7 @@ class RenderJob:
                 f"got {backend!r}"
             )
         self.backend = backend
-        self.allow_outside = bool(allow_outside)
+        self.allow_outside = as_bool("allow_outside", allow_outside)
         for reserved in ("scene", "output"):
             if reserved in render_kwargs:
                 raise InvalidSceneError(f"{reserved}: given twice to RenderJob")
@@ -179,6 +181,7 @@ class JobStatus:
         return dataclasses.asdict(self)
 
 
+@strict_api
 @dataclass
 class BatchReport:
     """One :class:`JobStatus` per job, in job order, plus the run's context."""

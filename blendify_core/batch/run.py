@@ -24,6 +24,7 @@ from blendify_core.batch.remote import Executor, run_futures, run_ray
 from blendify_core.batch.state import BatchRun, ProgressBar, cpu_count
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import as_bool, strict_arguments
 
 __all__ = [
     "RenderJob",
@@ -38,6 +39,7 @@ __all__ = [
 log = logging.getLogger("blendify_core")
 
 
+@strict_arguments
 def render_many(
     jobs: Iterable[RenderJob],
     executor: str | Executor | None = None,
@@ -122,7 +124,7 @@ def render_many(
         check_backends_importable(jobs)
     man = None if manifest is False or not jobs else Manifest(_manifest_path(manifest, jobs).resolve())
     bar: ProgressBar | None = None
-    if progress:
+    if as_bool("progress", progress):
         from tqdm.auto import tqdm
 
         bar = tqdm(total=len(jobs), desc="render_many", unit="job", dynamic_ncols=True)

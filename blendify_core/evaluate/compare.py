@@ -38,6 +38,7 @@ from blendify_core.evaluate.noise import NoiseTest, noise_test
 from blendify_core.evaluate.report import CompareReport, _fmt
 from blendify_core.evaluate.tiers import NOISE_MARGINS, _resolve_tier
 from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import strict_arguments
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.typing import AnyArray, BoolArray
 
@@ -52,6 +53,7 @@ def _check_shapes(a: RenderResult, b: RenderResult) -> None:
         raise InvalidSceneError(f"compare: resolutions differ ({ra} vs {rb}); render both at the same resolution")
 
 
+@strict_arguments
 def compare(
     a: RenderResult,
     b: RenderResult,

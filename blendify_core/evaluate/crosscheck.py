@@ -30,6 +30,7 @@ from blendify_core.evaluate.report import CompareReport, CrosscheckReport
 from blendify_core.evaluate.stats import ReferenceEstimate
 from blendify_core.evaluate.tiers import TIERS, _delta_lights, choose_tier, is_path_tracer
 from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import strict_arguments
 from blendify_core.pipeline.render import render
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import _outputs
@@ -38,6 +39,7 @@ from blendify_core.registry import available_backends, backend_names
 __all__ = ["crosscheck", "crosscheck_main"]
 
 
+@strict_arguments
 def crosscheck(
     scene: Scene,
     backends: Sequence[str] = ("cycles", "mitsuba", "pyrender"),

@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.validate import as_bool
 
 __all__ = ["progress_bar", "wants_progress"]
 
@@ -30,10 +30,8 @@ def _in_notebook() -> bool:
 
 def wants_progress(progress: bool | None) -> bool:
     """Whether to show a bar for ``progress`` (None: a terminal on standard error or a notebook)."""
-    if progress is not None and not isinstance(progress, bool):
-        raise InvalidSceneError(f"progress: expected True, False or None (automatic), got {progress!r}")
     if progress is not None:
-        return progress
+        return as_bool("progress", progress)
     stream = sys.stderr
     try:
         tty = bool(stream is not None and stream.isatty())

@@ -21,6 +21,7 @@ from blendify_core.evaluate.noise import NoiseTest
 from blendify_core.evaluate.stats import ReferenceEstimate, ZTestResult
 from blendify_core.io.output import atomic_write, ensure_folder
 from blendify_core.ir.colorspace import linear_to_srgb
+from blendify_core.ir.validate import strict_api
 from blendify_core.pipeline.result import RenderResult, depth_to_image, instance_to_image
 
 __all__ = ["CompareReport", "CrosscheckReport"]
@@ -39,6 +40,7 @@ def _fmt(v: float) -> str:
     return f"{v:.4g}"
 
 
+@strict_api
 @dataclass
 class CompareReport:
     """Result of :func:`compare` (``b`` is the reference).
@@ -167,6 +169,7 @@ def _json(metrics: Mapping[str, Mapping[str, float]]) -> dict[str, dict[str, Any
 # ---------------------------------------------------------------------------------------------------
 # crosscheck
 # ---------------------------------------------------------------------------------------------------
+@strict_api
 @dataclass
 class CrosscheckReport:
     """Result of :func:`crosscheck`: ``results`` backend -> RenderResult, ``pairs`` (a, b) ->

@@ -50,6 +50,7 @@ from numpy.typing import ArrayLike
 from blendify_core.errors import InvalidSceneError
 from blendify_core.evaluate.progress import progress_bar
 from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import as_bool
 from blendify_core.pipeline.render import render as bf_render
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.typing import Float64Array
@@ -177,6 +178,7 @@ def z_test(
         z = np.where(sd > 0, diff / np.where(sd > 0, sd, 1.0), np.where(diff == 0, 0.0, np.inf * np.sign(diff)))
     p = _two_sided_p(z, dof)
     n_tests = int(z.size)
+    aggregate = as_bool("aggregate", aggregate)
     families = 3 if aggregate else 1
     a_family = alpha / families
     a_pixel = sidak_alpha(a_family, n_tests)

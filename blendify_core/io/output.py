@@ -27,7 +27,7 @@ from typing import Any
 
 from blendify_core.errors import MissingFolderError, OutputError
 
-__all__ = ["AtomicOutput", "atomic_write", "ensure_folder", "output_error"]
+__all__ = ["AtomicOutput", "atomic_write", "check_file_name", "ensure_folder", "output_error"]
 
 _NAME_MAX = 255  # when the file system does not say (os.pathconf missing or failing)
 _TOKEN = 8  # hex characters of randomness in a temporary name
@@ -49,6 +49,17 @@ def output_error(arg: str, path: Any, exc: OSError, action: str = "cannot write"
 
 def _parent(p: Path) -> Path:
     return p.parent if str(p.parent) else Path(".")
+
+
+def check_file_name(arg: str, path: Any) -> str:
+    """``path`` as a str, or an OutputError naming it when no file can be written there: a NUL byte, an
+    existing folder (checked before a file-type check, so ``save(folder)`` says what is wrong)."""
+    text = _check_name(arg, path)
+    if Path(text).name in ("", ".", "..") or os.path.isdir(text):
+        raise OutputError(
+            f"{arg}: cannot write {text!r}: it is an existing folder, expected a file name", text, errno_mod.EISDIR
+        )
+    return text
 
 
 def _check_name(arg: str, path: Any) -> str:
@@ -95,14 +106,10 @@ class AtomicOutput:
 
     def __init__(self, path: str | os.PathLike[str], arg: str = "path", suffix: str | None = None) -> None:
         self.arg = arg
-        text = _check_name(arg, path)
+        text = check_file_name(arg, path)
         self.path = Path(text)
         parent = _parent(self.path)
         name = self.path.name
-        if name in ("", ".", "..") or os.path.isdir(text):
-            raise OutputError(
-                f"{arg}: cannot write {text!r}: it is an existing folder, expected a file name", text, errno_mod.EISDIR
-            )
         if not parent.exists():
             raise MissingFolderError(
                 f"{arg}: cannot write {text!r}: the folder {str(parent)!r} does not exist", text, errno_mod.ENOENT

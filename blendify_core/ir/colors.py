@@ -20,7 +20,7 @@ import numpy as np
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colorspace import srgb8_to_linear, srgb_to_linear
-from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, frozen, raw_array
+from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, frozen, raw_array, strict_api
 from blendify_core.typing import AnyArray
 
 __all__ = [
@@ -148,6 +148,10 @@ class _Immutable:
     """Public attributes are set once (in ``__init__``): backends cache colour sources and data textures
     by identity, so an in-place change would never reach them. Build a new one and pass it to
     ``update_colors`` (or assign it to the material parameter) instead."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        strict_api(cls)  # colour sources, UV maps, texture and normal maps: unknown keywords raise
 
     def __setattr__(self, name: str, value: Any) -> None:
         if not name.startswith("_") and name in self.__dict__:

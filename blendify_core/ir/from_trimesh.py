@@ -12,7 +12,7 @@ import numpy as np
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.colors import Colors, TextureColors, UniformColors, VertexColors, VertexUV
 from blendify_core.ir.materials import Material, PrincipledBSDFMaterial
-from blendify_core.ir.validate import _describe
+from blendify_core.ir.validate import _describe, as_bool
 from blendify_core.typing import AnyArray
 
 __all__ = ["add_trimesh", "load_trimesh"]
@@ -138,6 +138,7 @@ def add_trimesh(
     A multi-object scene becomes one mesh with per-face materials (``merge=True``) or one mesh per object."""
     import trimesh
 
+    merge, smooth = as_bool("merge", merge), as_bool("smooth", smooth)
     obj = load_trimesh(mesh_or_path) if isinstance(mesh_or_path, (str, os.PathLike)) else mesh_or_path
     # glTF stores vertex colours and colour factors linear (the spec); other formats sRGB-encoded
     gltf = isinstance(mesh_or_path, (str, os.PathLike)) and Path(mesh_or_path).suffix.lower() in (".glb", ".gltf")

@@ -13,6 +13,7 @@ backends read ``linear_color``.
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +36,7 @@ from blendify_core.ir.params import (
     encode_params,
 )
 from blendify_core.ir.transforms import Positionable, ValidatedParam, quaternion_from_rotation, quaternion_to_matrix
-from blendify_core.ir.validate import as_array, as_choice, as_float, check_tag, frozen, raw_array
+from blendify_core.ir.validate import as_array, as_choice, as_float, check_tag, frozen, raw_array, strict_api
 from blendify_core.typing import AnyArray
 
 __all__ = [
@@ -65,9 +66,12 @@ COLOR = Param(
     "color",
     0.0,
     1.0,
-    channels=(3, 4),
-    keep_channels=3,
-    doc="Colour of the light (sRGB unless color_space='linear')",
+    channels=(3,),
+    doc="Colour of the light, RGB (sRGB unless color_space='linear'; a light has no alpha)",
+)
+#: blendify's set_background_light took RGBA: an opaque 4th value (1) is accepted and dropped, any other raises
+BACKGROUND_COLOR = replace(
+    COLOR, channels=(3, 4), opaque_alpha=True, doc="Colour of the background, RGB (sRGB unless color_space='linear')"
 )
 USE_SHADOW = Param("use_shadow", True, "bool", doc="Whether the light casts shadows")
 POWER = Param("strength", 100.0, "float", 0.0, None, unit="W", doc="Emitted power")
@@ -277,7 +281,7 @@ class BackgroundLight(Declared):
 
     _declared = (
         Param("strength", 1.0, "float", 0.0, None, doc="Multiplies the colour (radiance = color x strength)"),
-        COLOR,
+        BACKGROUND_COLOR,
         COLOR_SPACE,
     )
     _signature = Signature(None, None)
@@ -415,6 +419,7 @@ def _set_environment(lights: LightsCollection, cls: type, arguments: dict[str, A
     return lights.environment
 
 
+@strict_api
 class LightsCollection:
     """The lights of one scene: ``add_point``, ``add_sun``, ``add_spot``, ``add_area``,
     ``set_background_light``, ``set_environment_map``; ``[tag]``, ``remove``, iteration, ``len``.

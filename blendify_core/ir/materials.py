@@ -219,7 +219,7 @@ class Material(Declared):
         return _to_linear(rgba, self.color_space)
 
     def copy(self, **changes: Any) -> Material:
-        values = dict(self._values)
+        values = {k: v for k, v in self._values.items() if k not in self._fixed_params}
         values.update(changes)
         cls: Any = type(self)
         new: Material = cls(color_space=self.color_space, **values)
@@ -277,6 +277,8 @@ class DiffuseMaterial(PrincipledBSDFMaterial):
 
     _preset = {"roughness": 1.0, "specular_ior": 0.0}
     _signature = Signature((), "kwargs")
+    #: what keeps it an exact Lambertian reflector; metallic, roughness, coat, ... raise
+    _settable = ("alpha", "emission_color", "emission_strength", "normal_map")
 
 
 class MetalMaterial(PrincipledBSDFMaterial):

@@ -118,13 +118,16 @@ def parameters_markdown() -> str:
         "",
         "### Presets",
         "",
-        "Principled materials with other defaults; every Principled parameter is accepted by keyword.",
+        "Principled materials with other defaults; every Principled parameter is accepted by keyword, except",
+        "where a preset lists what it accepts (the others keep the preset's value; passing one raises).",
         "",
         "| class | signature | defaults changed from PrincipledBSDFMaterial |",
         "|---|---|---|",
     ]
     for cls in _PRESETS:
         changed = ", ".join(f"`{k}` {_value(v)}" for k, v in cls._preset.items())
+        if cls._settable is not None:
+            changed += "; accepts only " + ", ".join(f"`{n}`" for n in cls._settable)
         lines.append(f"| `{cls.__name__}` | {_signature_line(cls)} | {changed} |")
     lines += [
         "",

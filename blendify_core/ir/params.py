@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import NormalMap, TextureMap
-from blendify_core.ir.validate import UNIT_NAMES, as_array, as_bool, as_choice, as_float, as_int, unit_hint
+from blendify_core.ir.validate import UNIT_NAMES, as_array, as_bool, as_choice, as_float, as_int, strict_api, unit_hint
 from blendify_core.typing import AnyArray
 
 __all__ = [
@@ -148,9 +148,10 @@ class Param:
     choices: tuple[str, ...] = ()
     #: choice: other accepted spellings, (alias, option) pairs (e.g. Blender's "disk" for "circle")
     aliases: tuple[tuple[str, str], ...] = ()
-    #: color: the channel counts accepted; ``keep_channels`` stores only the first N (lights keep RGB)
+    #: color: the channel counts accepted (lights: RGB only)
     channels: tuple[int, ...] = (3, 4)
-    keep_channels: int | None = None
+    #: color: a 4th value is accepted only when it is 1 and is dropped (the background's RGBA form)
+    opaque_alpha: bool = False
     #: None is a valid value (textures: no map; a choice: decided from other inputs)
     nullable: bool = False
     #: float: +-inf is a valid value (NaN never is)
@@ -193,7 +194,7 @@ class Param:
             return self.type_text
         if self.kind == "color":
             counts = " or ".join({3: "RGB", 4: "RGBA"}.get(c, str(c)) for c in self.channels)
-            return counts + (" (alpha ignored)" if self.keep_channels == 3 and 4 in self.channels else "")
+            return "RGB (or RGBA with alpha 1)" if self.opaque_alpha else counts
         if self.kind == "choice":
             text = " / ".join(f'"{c}"' for c in self.choices)
             return text + (" or None" if self.nullable else "")
@@ -285,10 +286,15 @@ def _check_color(p: Param, label: str, value: Any, obj: Any) -> tuple[float, ...
     arr = as_array(label, value, ndim=1, min_value=p.min_value, max_value=p.max_value)
     if arr.shape[0] not in p.channels:
         want = " or ".join(f"{c} ({ {3: 'RGB', 4: 'RGBA'}.get(c, 'values') })" for c in p.channels)
-        note = " (a 4th, alpha, is ignored)" if p.keep_channels == 3 and 4 in p.channels else ""
-        raise InvalidSceneError(f"{label}: expected {want} values{note}, got {arr.shape[0]}")
-    out = tuple(float(x) for x in arr)
-    return out[: p.keep_channels] if p.keep_channels else out
+        raise InvalidSceneError(f"{label}: expected {want} values, got {arr.shape[0]}")
+    if p.opaque_alpha and arr.shape[0] == 4:
+        if arr[3] != 1.0:
+            raise InvalidSceneError(
+                f"{label}: expected 3 (RGB) values (a 4th, alpha, only as 1: it cannot be honoured), "
+                f"got alpha {arr[3]:g}"
+            )
+        arr = arr[:3]
+    return tuple(float(x) for x in arr)
 
 
 def _check_vec3(p: Param, label: str, value: Any, obj: Any) -> tuple[float, ...]:
@@ -514,6 +520,9 @@ def _generated_init(cls: type[Declared]) -> Callable[..., None]:
 
     def __init__(self: Declared, *args: Any, **kwargs: Any) -> None:
         where = type(self).__name__
+        for name in kwargs:
+            if name in type(self)._fixed_params:
+                raise type(self)._not_settable(name)
         self._setup(bind_arguments(where, type(self)._declared, positional, var_keyword, args, kwargs))
 
     __init__.__qualname__ = f"{cls.__qualname__}.__init__"
@@ -533,6 +542,10 @@ class Declared:
 
     _declared: tuple[Param, ...] = ()
     _preset: Mapping[str, Any] = {}
+    #: the stored parameters a caller may set (None: every one); the others keep the preset's value and
+    #: passing or assigning them raises (DiffuseMaterial: a Lambertian reflector has no metallic)
+    _settable: tuple[str, ...] | None = None
+    _fixed_params: frozenset[str] = frozenset()
     _signature: Signature = Signature()
     _stored: tuple[Param, ...] = ()
     _param_index: dict[str, Param] = {}
@@ -552,6 +565,8 @@ class Declared:
         if len(set(names)) != len(names):
             raise TypeError(f"{cls.__name__}: a parameter is declared twice in {names}")
         cls._stored = tuple(p for p in cls._declared if p.stored)
+        if cls._settable is not None:
+            cls._fixed_params = frozenset(p.name for p in cls._stored if p.name not in cls._settable)
         cls._param_index = {p.name: p for p in cls._declared}
         cls._positional = tuple(names) if cls._signature.names is None else tuple(cls._signature.names)
         missing = [n for n in cls._positional if n not in cls._param_index]
@@ -563,6 +578,7 @@ class Declared:
             cls.__signature__ = build_signature(cls._declared, cls._signature)  # type: ignore[attr-defined]
         elif "__signature__" not in own:
             cls.__signature__ = None  # type: ignore[attr-defined]  # inspect reads the class's own __init__
+        strict_api(cls)
 
     def _setup(self, inputs: dict[str, Any]) -> None:
         self._init_values(inputs)
@@ -575,7 +591,17 @@ class Declared:
         for p in type(self)._stored:
             values[p.name] = p.check(inputs[p.name], self)
 
+    @classmethod
+    def _not_settable(cls, name: str) -> InvalidSceneError:
+        settable = sorted(cls._settable or ())
+        return InvalidSceneError(
+            f"{cls.__name__}: {name!r} is not a parameter of {cls.__name__} (settable: {settable}); "
+            f"use {cls.__mro__[1].__name__}({name}=...) for a material with that parameter"
+        )
+
     def _set_param(self, param: Param, value: Any) -> None:
+        if param.name in type(self)._fixed_params:
+            raise type(self)._not_settable(param.name)
         if param.fixed:
             raise InvalidSceneError(
                 f"{param.name}: fixed at creation (got {value!r}); create a new {type(self).__name__} instead"
@@ -602,6 +628,9 @@ class Declared:
         new.__dict__.update(self.__dict__)
         new.__dict__["_values"] = dict(self._values)
         return new
+
+
+strict_api(Declared)
 
 
 # ---------------------------------------------------------------------------------------------------

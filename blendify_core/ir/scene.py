@@ -15,7 +15,7 @@ from blendify_core.ir.cameras import Camera, OrthographicCamera, PerspectiveCame
 from blendify_core.ir.lights import LightsCollection
 from blendify_core.ir.renderables import RenderablesCollection
 from blendify_core.ir.serialize import fingerprint, load_scene, save_scene
-from blendify_core.ir.validate import strict_arguments
+from blendify_core.ir.validate import as_bool, strict_api, strict_arguments
 from blendify_core.registry import FORMAT_SUFFIXES, backend_for_format, core_tool, exporter_for_format
 from blendify_core.typing import AnyArray
 
@@ -31,6 +31,7 @@ _BLENDIFY_METHODS = {
 }
 
 
+@strict_api
 class Scene:
     """A scene described in plain numpy: ``scene.renderables``, ``scene.lights`` and ``scene.camera``."""
 
@@ -157,13 +158,14 @@ class Scene:
     def save(self, path: str | os.PathLike[str], relative_paths: bool = True) -> None:
         """Write the scene to one portable ``.npz`` file (JSON header + arrays, no pickle), atomically.
         Texture files are referenced by path (relative to the scene file when ``relative_paths``)."""
-        save_scene(self, path, relative_paths=relative_paths)
+        save_scene(self, path, relative_paths=as_bool("relative_paths", relative_paths))
 
     @classmethod
     def load(cls, path: str | os.PathLike[str], allow_outside: bool = False) -> Scene:
         """Read a scene file. Relative texture paths resolve against the file's folder and may not leave
         it unless ``allow_outside=True``."""
-        return load_scene(cls(), path, allow_outside=allow_outside)  # type: ignore[no-any-return]
+        allow = as_bool("allow_outside", allow_outside)
+        return load_scene(cls(), path, allow_outside=allow)  # type: ignore[no-any-return]
 
     def fingerprint(self) -> str:
         """A stable content hash (hex SHA-256) of everything that affects the picture."""

@@ -91,8 +91,19 @@ def material_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray], base_dir:
     if cls is None:
         raise InvalidSceneError(f"scene file: unknown material kind {d.get('kind')!r}")
     params = decode_params(f"scene file: {cls.__name__}", cls._params, d["params"], arrays, base_dir)
+    defaults = {p.name: p.default for p in cls._params}
+    fixed = {k: v for k, v in params.items() if k in cls._fixed_params}
+    if not all(_json_equal(v, defaults[k]) for k, v in fixed.items()):
+        # written before the preset's fixed parameters were refused: the same picture as its base class
+        cls = cls.__mro__[1]
+    else:
+        params = {k: v for k, v in params.items() if k not in fixed}
     material: Material = cls(color_space=d["color_space"], **params)
     return material
+
+
+def _json_equal(a: Any, b: Any) -> bool:
+    return (list(a) if isinstance(a, (tuple, list)) else a) == (list(b) if isinstance(b, (tuple, list)) else b)
 
 
 def light_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray] | None = None) -> Light:

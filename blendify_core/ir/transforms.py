@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from blendify_core.errors import InvalidSceneError
-from blendify_core.ir.validate import as_array, as_float, frozen
+from blendify_core.ir.validate import as_array, as_float, frozen, strict_api
 from blendify_core.typing import Float64Array
 
 __all__ = [
@@ -124,6 +124,21 @@ def look_at_rotation(position: ArrayLike, target: ArrayLike, roll_deg: float = 0
     return base
 
 
+#: the largest angle (radians for rotvec, degrees for Euler) a rotation may be given with: beyond it the
+#: spacing of float64 values exceeds 1e-7 of a turn and the rotation is lost to rounding (1e300 rad
+#: made a NaN quaternion)
+MAX_ANGLE = 1e9
+
+
+def _check_angles(name: str, angles: Any, unit: str) -> None:
+    peak = float(np.max(np.abs(angles))) if np.size(angles) else 0.0
+    if peak > MAX_ANGLE:
+        raise InvalidSceneError(
+            f"{name}: expected angles within +-{MAX_ANGLE:g} {unit}, got {peak:g} (the rotation of so large an "
+            "angle is lost to float64 rounding; reduce it modulo a full turn)"
+        )
+
+
 def quaternion_from_rotation(
     rotation_mode: str, rotation: Any, position: Float64Array | None = None, *, name: str = "rotation"
 ) -> Float64Array:
@@ -151,6 +166,7 @@ def quaternion_from_rotation(
         from scipy.spatial.transform import Rotation
 
         v = as_array(name, rotation, shape=(3,))
+        _check_angles(name, v, "rad")
         return matrix_to_quaternion(Rotation.from_rotvec(np.array(v)).as_matrix())  # scipy rejects read-only
     if mode == "rotmat":
         m = as_array(name, rotation, shape=(3, 3))
@@ -165,6 +181,7 @@ def quaternion_from_rotation(
                 f"lower-case (extrinsic), e.g. 'eulerXYZ', got {rotation_mode!r}"
             )
         angles = as_array(name, np.atleast_1d(rotation), shape=(len(seq),))
+        _check_angles(name, angles, "degrees")
         m = Rotation.from_euler(seq, np.array(angles), degrees=True).as_matrix()
         return matrix_to_quaternion(m)
     if mode in ("look_at", "lookat"):
@@ -229,6 +246,10 @@ class Positionable:
     Every IR object keeps revision counters (``revision("transform")``, ``"geometry"``, ``"appearance"``)
     so backends can update only what changed between renders.
     """
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        strict_api(cls)  # every renderable, light and camera: unknown keywords raise naming them
 
     def __init__(self, rotation_mode: str = "quaternionWXYZ", rotation: Any = None, translation: Any = (0, 0, 0)):
         self.uid = next(_uid_counter)
@@ -299,3 +320,6 @@ class Positionable:
     def matrix_world(self) -> Float64Array:
         """(4, 4) float64 object-to-world transform."""
         return compose_matrix(self._quaternion, self._translation)
+
+
+strict_api(Positionable)

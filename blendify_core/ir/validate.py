@@ -20,9 +20,35 @@ _Array = TypeVar("_Array", bound="np.ndarray[Any, Any]")
 _describe = describe
 
 
+def _unmasked(name: str, value: Any) -> Any:
+    """A masked array's data when nothing is masked; InvalidSceneError naming ``name`` when something is
+    (``np.asarray`` would drop the mask silently and use the values under it)."""
+    if isinstance(value, np.ma.MaskedArray):
+        n = int(np.count_nonzero(np.asarray(value.mask)))  # nomask counts 0
+        if n:
+            raise InvalidSceneError(
+                f"{name}: got a masked array with {n} masked value(s); the mask cannot be honoured here, "
+                "pass np.ma.filled(array, value) or drop the masked rows"
+            )
+        return np.asarray(value.data)
+    return value
+
+
+def _check_kind(name: str, raw: AnyArray) -> None:
+    """Refuse arrays that are not numbers: dates, durations, strings, objects, complex."""
+    if raw.dtype.kind in "mM":
+        raise InvalidSceneError(f"{name}: expected numbers, got {raw.dtype} values (dates or durations)")
+    if raw.dtype == object or raw.dtype.kind in "USV":
+        raise InvalidSceneError(f"{name}: expected a numeric array, got {_describe(raw)}")
+    if raw.dtype.kind == "c":
+        raise InvalidSceneError(f"{name}: expected real numbers, got complex values")
+
+
 def raw_array(name: str, value: Any) -> AnyArray:
     """``np.asarray(value)`` for a first look at user input; ragged nested lists and other values numpy
-    cannot turn into an array raise InvalidSceneError naming ``name``."""
+    cannot turn into an array raise InvalidSceneError naming ``name``, as do masked arrays with masked
+    values."""
+    value = _unmasked(name, value)
     if isinstance(value, np.ndarray):
         return value
     try:
@@ -58,14 +84,12 @@ def as_array(
         raise InvalidSceneError(f"{name}: expected an array, got None")
     if isinstance(value, (str, bytes)):
         raise InvalidSceneError(f"{name}: expected a numeric array, got {_describe(value)}")
+    value = _unmasked(name, value)
     try:
         raw = np.asarray(value)
     except (ValueError, TypeError) as exc:  # ragged nested lists
         raise InvalidSceneError(f"{name}: expected a numeric array, got {_describe(value)} ({exc})") from None
-    if raw.dtype == object or raw.dtype.kind in "USV":
-        raise InvalidSceneError(f"{name}: expected a numeric array, got {_describe(value)}")
-    if raw.dtype.kind == "c":
-        raise InvalidSceneError(f"{name}: expected real numbers, got complex values")
+    _check_kind(name, raw)
     if raw.dtype.kind == "b" and np.dtype(dtype).kind != "b":
         raise InvalidSceneError(f"{name}: expected numbers, got a boolean array")
     target = np.dtype(dtype)
@@ -216,20 +240,46 @@ def reject_unknown(where: str, kwargs: dict[str, Any], allowed: Iterable[str] = 
 
 
 _F = TypeVar("_F", bound=Callable[..., Any])
+_C = TypeVar("_C", bound=type)
 
 
 def strict_arguments(func: _F) -> _F:
     """Decorator: a call with unknown keyword arguments (or missing / surplus arguments) raises
     InvalidSceneError naming them, instead of Python's bare TypeError. The signature is unchanged
-    (``inspect.signature`` follows ``__wrapped__``)."""
+    (``inspect.signature`` follows ``__wrapped__``). A call that binds costs nothing extra: the arguments
+    are checked only when the call raised TypeError (Python binds before the body runs, so a binding
+    failure means the body never ran; a TypeError from inside the body is raised unchanged)."""
+    if getattr(func, "__blendify_strict__", False):
+        return func
     sig = inspect.signature(func)
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
-            sig.bind(*args, **kwargs)
-        except TypeError as exc:
-            raise InvalidSceneError(f"{func.__qualname__}: {exc}") from None
-        return func(*args, **kwargs)
+            return func(*args, **kwargs)
+        except TypeError:
+            try:
+                sig.bind(*args, **kwargs)
+            except TypeError as exc:
+                raise InvalidSceneError(f"{func.__qualname__}: {exc}") from None
+            raise
 
+    wrapper.__blendify_strict__ = True  # type: ignore[attr-defined]
     return wrapper  # type: ignore[return-value]
+
+
+def strict_api(cls: _C) -> _C:
+    """Class decorator: :func:`strict_arguments` on ``__init__`` and on every public method, static
+    method and class method the class defines itself (base classes that call it from
+    ``__init_subclass__`` make every subclass strict too). The one place the public API's keyword
+    checking comes from."""
+    for name, attr in list(vars(cls).items()):
+        if name.startswith("_") and name != "__init__":
+            continue
+        if isinstance(attr, staticmethod):
+            setattr(cls, name, staticmethod(strict_arguments(attr.__func__)))
+        elif isinstance(attr, classmethod):
+            setattr(cls, name, classmethod(strict_arguments(attr.__func__)))
+        elif inspect.isfunction(attr):
+            setattr(cls, name, strict_arguments(attr))
+    return cls

@@ -30,6 +30,7 @@ from blendify_core.ir.renderables import (
     SphereNURBS,
 )
 from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import strict_api
 
 __all__ = ["Capability", "ALL_FEATURES", "scene_features"]
 
@@ -88,6 +89,7 @@ ALL_FEATURES: dict[str, str] = {
 }
 
 
+@strict_api
 @dataclass(frozen=True)
 class Capability:
     """How a backend handles one feature: ``level`` is "exact", "approximate" or "unsupported"."""

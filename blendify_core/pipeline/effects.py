@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from blendify_core.ir.physics import material_lobes
 from blendify_core.ir.renderables import CircleMesh, CubeMesh, EllipsoidNURBS, PlaneMesh, PointCloud, SphereNURBS
 from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import strict_api, strict_arguments
 
 __all__ = ["Effects", "analyse_effects"]
 
@@ -23,6 +24,7 @@ _FIELDS = (
 )
 
 
+@strict_api
 @dataclass(frozen=True)
 class Effects:
     """Light-transport effects a scene calls for; ``reasons`` says why each one is on or off."""
@@ -46,6 +48,7 @@ class Effects:
         return cls(reasons={f: "full simulation requested" for f in _FIELDS})
 
 
+@strict_arguments
 def analyse_effects(scene: Scene) -> Effects:
     """Analyse a scene: shadows, indirect diffuse, glossy, transmission, caustics, transparency, emission
     and background light, each with the reason."""

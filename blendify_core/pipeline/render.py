@@ -15,6 +15,7 @@ import numpy as np
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
 from blendify_core.ir.cameras import Camera, OrthographicCamera, PerspectiveCamera
 from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import strict_arguments
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import scene_features
 from blendify_core.pipeline.compat import map_legacy_keywords
@@ -156,6 +157,7 @@ def _check_outputs(result: object, settings: RenderSettings, cam: Camera, backen
     return result
 
 
+@strict_arguments
 def render(
     scene: Scene,
     backend: str | Backend | None = None,

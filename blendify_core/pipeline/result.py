@@ -11,9 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
-from blendify_core.io.output import atomic_write
+from blendify_core.io.output import atomic_write, check_file_name
 from blendify_core.io.paths import as_path
 from blendify_core.ir.colorspace import linear_to_srgb
+from blendify_core.ir.validate import strict_api
 from blendify_core.pipeline.meta import RenderMeta
 from blendify_core.typing import AnyArray, BoolArray, Float32Array, Int32Array, UInt8Array
 
@@ -38,6 +39,7 @@ def _jsonable(value: object) -> object:
     return repr(value)
 
 
+@strict_api
 @dataclass
 class RenderResult:
     """Arrays of one render. Outputs that were not requested are None.
@@ -123,6 +125,7 @@ class RenderResult:
         ``OSError`` naming the path, and leaves nothing behind."""
         p = as_path("path", path)
         suffix = p.suffix.lower()
+        check_file_name("path", p)
         if suffix not in (".png", ".exr", ".npz"):
             raise InvalidSceneError(f"path: expected a .png, .exr or .npz file name, got {str(path)!r}")
         prov = json.dumps(_jsonable(self.provenance()))

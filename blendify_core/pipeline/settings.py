@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any, TypedDict
 
 from blendify_core.errors import InvalidSceneError
-from blendify_core.ir.validate import as_bool, as_choice, as_float, as_int
+from blendify_core.ir.validate import as_bool, as_choice, as_float, as_int, strict_api, strict_arguments
 
 __all__ = ["RenderSettings", "QUALITIES", "OUTPUTS", "PIXEL_FILTERS", "resolve_settings", "settings_bias"]
 
@@ -62,6 +62,7 @@ _PRESETS: dict[str, _Preset] = {
 }
 
 
+@strict_api
 @dataclass(frozen=True)
 class RenderSettings:
     """Everything that decides how a scene is rendered (recorded in ``result.meta["settings"]``).
@@ -166,6 +167,7 @@ def _outputs(value: object) -> tuple[str, ...]:
     return tuple(out)
 
 
+@strict_arguments
 def resolve_settings(
     quality: str = "final",
     samples: int | None = None,

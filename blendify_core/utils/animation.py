@@ -18,7 +18,7 @@ from blendify_core.errors import BackendUnavailableError, InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.io.output import AtomicOutput, atomic_write, ensure_folder, output_error
 from blendify_core.ir.scene import Scene
-from blendify_core.ir.validate import as_float
+from blendify_core.ir.validate import as_float, strict_api, strict_arguments
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.render import choose_backend
 from blendify_core.pipeline.render import render as bf_render
@@ -35,6 +35,7 @@ MANIFEST_NAME = "frames_manifest.jsonl"
 _MANIFEST_VERSION = 1
 
 
+@strict_api
 @dataclass
 class FramesReport:
     """What :func:`render_frames` did.
@@ -179,6 +180,7 @@ class _VideoWriter:
         self._out.discard()
 
 
+@strict_arguments
 def write_video(
     frames: Sequence[str | Path | RenderResult | ArrayLike],
     video_path: str | os.PathLike[str],
@@ -241,6 +243,7 @@ def _frame_plan(
     )
 
 
+@strict_arguments
 def render_frames(
     scene: Scene,
     trajectory_or_callback: FrameSource,

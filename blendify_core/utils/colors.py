@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.cameras import Camera, PerspectiveCamera
-from blendify_core.ir.validate import as_array
+from blendify_core.ir.validate import as_array, strict_arguments
 
 __all__ = ["approximate_colors_from_camera"]
 
@@ -35,6 +35,7 @@ def _rgba_rows(name: str, colors: Any, n: int) -> np.ndarray:
     return np.broadcast_to(c, (n, 4))
 
 
+@strict_arguments
 def approximate_colors_from_camera(
     camera: Camera | ArrayLike,
     normals: ArrayLike,

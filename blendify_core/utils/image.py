@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.colorspace import linear_to_srgb, srgb8_to_linear, srgb_to_linear
+from blendify_core.ir.validate import as_bool, strict_arguments
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.typing import AnyArray, Float64Array
 
@@ -60,6 +61,7 @@ def _color3(name: str, color: ArrayLike) -> Float64Array:
     return c
 
 
+@strict_arguments
 def blend_with_background(
     rgba: ArrayLike | RenderResult,
     color: ArrayLike = (1.0, 1.0, 1.0),
@@ -91,7 +93,7 @@ def blend_with_background(
     if img.dtype == np.uint8:
         if img.shape[2] == 3:
             return np.array(img)
-        premul = False if premultiplied is None else premultiplied
+        premul = False if premultiplied is None else as_bool("premultiplied", premultiplied)
         lin = srgb8_to_linear(img[..., :3]).astype(np.float64)
         a = img[..., 3:4].astype(np.float64) / 255.0
         fg = lin if premul else lin * a
@@ -100,12 +102,13 @@ def blend_with_background(
     arr = img.astype(np.float32)
     if arr.shape[2] == 3:
         return np.array(arr)
-    premul = True if premultiplied is None else premultiplied
+    premul = True if premultiplied is None else as_bool("premultiplied", premultiplied)
     a = np.clip(arr[..., 3:4], 0.0, 1.0)
     fg = arr[..., :3] if premul else arr[..., :3] * a
     return (fg + (1.0 - a) * bg_lin.astype(np.float32)).astype(np.float32)
 
 
+@strict_arguments
 def to_display_uint8(image: ArrayLike | RenderResult, linear: bool = True, premultiplied: bool = True) -> np.ndarray:
     """Any image as uint8 for display: (H, W, 3) or (H, W, 4) (straight alpha, sRGB).
 
@@ -113,6 +116,7 @@ def to_display_uint8(image: ArrayLike | RenderResult, linear: bool = True, premu
     premultiplied by default (the RenderResult convention) and are sRGB-encoded; ``linear=False`` takes
     display-ready values in [0, 1]. A single-channel float image (depth, a mask, a heat map) is mapped
     to [0, 1] over its finite values when it leaves that range (non-finite values -> 0)."""
+    linear, premultiplied = as_bool("linear", linear), as_bool("premultiplied", premultiplied)
     img = _as_image("image", image)
     if img.dtype == np.uint8:
         if img.shape[2] in (1, 2):
@@ -146,6 +150,7 @@ def to_display_uint8(image: ArrayLike | RenderResult, linear: bool = True, premu
     return out
 
 
+@strict_arguments
 def crop_to_content(
     rgba: ArrayLike | RenderResult, margin: int = 0, threshold: float = 0.0, return_box: bool = False
 ) -> np.ndarray | tuple[np.ndarray, tuple[int, int, int, int]]:
@@ -188,6 +193,7 @@ def _font(size: int) -> Any:
         return ImageFont.load_default()
 
 
+@strict_arguments
 def contact_sheet(
     images: Sequence[ArrayLike | RenderResult],
     labels: Sequence[str] | None = None,

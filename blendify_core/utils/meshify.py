@@ -20,7 +20,7 @@ from blendify_core.errors import BackendUnavailableError, InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import FacesUV, TextureColors
 from blendify_core.ir.materials import DiffuseMaterial
-from blendify_core.ir.validate import as_array, as_float
+from blendify_core.ir.validate import as_array, as_float, strict_api, strict_arguments
 from blendify_core.utils._implicit import cluster_simplify, marching_tetrahedra, signed_distance_grid
 from blendify_core.utils.normals import _points, estimate_normals
 
@@ -39,6 +39,7 @@ _MARGIN = 1.0  # texels between a triangle and its cell border
 _GAP = 2.0  # half-gap (in u+v texel units) between the two triangles of a cell: bilinear taps stay inside
 
 
+@strict_api
 @dataclass
 class MeshifyResult:
     """A textured mesh ready for :meth:`RenderablesCollection.add_mesh`.
@@ -77,6 +78,7 @@ class MeshifyResult:
         np.save(out / "faces_uv.npy", self.faces_uv)
 
 
+@strict_arguments
 def add_meshified(scene: Any, result: MeshifyResult, material: Any = None, **kwargs: Any) -> Any:
     """Add a :class:`MeshifyResult` to ``scene`` as a textured mesh (kwargs: tag, translation, ...)."""
     if not isinstance(result, MeshifyResult):
@@ -260,6 +262,7 @@ def _colors01(colors: Any, n: int) -> tuple[np.ndarray, bool]:
     return as_array("colors", raw, dtype=np.float64, min_value=0.0, max_value=1.0), False
 
 
+@strict_arguments
 def meshify_pointcloud(
     points: Any,
     colors: Any,

@@ -15,7 +15,7 @@ from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.geometry import face_normals
 from blendify_core.ir.renderables import Renderable
-from blendify_core.ir.validate import as_array
+from blendify_core.ir.validate import as_array, strict_arguments
 from blendify_core.typing import Float64Array
 
 __all__ = ["estimate_normals", "normals_from_mesh", "orient_normals"]
@@ -150,6 +150,7 @@ def _propagate(points: np.ndarray, normals: np.ndarray, idx: np.ndarray, viewpoi
     return out * np.where(flip[labels], -1.0, 1.0)[:, None]
 
 
+@strict_arguments
 def orient_normals(
     points: ArrayLike, normals: ArrayLike, orient: str = "propagate", viewpoint: ArrayLike | None = None, k: int = 10
 ) -> np.ndarray:
@@ -215,6 +216,7 @@ def estimate_normals(
 ) -> tuple[Float64Array, Float64Array]: ...
 
 
+@strict_arguments
 def estimate_normals(
     points: ArrayLike,
     k: int = 16,
@@ -400,6 +402,7 @@ def _welded_normals(v: np.ndarray, f: np.ndarray, weld: np.ndarray) -> np.ndarra
     return _angle_weighted_normals(v[rep], weld[f])[weld]
 
 
+@strict_arguments
 def normals_from_mesh(
     points: ArrayLike,
     mesh_vertices: ArrayLike | Renderable,

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.transforms import Positionable, quaternion_from_rotation
-from blendify_core.ir.validate import as_array, as_float
+from blendify_core.ir.validate import as_array, as_float, strict_api, strict_arguments
 
 __all__ = ["Pose", "Trajectory", "apply_pose"]
 
@@ -25,6 +25,7 @@ POSITION_INTERPOLATIONS = ("linear", "quadratic", "cubic")
 ROTATION_INTERPOLATIONS = ("slerp", "squad")
 
 
+@strict_api
 @dataclass(frozen=True)
 class Pose:
     """One camera pose: ``position`` (3,), ``quaternion`` (4,) unit WXYZ, ``time`` (seconds).
@@ -47,6 +48,7 @@ class Pose:
         return {"position": self.position.tolist(), "quaternion": self.quaternion.tolist(), "time": self.time}
 
 
+@strict_arguments
 def apply_pose(camera: Positionable, pose: Pose | dict[str, Any]) -> None:
     """Move a camera (or any blendify positionable object) to ``pose``."""
     if not isinstance(camera, Positionable):
@@ -127,6 +129,7 @@ def _canonical(q: np.ndarray) -> np.ndarray:
 # -------------------------------------------------------------------------------------------------
 
 
+@strict_api
 class Trajectory:
     """A camera path: keypoints (position, rotation, time), kept sorted by time.
 

@@ -112,7 +112,12 @@ def test_indirect_diffuse_single_concave_mesh():
 
 @pytest.mark.parametrize(
     "material",
-    [bf.PrincipledBSDFMaterial(), bf.MetalMaterial(), bf.GlossyBSDFMaterial(), bf.DiffuseMaterial(coat_weight=0.5)],
+    [
+        bf.PrincipledBSDFMaterial(),
+        bf.MetalMaterial(),
+        bf.GlossyBSDFMaterial(),
+        bf.PrincipledBSDFMaterial(roughness=1.0, specular_ior=0.0, coat_weight=0.5),
+    ],
     ids=["principled-default", "metal", "glossy", "coat"],
 )
 def test_glossy_on_for_specular_materials(material):

@@ -412,7 +412,7 @@ def _mutations():
         s.renderables["cube"].update_colors(bf.UniformColors((0.8, 0.2, 0.2), color_space="linear"))
 
     def material_param(s):
-        s.renderables["cube"].material.roughness = 0.31
+        s.renderables["cube"].material.alpha = 0.31  # a DiffuseMaterial: roughness is fixed
 
     def material_class(s):
         s.renderables["cube"].update_material(bf.MetalMaterial())

@@ -165,7 +165,7 @@ def test_progress_is_automatic_forced_or_off(monkeypatch, flats):
     with pytest.raises(bf.InvalidSceneError, match="progress"):
         estimate_reference(lambda seed: np.zeros((2, 2)), k=2, progress="yes")
     with pytest.raises(bf.InvalidSceneError, match="progress"):
-        bf.crosscheck(scene, backends=("nb-flat-a",), progress=1)
+        bf.crosscheck(scene, backends=("nb-flat-a",), progress=2)
 
 
 def test_progress_without_tqdm_is_silent(monkeypatch):

@@ -26,7 +26,7 @@ def test_each_kind_of_change_is_reported_alone():
     r.set_position(translation=(0.1, 0.2, 0.3))
     c = t.update(s)
     assert c.moved == (r.uid,) and not c.rebuilt and not c.lights and not c.camera
-    r.materials[0].roughness = 0.9
+    r.materials[0].alpha = 0.9  # a DiffuseMaterial: roughness is fixed
     c = t.update(s)
     assert c.rebuilt == (r.uid,) and not c.moved
     r.update_colors(bf.UniformColors((0.1, 0.2, 0.3)))

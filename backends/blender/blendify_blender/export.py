@@ -22,11 +22,13 @@ from blendify_blender.blendfile.settings import PORTABLE_KEYS, SETTINGS_PROPERTY
 from blendify_blender.translate import build_scene
 from blendify_core.errors import InvalidSceneError, RenderError
 from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import as_bool, strict_arguments
 from blendify_core.pipeline.settings import resolve_settings
 
 __all__ = ["export_blend"]
 
 
+@strict_arguments
 def export_blend(scene: Any, path: str | os.PathLike[str], pack_textures: bool = True, **settings: Any) -> Path:
     """Write ``scene`` as a .blend that opens in Blender and renders the same picture.
 
@@ -78,8 +80,7 @@ def _checked_arguments(scene: Any, path: Any, pack_textures: Any, settings: dict
         raise InvalidSceneError(f"path: expected a file name ending in .blend, got {str(out)!r}")
     if out.is_dir():
         raise InvalidSceneError(f"path: {str(out)!r} is a directory")
-    if not isinstance(pack_textures, bool):
-        raise InvalidSceneError(f"pack_textures: expected True or False, got {pack_textures!r}")
+    pack_textures = as_bool("pack_textures", pack_textures)
     if scene.camera is None:
         raise InvalidSceneError("scene.camera: the scene has no camera; call scene.set_perspective_camera(...) first")
     try:

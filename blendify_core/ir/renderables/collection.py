@@ -13,7 +13,7 @@ from blendify_core.ir.renderables.mesh import Mesh
 from blendify_core.ir.renderables.parametric import CurveBezier, EllipsoidNURBS, SphereNURBS
 from blendify_core.ir.renderables.pointcloud import PointCloud
 from blendify_core.ir.renderables.primitives import CircleMesh, CubeMesh, CylinderMesh, PlaneMesh
-from blendify_core.ir.validate import check_tag
+from blendify_core.ir.validate import check_tag, strict_api
 
 __all__ = ["RenderablesCollection"]
 
@@ -28,6 +28,7 @@ def _adder(cls: type, name: str) -> Any:
     return facade(cls, name, "RenderablesCollection", _add)
 
 
+@strict_api
 class RenderablesCollection:
     """The renderables of one scene (blendify's ``scene.renderables``). Each ``add_*`` takes its class's
     constructor arguments, then the pose (``rotation_mode``, ``rotation``, ``translation``) and ``tag``."""

@@ -389,7 +389,7 @@ def test_equal_materials_with_uniform_colours_are_shared(cycles, bpy):
     mats = {t: _obj(bpy, t).material_slots[0].material.as_pointer() for t in ("a0", "a1", "a2", "b", "c")}
     assert mats["a0"] == mats["a1"] == mats["a2"]
     assert len({mats["a0"], mats["b"], mats["c"]}) == 3
-    scene.renderables["a1"].update_material(bf.DiffuseMaterial(roughness=0.5))  # its own material now
+    scene.renderables["a1"].update_material(bf.DiffuseMaterial(alpha=0.5))  # its own material now
     cycles.translate(scene, resolve_settings())
     assert (
         _obj(bpy, "a1").material_slots[0].material.as_pointer()

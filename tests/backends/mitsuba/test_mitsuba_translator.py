@@ -130,7 +130,7 @@ def test_the_translation_is_reused_only_while_nothing_changes():
         assert not cached() and cached(seed=7)
         scene.camera.set_position(translation=(0.1, 0.0, 3.0), rotation_mode="look_at", rotation=(0, 0, 0))
         assert not cached() and cached()
-        scene.renderables["plane"].materials[0].roughness = 0.9
+        scene.renderables["plane"].materials[0].alpha = 0.9  # DiffuseMaterial: roughness is fixed
         assert not cached() and cached()
         scene.renderables.add_sphere_nurbs(0.2, bf.DiffuseMaterial(), bf.UniformColors((1, 0, 0)), tag="s")
         assert not cached() and cached()

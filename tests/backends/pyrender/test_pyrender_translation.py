@@ -192,7 +192,7 @@ def test_cache_updates_only_what_changed(pyr):
     assert after.rebuilt == 0
     node = after.nodes[[r.tag for r in scene.renderables].index("cube")]
     assert np.allclose(pyr.engine_instance.pscene.get_pose(node)[:3, 3], [0.0, 1.0, 2.0])
-    cube.materials[0].roughness = 0.9  # material revision
+    cube.materials[0].alpha = 0.9  # material revision (a DiffuseMaterial: roughness is fixed)
     assert pyr.translate(scene, settings).rebuilt == 1
     scene.renderables.remove("cube")
     gone = pyr.translate(scene, settings)

@@ -51,6 +51,7 @@ from blendify_blender.blendfile.settings import describe_unimported, file_render
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.attachments import Attachment
 from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import as_bool, strict_arguments
 
 __all__ = ["AttachedBlend", "BlendAttachWarning", "append_blend_scenes", "attach_blend"]
 
@@ -101,6 +102,7 @@ class _Pending:
     cycles_settings: dict[str, Any] | None = None
 
 
+@strict_arguments
 def attach_blend(
     scene: Any,
     path: str | os.PathLike[str],
@@ -134,10 +136,9 @@ def attach_blend(
     """
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core Scene, got {type(scene).__name__}")
-    if not isinstance(with_camera, bool):
-        raise InvalidSceneError(f"with_camera: expected True or False, got {with_camera!r}")
-    if with_world is not None and not isinstance(with_world, bool):
-        raise InvalidSceneError(f"with_world: expected True, False or None, got {with_world!r}")
+    with_camera = as_bool("with_camera", with_camera)
+    with_world = None if with_world is None else as_bool("with_world", with_world)
+    warn = as_bool("warn", warn)
     if scene_name is not None and not isinstance(scene_name, str):
         raise InvalidSceneError(f"scene_name: expected a scene name (str) or None, got {scene_name!r}")
     if not isinstance(render_settings, bool):
