@@ -60,7 +60,7 @@ from blendify_core.ir.materials import GlossyBSDFMaterial
 from blendify_core.ir.physics import point_intensity, spot_cone
 from blendify_core.ir.renderables import Mesh, PlaneMesh, PointCloud
 from blendify_core.ir.renderables.base import Renderable
-from blendify_core.ir.validate import as_bool, as_choice, as_float
+from blendify_core.ir.validate import as_bool, as_choice, as_float, strict_arguments
 from blendify_core.typing import AnyArray
 
 __all__ = ["export_gltf", "glb_bytes", "gltf_document", "LUMENS_PER_WATT", "Y_UP_ROTATION"]
@@ -531,6 +531,7 @@ def glb_bytes(gltf: dict[str, Any], blob: bytes) -> bytes:
     return struct.pack("<III", _GLB_MAGIC, 2, 12 + len(chunks)) + chunks
 
 
+@strict_arguments
 def export_gltf(
     scene: Any,
     path: str | os.PathLike[str],

@@ -27,7 +27,7 @@ from blendify_core.io.output import atomic_write
 from blendify_core.ir.cameras import OrthographicCamera, PerspectiveCamera
 from blendify_core.ir.lights import AreaLight, SunLight
 from blendify_core.ir.transforms import look_at_rotation, quaternion_from_rotation
-from blendify_core.ir.validate import as_bool
+from blendify_core.ir.validate import as_bool, strict_arguments
 
 __all__ = ["export_html", "html_document", "LIBRARIES"]
 
@@ -136,6 +136,7 @@ def _payload(scene: Any, show_helpers: bool) -> tuple[dict[str, Any], list[str]]
     return {**payload, "_glb": glb_bytes(gltf, blob)}, notes
 
 
+@strict_arguments
 def html_document(scene: Any, title: str | None = None, show_helpers: bool = True) -> str:
     """The viewer page of ``scene`` as one HTML string (see :func:`export_html`)."""
     show_helpers = as_bool("show_helpers", show_helpers)
@@ -170,9 +171,8 @@ html, body {{ margin: 0; height: 100%; background: #111; overflow: hidden; }}
 """
 
 
-def export_html(
-    scene: Any, path: str | os.PathLike[str], title: str | None = None, show_helpers: bool = True
-) -> Path:
+@strict_arguments
+def export_html(scene: Any, path: str | os.PathLike[str], title: str | None = None, show_helpers: bool = True) -> Path:
     """Write the offline viewer page of ``scene`` (one self-contained ``.html`` file; open it in any browser
     with WebGL). The view starts at the render camera, drawn with its exact intrinsics (principal point,
     fx != fy) at its resolution's aspect ratio; without a camera, at a default view of the scene. The

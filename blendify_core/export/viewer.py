@@ -21,7 +21,7 @@ from blendify_core.errors import BackendUnavailableError, InvalidSceneError
 from blendify_core.evaluate.progress import _in_notebook
 from blendify_core.export.html import html_document
 from blendify_core.io.output import atomic_write
-from blendify_core.ir.validate import as_choice
+from blendify_core.ir.validate import as_choice, strict_arguments
 from blendify_core.registry import get_backend_class
 
 __all__ = ["HTMLView", "show"]
@@ -68,6 +68,7 @@ class HTMLView:
         return f"HTMLView({self.width}x{self.height}{where})"
 
 
+@strict_arguments
 def show(
     scene: Any,
     viewer: str = "auto",
@@ -120,4 +121,3 @@ def show(
     else:
         logger.warning("scene.show(): no display; the scene view is in %s (open it in a web browser)", written)
     return view
-
