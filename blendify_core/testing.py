@@ -40,6 +40,8 @@ __all__ = [
     "primitives_scene",
     "every_feature_scene",
     "look_at_camera",
+    "calibration_scene",
+    "CALIBRATION_DEFECTS",
 ]
 
 DATA_DIR = Path(__file__).resolve().parents[1] / "tests" / "data"
@@ -889,4 +891,81 @@ def _hc_add_empty(kind: str) -> Scene:
         scene.renderables.add_mesh(verts, np.zeros((0, 3), int), DiffuseMaterial(), grey, tag="empty")
     else:
         scene.renderables.add_pointcloud(np.zeros((0, 3)), DiffuseMaterial(), grey, tag="empty")
+    return scene
+
+
+#: the physical defects :func:`calibration_scene` can inject into one side of a comparison
+CALIBRATION_DEFECTS = ("shift_half_px", "wrong_colour_space", "mirrored_texture")
+
+
+def calibration_scene(index: int, resolution: tuple[int, int] = (64, 48), defect: str | None = None) -> Scene:
+    """A random Lambertian scene (seeded by ``index``) for calibrating the noise-aware verdict: a ground
+    plane with an asymmetric sRGB texture, a textured upright panel, 2-4 spheres and cubes with sRGB
+    colours, one lighting setup (sun, point, square area light, sun + sky, or sky only) and a look-at
+    camera. ``defect`` renders the same scene wrongly: "shift_half_px" (principal point moved by half a
+    pixel), "wrong_colour_space" (every colour and texture read as linear instead of sRGB),
+    "mirrored_texture" (both textures flipped left-right)."""
+    if defect is not None and defect not in CALIBRATION_DEFECTS:
+        raise InvalidSceneError(f"defect: expected None or one of {CALIBRATION_DEFECTS}, got {defect!r}")
+    rng = np.random.default_rng(index)
+    space = "linear" if defect == "wrong_colour_space" else "srgb"
+    scene = Scene()
+
+    def texture(cells: int) -> np.ndarray:
+        two = rng.uniform(0.15, 0.95, (2, 3))
+        pick = rng.random((cells, cells)) < 0.5
+        img = np.where(pick[..., None], two[0], two[1])
+        img = np.repeat(np.repeat(img, 64 // cells, axis=0), 64 // cells, axis=1)
+        img[: 64 // cells, :] = rng.uniform(0.15, 0.95, 3)  # a stripe: never symmetric
+        if defect == "mirrored_texture":
+            img = img[:, ::-1]
+        return np.round(img * 255).astype(np.uint8)
+
+    quad = np.array([[0, 1, 2, 3]])
+    uv = VertexUV(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float))
+    g = 3.0
+    ground = np.array([[-g, -g, 0], [g, -g, 0], [g, g, 0], [-g, g, 0]], dtype=float)
+    scene.renderables.add_mesh(
+        ground,
+        quad,
+        DiffuseMaterial(),
+        TextureColors(texture(int(rng.choice([4, 8]))), uv, color_space=space),
+        tag="ground",
+    )
+    panel = np.array([[-1.2, 1.5, 0], [1.2, 1.5, 0], [1.2, 1.5, 1.6], [-1.2, 1.5, 1.6]], dtype=float)
+    scene.renderables.add_mesh(
+        panel, quad, DiffuseMaterial(), TextureColors(texture(8), uv, color_space=space), tag="panel"
+    )
+    for j in range(int(rng.integers(2, 5))):
+        colour = UniformColors(tuple(rng.uniform(0.1, 0.9, 3)), color_space=space)
+        pos = (rng.uniform(-1.5, 1.5), rng.uniform(-1.2, 0.8), 0.0)
+        size = rng.uniform(0.25, 0.5)
+        if rng.random() < 0.5:
+            scene.renderables.add_sphere_nurbs(
+                size, DiffuseMaterial(), colour, translation=(pos[0], pos[1], size), tag=f"sphere{j}"
+            )
+        else:
+            scene.renderables.add_cube_mesh(
+                size,
+                DiffuseMaterial(),
+                colour,
+                translation=(pos[0], pos[1], size / 2),
+                rotation_mode="eulerXYZ",
+                rotation=(0, 0, rng.uniform(0, 90)),
+                tag=f"cube{j}",
+            )
+    light = ("sun", "point", "area", "sun_sky", "sky")[index % 5]
+    if light in ("sun", "sun_sky"):
+        scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(rng.uniform(20, 50), 0, rng.uniform(-60, 60)))
+    if light == "point":
+        scene.lights.add_point(strength=300.0, translation=(rng.uniform(-2, 2), rng.uniform(-3, -1), 3.0))
+    if light == "area":
+        scene.lights.add_area("square", 1.0, strength=300.0, translation=(rng.uniform(-1, 1), -1.0, 3.0))
+    if light in ("sun_sky", "sky"):
+        scene.lights.set_background_light(0.5 if light == "sun_sky" else 1.5)
+    width, height = resolution
+    az = np.deg2rad(rng.uniform(-35, 35))
+    position = (6.0 * np.sin(az), -6.0 * np.cos(az), rng.uniform(2.5, 4.0))
+    center = (width / 2 + 0.5, height / 2) if defect == "shift_half_px" else None
+    look_at_camera(scene, resolution, position, (0, 0, 0.5), fov_x=np.deg2rad(45), center=center)
     return scene

@@ -14,9 +14,10 @@ For every block of pixels (``tile`` x ``tile`` tiles, and the whole image) and e
 - the block *rejects* when ``(|D| - margin) / sqrt(V)`` exceeds the Student-t critical value with the
   block's Welch-Satterthwaite degrees of freedom (``V**2 / sum(v_i**2 / dof_i)``: K - 1 per pixel, more
   for a block pooling many pixels), Šidák-corrected over the blocks and channels of its family;
-- ``margin = rel * |S|`` for the whole image (``rel = margin_global``) and
-  ``rel * (|S| + floor * n_pixels * image_mean)`` for a tile (``rel = margin_tile``): ``floor`` keeps
-  dark tiles from being held to a zero margin.
+- ``margin = rel * (|S| + floor * n_pixels * image_mean)`` with ``rel = margin_global`` for the whole
+  image and ``margin_tile`` for a tile; ``image_mean`` is the mean pixel value over *all* channels, so
+  ``floor`` keeps dark tiles and dark channels (the red of a green object) from being held to a zero
+  margin, where the tiny absolute differences of two engines' specular lobes would fail.
 
 The two families (tiles, global) get ``alpha / 2`` each, so when the two engines' expected images are
 equal the probability of a false failure is at most ``alpha`` (the margin only makes the test more
@@ -232,7 +233,7 @@ def noise_test(
     q = (va * va / float(dof_a) + vb * vb / float(dof_b)) * w
     n_px = np.broadcast_to(w, ma.shape)
     n_total = max(float(keep.sum()), 1.0)
-    image_mean = np.abs(s.sum(axis=(0, 1))) / n_total
+    image_mean = np.full(ma.shape[2], float(np.abs(s.sum(axis=(0, 1))).mean()) / n_total)
     a_family = alpha / 2.0
     c = ma.shape[2]
 
@@ -251,7 +252,7 @@ def noise_test(
     n_tile_reject = int((tz > tcrit).any(axis=-1).sum())
 
     sums = [x.sum(axis=(0, 1)) for x in (d, s, v, q, n_px)]
-    gz, gdof = _excess(sums[0], sums[1], sums[2], sums[3], sums[4], margin_global, 0.0, image_mean)
+    gz, gdof = _excess(sums[0], sums[1], sums[2], sums[3], sums[4], margin_global, floor, image_mean)
     gcrit = _critical(sidak_alpha(a_family, c), gdof)
     worst = int(np.argmax(gz - gcrit))
     sb = (mb * w).sum(axis=(0, 1))
