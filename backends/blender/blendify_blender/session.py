@@ -377,6 +377,11 @@ class BuiltScene:
     instance_tags: list[str] = field(default_factory=list)
     #: what the last translation did (``result.meta["translation"]``)
     stats: dict[str, Any] = field(default_factory=dict)
+    #: attached .blend files linked into the scene (blendfile.linking.FileContent), the uids of the IR
+    #: lights and the (path, scene) of the world rendered from them
+    file_contents: list[Any] = field(default_factory=list)
+    file_lights: frozenset[int] = frozenset()
+    file_world: tuple[str, str] | None = None
 
     @property
     def camera_object(self) -> Any:

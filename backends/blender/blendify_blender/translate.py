@@ -43,7 +43,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from blendify_blender.blendfile import append_blend_scenes
+from blendify_blender.blendfile.linking import FileContent, append_blend_content
+from blendify_blender.blendfile.origins import FilePlan, file_plan
 from blendify_blender.blendfile.settings import CYCLES_KEYS
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.attachments import Attachment
@@ -295,6 +296,7 @@ class CyclesTranslator(Translator):
         self.compute_device_type = compute_device_type
         self.share = share
         self.mb = MaterialBuilder()
+        self.plan: FilePlan | None = None
 
     # -- the walk ----------------------------------------------------------------------------------
     def translate(self, scene: Scene, changes: SceneChanges, ctx: TranslationContext) -> dict[str, Any]:
@@ -308,8 +310,14 @@ class CyclesTranslator(Translator):
                 stats["removed"] += 1
         rebuilt, moved = set(changes.rebuilt), set(changes.moved)
         reindex = bool(changes.order or changes.added or changes.removed)
+        # attached objects still exactly as parsed render from their file (original materials, modifiers)
+        plan = self.plan = file_plan(scene, self.settings.outputs)
         for i, r in enumerate(scene.renderables):
             entry = built.entries.get(r.uid)
+            if r.uid in plan.renderables:
+                if entry is not None:
+                    built.entries.pop(r.uid).remove()
+                continue
             if entry is not None and r.uid in rebuilt:
                 entry.remove()
                 entry = None
@@ -326,18 +334,27 @@ class CyclesTranslator(Translator):
         if changes.attachments or (changes.first and scene.attachments):
             built.attached.remove()
             built.attached = _Entry()
+            built.file_contents = []
             for a in scene.attachments:
                 self.dispatch(a, ctx)
             stats["attached_blends"] = len(scene.attached_blends)
-        if changes.first or changes.lights:
+        self._apply_file_plan(scene, plan, stats)
+        file_lights = frozenset(plan.lights)
+        if changes.first or changes.lights or changes.attachments or file_lights != built.file_lights:
             built.lights.remove()
             built.lights = _Entry()
             for i, light in enumerate(scene.lights):
-                self._light(light, i, ctx)
+                if light.uid not in file_lights:
+                    self._light(light, i, ctx)
+            built.file_lights = file_lights
             stats["lights_rebuilt"] = True
-        if changes.first or changes.world:
+        if changes.first or changes.world or changes.attachments or plan.world != built.file_world:
             built.world.remove()
-            built.world = self._world(scene.lights, ctx)
+            world = self._file_world(plan)
+            built.world = _Entry() if world is not None else self._world(scene.lights, ctx)
+            if world is not None:
+                self.sc.world = world
+            built.file_world = plan.world if world is not None else None
             stats["world_rebuilt"] = True
         self.dispatch(scene.camera, ctx)  # every time: cheap, and camera objects come and go between renders
         built.engine_settings = apply_engine_settings(
@@ -347,6 +364,40 @@ class CyclesTranslator(Translator):
         if ctx.ignored:
             stats["ignored"] = list(ctx.ignored)
         return stats
+
+    # -- attached files: what renders from the file itself ----------------------------------------
+    def _apply_file_plan(self, scene: Scene, plan: FilePlan, stats: dict[str, Any]) -> None:
+        """Show the attached files' objects that are still as parsed, hide the others (see blendfile.linking);
+        with the instance output their pass indices are the IR renderables' (else the file's own)."""
+        contents = self.built.file_contents
+        if not contents:
+            return
+        index_of: dict[str, int] | None = None
+        if "instance" in self.settings.outputs:
+            index_of = {}
+            for i, r in enumerate(scene.renderables):
+                if r.uid in plan.renderables:
+                    group = plan.groups.get(r.uid)
+                    if group is not None:
+                        index_of[group] = i + 1
+        for content in contents:
+            content.apply(plan, index_of)
+        stats["from_file"] = {
+            "renderables": len(plan.renderables),
+            "lights": len(plan.lights),
+            "world": plan.world is not None,
+        }
+        if plan.reasons:
+            stats["from_file"]["ir_because"] = list(plan.reasons)
+
+    def _file_world(self, plan: FilePlan) -> Any:
+        """The attached file's own world when the plan uses it (and the file has one), else None."""
+        if plan.world is None:
+            return None
+        for content in self.built.file_contents:
+            if (content.path, content.scene_name) == plan.world:
+                return content.world
+        return None
 
     def _renderable(self, r: Any, index: int, ctx: TranslationContext) -> _Entry:
         """The datablocks of one renderable: its handler builds the object, placed and linked here."""
@@ -885,8 +936,14 @@ class CyclesTranslator(Translator):
         sc = self.sc
         before = {idb.as_pointer() for idb in _all_ids(bpy)}
         try:
-            scenes, _notes = append_blend_scenes(a.path)
-            for bs in scenes:
+            scenes, objects, _notes = append_blend_content(a.path)
+            sname = self.plan.scenes.get(a.path) if self.plan is not None else None
+            content = FileContent.link(sc, a.path, sname, scenes, objects) if sname is not None else None
+            if content is not None:
+                self.built.file_contents.append(content)
+                return
+            # no record of what was parsed (a scene file, a worker): only what the IR cannot represent
+            for _name, bs in scenes:
                 for obj in bs.objects:
                     if obj.type not in _PARSED_TYPES and obj.name not in sc.collection.objects:
                         sc.collection.objects.link(obj)

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from blendify_blender.blendfile.origins import export_origins, import_origins
 from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
 from blendify_core.ir.attachments import Attachment
 from blendify_core.pipeline.result import RenderResult, _jsonable
@@ -157,6 +158,7 @@ class WorkerClient:
                 "settings": _jsonable(settings.to_dict()),
                 "out": out_path,
                 "attached_blends": list(scene.attached_blends),  # not in scene files
+                "origins": export_origins(scene),  # what renders from the attached files (blendfile.origins)
             }
             proc = self._proc
             if proc.stdin is None or proc.stdout is None:  # started without pipes: cannot talk to it
@@ -228,6 +230,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             scene = Scene.load(req["scene"], allow_outside=True)
             scene.attachments = [Attachment("blend", p) for p in req.get("attached_blends", [])]
+            import_origins(scene, req.get("origins", {}))
             result = backend.render_scene(scene, _settings_from_dict(req["settings"]))
             _save_result(result, req["out"])
             reply = {"ok": True}

@@ -51,7 +51,10 @@ def test_unparsed_objects_render_from_the_attached_file(cycles, bpy, tmp_path):
     hair = (r.rgba[..., 3] > 0.05) & (r.instance == -1)
     assert hair[8:15].sum() > 20  # the hair strands (z 0..1) above the ground, from the file itself
     names = [o.name for o in bpy.context.scene.objects]
-    assert names.count("hair") == 1 and not any(n == "ground" for n in names)  # ground comes from the IR
+    # the ground is exactly as parsed: it renders from the file too, under its IR index
+    assert names.count("hair") == 1 and names.count("ground") == 1
+    assert r.meta["translation"]["from_file"]["renderables"] == 1
+    assert bpy.context.scene.objects["ground"].pass_index == 1  # the instance output's index (edge-on here)
     cycles.clear()
     assert not any(o.name == "hair" for o in bpy.data.objects)
 

@@ -41,6 +41,7 @@ from blendify_blender.blendfile.geometry import MESH_TYPES, mesh_spec, points_sp
 from blendify_blender.blendfile.images import ImageReader
 from blendify_blender.blendfile.lights import light_spec, world_specs
 from blendify_blender.blendfile.nodes import MaterialReader
+from blendify_blender.blendfile.origins import record_attach
 from blendify_blender.blendfile.safety import (
     appended_blend,
     check_blend_path,
@@ -100,6 +101,9 @@ class _Pending:
     world: list[tuple[str, dict[str, Any]]] = field(default_factory=list)
     render_settings: dict[str, Any] | None = None
     cycles_settings: dict[str, Any] | None = None
+    world_considered: bool = False
+    #: IR uid -> the file object (group) it was parsed from
+    groups: dict[int, str] = field(default_factory=dict)
 
 
 @strict_arguments
@@ -211,6 +215,7 @@ def _parse_blend(
         _parse_instances(dg, materials, pend)
         if with_world or (with_world is None and scene.lights.background is None and scene.lights.environment is None):
             pend.world = world_specs(sc.world, images, notes)
+            pend.world_considered = True
         if with_camera:
             if sc.camera is None:
                 raise InvalidSceneError(f"with_camera: scene {sc.name!r} of {str(p)!r} has no camera")
@@ -295,6 +300,13 @@ def _instance_name(inst: Any, obj: Any) -> str | None:
     return name
 
 
+def _instance_group(inst: Any, obj: Any) -> str:
+    """The file object whose rendering makes this instance: the object itself, or its instancer."""
+    orig = obj.original if obj.original is not None else obj
+    parent = inst.parent.original if (inst.is_instance and inst.parent is not None) else None
+    return str(parent.name if parent is not None else orig.name)
+
+
 def _parse_instances(dg: Any, materials: MaterialReader, pend: _Pending) -> None:
     """Every rendered object instance of the evaluated depsgraph -> pending meshes, points and lights."""
     notes = materials.notes
@@ -311,9 +323,11 @@ def _parse_instances(dg: Any, materials: MaterialReader, pend: _Pending) -> None
         if name is None:
             continue
         matrix = matrix_array(inst.matrix_world)
+        group = _instance_group(inst, obj)
         if typ == "LIGHT":
             light = light_spec(obj, matrix, name, notes)
             if light is not None:
+                light[1]["_group"] = group
                 pend.lights.append((name, *light))
             continue
         if typ in MESH_TYPES:
@@ -327,6 +341,7 @@ def _parse_instances(dg: Any, materials: MaterialReader, pend: _Pending) -> None
             continue
         orig = obj.original if obj.original is not None else obj
         spec["emit_shadows"] = bool(orig.visible_shadow)
+        spec["_group"] = group
         if orig.is_shadow_catcher:
             notes.add(f"object {name!r}: shadow catcher read as a normal surface")
         if not orig.visible_camera:
@@ -384,6 +399,13 @@ def _commit(scene: Any, p: Path, pend: _Pending, with_camera: bool) -> AttachedB
     if with_camera and camera is None:
         pend.notes.add("no usable camera in the file; scene.camera unchanged")
     scene.attachments.append(Attachment("blend", str(p)))
+    record_attach(
+        str(p),
+        pend.scene_label,
+        [(r, pend.groups[r.uid]) for r in added_r],
+        [(lt, pend.groups[lt.uid]) for lt in added_l],
+        scene.lights if pend.world_considered else None,
+    )
     result = AttachedBlend(added_r)
     result.path = str(p)
     result.scene_name = pend.scene_label
@@ -398,10 +420,12 @@ def _commit(scene: Any, p: Path, pend: _Pending, with_camera: bool) -> AttachedB
 
 
 def _add_renderables(scene: Any, pend: _Pending, added: list[Any]) -> None:
-    """Meshes then point clouds, under unique tags; ``added`` collects them (for the rollback)."""
+    """Meshes then point clouds, under unique tags; ``added`` collects them (for the rollback), with their
+    groups in ``pend.groups``."""
     taken = set(scene.renderables.keys())
     for name, spec in pend.meshes + pend.points:
         emit = spec.pop("emit_shadows", True)
+        group = spec.pop("_group", name)
         add = scene.renderables.add_pointcloud if "point_size" in spec else scene.renderables.add_mesh
         tag = _unique_tag(name, taken)
         try:
@@ -412,6 +436,7 @@ def _add_renderables(scene: Any, pend: _Pending, added: list[Any]) -> None:
             continue
         r.emit_shadows = emit
         added.append(r)
+        pend.groups[r.uid] = group
 
 
 def _add_lights(scene: Any, pend: _Pending, added: list[Any]) -> None:
@@ -425,8 +450,10 @@ def _add_lights(scene: Any, pend: _Pending, added: list[Any]) -> None:
     taken = set(scene.lights.keys())
     for name, kind, spec in pend.lights:
         tag = _unique_tag(name, taken)
+        group = spec.pop("_group", name)
         try:
             added.append(adders[kind](tag=tag, **spec))
+            pend.groups[added[-1].uid] = group
         except InvalidSceneError as exc:
             pend.notes.add(f"light {name!r} not imported: {exc}")
             taken.discard(tag)
