@@ -21,7 +21,7 @@ Options (``bf.render(scene, backend="cycles", verbose=True)`` or ``CyclesBackend
 - ``device`` ("CPU"): "CPU" or "GPU" (GPU falls back to CPU with a logged reason when none is found).
 - ``cycles_settings`` (None): Cycles scene properties set after blendify's own settings, for rendering an
   attached .blend with the file's settings (``attach_blend(..., render_settings=True).cycles_settings``:
-  per-type bounces, the exact pixel filter, filter glossy, caustics, light threshold, ...); the keys are
+  volume bounces, caustics, light threshold and tree, adaptive threshold, film exposure); the keys are
   those of :data:`blendify_blender.blendfile.settings.CYCLES_KEYS`.
 
 Translation (details in :mod:`.translate`, :mod:`.materials`, :mod:`.render`; formulas from

@@ -1089,8 +1089,6 @@ def apply_cycles_settings(built: BuiltScene, overrides: dict[str, Any]) -> None:
         except (TypeError, ValueError, AttributeError) as exc:
             raise InvalidSceneError(f"cycles_settings[{k!r}]: Blender refuses {v!r} ({exc})") from None
         built.engine_settings[k] = getattr(cy, k)
-    if "pixel_filter_type" in overrides or "filter_width" in overrides:
-        built.engine_settings["pixel_filter"] = (cy.pixel_filter_type, cy.filter_width)
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -156,7 +156,7 @@ def test_tint_and_render_settings_are_named_with_the_files_own_names(files, bpy)
     assert "render settings not imported" in msg
     for what in ("clamp_indirect=5.0", "max_bounces=3", "transparent_background=False", "pixel_filter='gaussian'"):
         assert what in msg
-    assert "cycles.diffuse_bounces=2" in msg
+    assert "diffuse_bounces=2 (bf.render: 12)" in msg
     assert scene.renderables["Box"].material.alpha == pytest.approx(0.4)  # the tint is the approximation
     assert added.render_settings is None and added.cycles_settings is None
 
@@ -169,16 +169,22 @@ def test_render_settings_are_imported_when_asked(files, bpy):
         "samples": 32,
         "seed": 2,
         "max_bounces": 3,
+        "diffuse_bounces": 2,
+        "glossy_bounces": 4,
+        "transmission_bounces": 12,
+        "transparent_bounces": 8,
+        "pixel_filter": "gaussian",
+        "pixel_filter_width": 1.5,
         "clamp_direct": 0.0,
         "clamp_indirect": 5.0,
+        "filter_glossy": 0.0,
         "adaptive": False,
         "denoise": False,
         "transparent_background": False,
-        "pixel_filter": "gaussian",
     }
     cs = added.cycles_settings
-    assert cs["diffuse_bounces"] == 2 and cs["pixel_filter_type"] == "GAUSSIAN" and cs["filter_width"] == 1.5
-    assert "pixel filter" not in msg  # GAUSSIAN 1.5 px is exactly blendify's 'gaussian'
+    assert cs["volume_bounces"] == 0 and cs["caustics_reflective"] is True
+    assert "pixel filter" not in msg
 
 
 def test_cycles_settings_option_is_checked():
@@ -191,7 +197,7 @@ def test_cycles_settings_option_is_checked():
     with pytest.raises(InvalidSceneError, match="expected a dict"):
         CyclesBackend(cycles_settings=[1])
     with pytest.raises(InvalidSceneError, match="isolate=True"):
-        CyclesBackend(isolate=True, cycles_settings={"blur_glossy": 1.0})
+        CyclesBackend(isolate=True, cycles_settings={"film_exposure": 1.0})
 
 
 def test_attaching_the_current_main_file(files, bpy_script):

@@ -1002,7 +1002,7 @@ def test_attached_scene_renders_like_the_file(tmp_path: Path, blender_render):
     assert att.render_settings is not None and att.cycles_settings is not None
     assert att.render_settings["samples"] == 16 and att.render_settings["seed"] == 1
     assert att.render_settings["max_bounces"] == 0 and att.render_settings["pixel_filter"] == "box"
-    assert att.cycles_settings["blur_glossy"] == 1.0  # the file's filter glossy, Blender's default
+    assert att.render_settings["filter_glossy"] == 1.0  # the file's filter glossy, Blender's default
     settings = {**att.render_settings, "outputs": ("rgba",)}
     img = np.asarray(bf.render(scene, backend="cycles", cycles_settings=att.cycles_settings, **settings).rgba)
     assert img.shape == ref.shape == (36, 48, 4)

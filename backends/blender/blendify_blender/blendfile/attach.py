@@ -132,9 +132,9 @@ def attach_blend(
             :func:`blendify_blender.blendfile.images.default_texture_cache_dir`).
         warn: emit one :class:`BlendAttachWarning` listing what could not be parsed.
         render_settings: read the file scene's render settings into ``result.render_settings`` (``bf.render``
-            keywords: samples, seed, max_bounces, pixel_filter, clamps, adaptive, denoise,
-            transparent_background) and ``result.cycles_settings`` (the Cycles-only rest: per-type bounces,
-            exact pixel filter, filter glossy, caustics, ...: the Cycles backend's ``cycles_settings``
+            keywords: samples, seed, bounce limits, pixel filter and width, clamps, filter glossy, adaptive,
+            denoise, transparent_background) and ``result.cycles_settings`` (the Cycles-only rest: volume
+            bounces, caustics, light threshold, film exposure: the Cycles backend's ``cycles_settings``
             option). Off by default: the settings that differ from ``bf.render``'s are then named in the
             warning as not imported.
     """

@@ -3,11 +3,11 @@
 :func:`file_render_settings` reads the file scene's Cycles settings and returns
 
 - ``portable``: keyword arguments of ``bf.render`` (:class:`blendify_core.pipeline.settings.RenderSettings`
-  fields: samples, seed, max_bounces, pixel_filter, clamp_direct, clamp_indirect, adaptive, denoise,
-  transparent_background), for every backend;
-- ``cycles``: the Cycles scene properties those fields cannot hold (per-type bounce limits, the pixel
-  filter's type and width, filter glossy, caustics, light threshold, adaptive threshold, film exposure),
-  for the Cycles backend's ``cycles_settings`` option;
+  fields: samples, seed, the bounce limits, pixel filter and width, clamps, filter glossy, adaptive,
+  denoise, transparent background), for every backend;
+- ``cycles``: the Cycles scene properties those fields cannot hold (volume bounces, caustics, light
+  threshold and tree, adaptive threshold, film exposure), for the Cycles backend's ``cycles_settings``
+  option;
 - ``notes``: what neither carries (e.g. an animated seed).
 
 A file written by :func:`blendify_blender.export.export_blend` stores the blendify settings it was written
@@ -31,24 +31,24 @@ PORTABLE_KEYS = (
     "samples",
     "seed",
     "max_bounces",
+    "diffuse_bounces",
+    "glossy_bounces",
+    "transmission_bounces",
+    "transparent_bounces",
     "pixel_filter",
+    "pixel_filter_width",
     "clamp_direct",
     "clamp_indirect",
+    "filter_glossy",
     "adaptive",
     "denoise",
     "transparent_background",
 )
 
-#: Cycles scene properties (``scene.cycles.<name>``) the Cycles backend's ``cycles_settings`` option sets
+#: Cycles scene properties (``scene.cycles.<name>``) the RenderSettings cannot hold: the Cycles backend's
+#: ``cycles_settings`` option sets them
 CYCLES_KEYS = (
-    "diffuse_bounces",
-    "glossy_bounces",
-    "transmission_bounces",
     "volume_bounces",
-    "transparent_max_bounces",
-    "pixel_filter_type",
-    "filter_width",
-    "blur_glossy",
     "caustics_reflective",
     "caustics_refractive",
     "light_sampling_threshold",
@@ -58,11 +58,13 @@ CYCLES_KEYS = (
     "film_exposure",
 )
 
+#: Cycles' pixel filter types -> blendify's names
+_FILTERS = {"BOX": "box", "GAUSSIAN": "gaussian", "BLACKMAN_HARRIS": "blackman_harris"}
 
 #: settings that change only the noise of a render, not the picture it converges to
 _NOISE_ONLY = ("samples", "seed", "adaptive")
 _NOISE_ONLY_CYCLES = ("adaptive_threshold", "adaptive_min_samples")
-#: per-type bounce limits Cycles caps by max_bounces (transparent bounces are counted apart)
+#: per-kind bounce limits Cycles caps by max_bounces (transparent bounces are counted apart)
 _CAPPED_BOUNCES = ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces")
 
 
@@ -85,27 +87,26 @@ def file_render_settings(sc: Any) -> tuple[dict[str, Any], dict[str, Any], list[
         return stored, {}, []
     cy, r = sc.cycles, sc.render
     notes: list[str] = []
+    ftype = str(cy.pixel_filter_type)
     portable: dict[str, Any] = {
         "samples": int(cy.samples),
         "seed": int(cy.seed),
         "max_bounces": int(cy.max_bounces),
+        "diffuse_bounces": int(cy.diffuse_bounces),
+        "glossy_bounces": int(cy.glossy_bounces),
+        "transmission_bounces": int(cy.transmission_bounces),
+        "transparent_bounces": int(cy.transparent_max_bounces),
+        "pixel_filter": _FILTERS.get(ftype, "gaussian"),
+        "pixel_filter_width": round(float(cy.filter_width), 6),
         "clamp_direct": float(cy.sample_clamp_direct),
         "clamp_indirect": float(cy.sample_clamp_indirect),
+        "filter_glossy": round(float(cy.blur_glossy), 6),
         "adaptive": bool(cy.use_adaptive_sampling),
         "denoise": bool(cy.use_denoising),
         "transparent_background": bool(r.film_transparent),
     }
-    ftype, width = str(cy.pixel_filter_type), float(cy.filter_width)
-    if ftype == "BOX":
-        portable["pixel_filter"] = "box"
-    elif ftype == "GAUSSIAN" and abs(width - 1.5) < 1e-6:
-        portable["pixel_filter"] = "gaussian"
-    else:  # the closest portable filter; Cycles gets the exact one
-        portable["pixel_filter"] = "gaussian"
-        notes.append(
-            f"pixel filter {ftype} {width:g} px: 'gaussian' (1.5 px) in result.render_settings, the exact filter "
-            "in result.cycles_settings"
-        )
+    if ftype not in _FILTERS:  # pragma: no cover - Cycles 5 has exactly these three
+        notes.append(f"pixel filter {ftype} read as Gaussian")
     if cy.use_animated_seed:
         notes.append("animated seed read as the fixed seed")
     if r.engine != "CYCLES":
@@ -125,12 +126,8 @@ def _plain(v: Any) -> Any:
 
 
 def _cycles_defaults() -> dict[str, Any]:
-    """The Cycles properties blendify sets itself (translate.apply_engine_settings) for a default render."""
-    mb = resolve_settings().max_bounces
+    """The Cycles properties blendify sets itself (translate.apply_engine_settings) beside RenderSettings."""
     return {
-        "pixel_filter_type": "BOX",
-        "filter_width": 1.0,
-        "blur_glossy": 0.0,
         "caustics_reflective": True,
         "caustics_refractive": True,
         "use_light_tree": True,
@@ -138,12 +135,14 @@ def _cycles_defaults() -> dict[str, Any]:
         "adaptive_min_samples": 0,
         "film_exposure": 1.0,
         "light_sampling_threshold": 0.01,
-        "diffuse_bounces": mb,
-        "glossy_bounces": mb,
-        "transmission_bounces": mb,
-        "volume_bounces": mb,
-        "transparent_max_bounces": max(mb, 8),
+        "volume_bounces": resolve_settings().max_bounces,
     }
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, float) or isinstance(b, float):
+        return isinstance(a, (int, float)) and isinstance(b, (int, float)) and abs(float(a) - float(b)) < 1e-5
+    return bool(a == b)
 
 
 def describe_unimported(portable: dict[str, Any], cycles: dict[str, Any]) -> str | None:
@@ -151,23 +150,26 @@ def describe_unimported(portable: dict[str, Any], cycles: dict[str, Any]) -> str
     default, as one note line for ``attach_blend(render_settings=False)`` (None when there is none; the
     sample count, seed and adaptive sampling change only the noise and are not listed)."""
     defaults = resolve_settings()
-    diffs = [
-        f"{k}={v!r} (bf.render: {getattr(defaults, k)!r})"
-        for k, v in portable.items()
-        if v != getattr(defaults, k) and k not in _NOISE_ONLY
-    ]
-    cdef = _cycles_defaults()
     mb_file, mb_default = int(portable.get("max_bounces", defaults.max_bounces)), defaults.max_bounces
+    diffs = []
+    for k, v in portable.items():
+        d: Any = getattr(defaults, k)
+        if k in _NOISE_ONLY:
+            continue
+        if k.endswith("_bounces") and k != "max_bounces":  # what Cycles uses: per-kind limits <= max_bounces
+            d = defaults.bounces(k[: -len("_bounces")])
+            if v is None:  # a file written by export_blend: the RenderSettings default of its max_bounces
+                v = max(mb_file, 8) if k == "transparent_bounces" else mb_file
+            if k in _CAPPED_BOUNCES:
+                v, d = min(v, mb_file), min(d, mb_default)
+        if _same(v, d):
+            continue
+        diffs.append(f"{k}={v!r} (bf.render: {d!r})")
     for k, v in cycles.items():
-        d = cdef.get(k)
+        d = _cycles_defaults().get(k)
         if k in _CAPPED_BOUNCES and isinstance(v, int) and isinstance(d, int):
-            v, d = min(v, mb_file), min(d, mb_default)  # what Cycles uses: at most max_bounces
-        if (
-            d is None
-            or k in _NOISE_ONLY_CYCLES
-            or v == d
-            or (isinstance(v, float) and isinstance(d, float) and abs(v - d) < 1e-5)
-        ):
+            v, d = min(v, mb_file), min(d, mb_default)
+        if d is None or k in _NOISE_ONLY_CYCLES or _same(v, d):
             continue
         diffs.append(f"cycles.{k}={v!r} (blendify: {d!r})")
     if not diffs:
