@@ -59,7 +59,7 @@ class HTMLView:
     def _repr_html_(self) -> str:
         doc = html.escape(self.html, quote=True)
         return (
-            f'<iframe srcdoc="{doc}" style="width: 100%; max-width: {self.width}px; aspect-ratio: '
+            f'<iframe srcdoc="{doc}" style="display: block; width: 100%; max-width: {self.width}px; aspect-ratio: '
             f'{self.width} / {self.height}; border: 0;" title="blendify scene"></iframe>'
         )
 

@@ -291,3 +291,38 @@ def test_bad_arguments_are_named(tmp_path):
     with pytest.raises(InvalidSceneError, match="format"):
         scene.export(tmp_path / "x.glb", format="fbx")
     assert not list(tmp_path.iterdir())
+
+
+def test_engine_formats_are_found_through_the_registry(tmp_path):
+    """scene.export picks the writer by suffix: core formats by name, engine formats from the backends'
+    file_formats (the first available backend by name that declares the format)."""
+    from blendify_core.registry import BackendStatus, register_backend, unregister_backend
+
+    calls = []
+
+    class Exporter:
+        _is_blendify_backend = True
+        file_formats = ("blend", "mitsuba")
+
+        @classmethod
+        def probe(cls):
+            return BackendStatus(True, None, "0")
+
+        @classmethod
+        def export_file(cls, scene, file_format, path, **kwargs):
+            calls.append((file_format, path, kwargs))
+            return path
+
+    register_backend("aaa_exporter", Exporter)  # sorts before every real backend
+    try:
+        scene = textured_quad_scene()
+        assert scene.export(tmp_path / "a.blend", pack_textures=False) == tmp_path / "a.blend"
+        scene.export_mitsuba(tmp_path / "b.xml", samples=4)
+        scene.export(tmp_path / "c.XML")
+    finally:
+        unregister_backend("aaa_exporter")
+    assert calls == [
+        ("blend", tmp_path / "a.blend", {"pack_textures": False}),
+        ("mitsuba", tmp_path / "b.xml", {"samples": 4}),
+        ("mitsuba", tmp_path / "c.XML", {}),
+    ]

@@ -9,8 +9,10 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import types
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -31,7 +33,8 @@ def screenshot(page, size, tmp_path):
     """Open ``page`` in headless Chromium (no network, a fresh profile) and return the RGB screenshot."""
     from PIL import Image
 
-    out = tmp_path / "shot.png"
+    run = Path(tempfile.mkdtemp(dir=tmp_path))  # a fresh profile per browser: a reused one may hang
+    out = run / "shot.png"
     cmd = [
         CHROMIUM,
         "--headless",
@@ -43,7 +46,7 @@ def screenshot(page, size, tmp_path):
         "--disable-background-networking",
         "--disable-component-update",
         "--disable-sync",
-        f"--user-data-dir={tmp_path / 'profile'}",
+        f"--user-data-dir={run / 'profile'}",
         f"--screenshot={out}",
         f"--window-size={size[0]},{size[1]}",
         "--virtual-time-budget=10000",
@@ -99,7 +102,7 @@ def test_chromium_shows_the_objects_where_the_camera_projects_them(tmp_path):
 
 @needs_chromium
 @pytest.mark.slow
-def test_chromium_orthographic_and_default_view(tmp_path):
+def test_chromium_orthographic_notebook_and_default_view(tmp_path):
     size = (640, 480)
     scene = bf.Scene()
     scene.set_orthographic_camera(size, ortho_scale=4.0, translation=(0, 0, 5), center=(300.0, 250.0))
@@ -109,6 +112,13 @@ def test_chromium_orthographic_and_default_view(tmp_path):
     centre, _ = scene.camera.project(np.array([[1.0, -0.5, 0.0]]))
     colour = patch(img, centre[0])
     assert colour[0] > 0.6 and colour[1:].max() < 0.25, colour
+    # in a notebook: the iframe holding the page (HTMLView._repr_html_) renders the same view
+    view = viewer_mod.HTMLView(html_mod.html_document(scene), *size)
+    wrapper = tmp_path / "notebook.html"
+    wrapper.write_text(f'<!doctype html><html><body style="margin:0">{view._repr_html_()}</body></html>')
+    framed = screenshot(wrapper, size, tmp_path)
+    differ = np.abs(framed - img).max(axis=2) > 0.1
+    assert differ.mean() < 0.01, differ.mean()  # anti-aliased edges may differ
     # no camera: a default view of the scene's bounds still shows the object near the middle
     scene.camera = None
     page = scene.export(tmp_path / "default.html")
