@@ -6,6 +6,8 @@ Every builder returns a fresh :class:`~blendify_core.Scene`; small resolutions b
 from __future__ import annotations
 
 import os
+import struct
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -23,8 +25,12 @@ from blendify_core.ir.materials import (
     PrincipledBSDFMaterial,
 )
 from blendify_core.ir.scene import Scene
+from blendify_core.typing import AnyArray
 
 __all__ = [
+    "write_radiance_hdr",
+    "write_png16",
+    "rgbe_encode",
     "DATA_DIR",
     "data_path",
     "third_party_path",
@@ -969,3 +975,107 @@ def calibration_scene(index: int, resolution: tuple[int, int] = (64, 48), defect
     center = (width / 2 + 0.5, height / 2) if defect == "shift_half_px" else None
     look_at_camera(scene, resolution, position, (0, 0, 0.5), fov_x=np.deg2rad(45), center=center)
     return scene
+
+
+# ---------------------------------------------------------------------------------------------------
+# image files at full precision (written with numpy alone, so a test never depends on the reader it checks)
+# ---------------------------------------------------------------------------------------------------
+
+
+def rgbe_encode(rgb: AnyArray) -> AnyArray:
+    """(H, W, 4) uint8 RGBE of (H, W, 3) non-negative floats (Ward's encoding: mantissas truncated)."""
+    rgb = np.asarray(rgb, dtype=np.float64)
+    m = rgb.max(axis=-1)
+    frac, exp = np.frexp(m)  # m = frac * 2^exp, frac in [0.5, 1)
+    scale = np.where(m > 1e-32, 256.0 / np.ldexp(1.0, exp), 0.0)
+    out = np.zeros(rgb.shape[:-1] + (4,), dtype=np.uint8)
+    out[..., :3] = np.clip(np.floor(rgb * scale[..., None]), 0, 255).astype(np.uint8)
+    out[..., 3] = np.where(m > 1e-32, exp + 128, 0).astype(np.uint8)
+    return out
+
+
+def _rle_channel(values: AnyArray) -> bytes:
+    out = bytearray()
+    i, n = 0, len(values)
+    while i < n:
+        j = i
+        while j < n and j - i < 127 and values[j] == values[i]:
+            j += 1
+        if j - i >= 3:  # a run
+            out += bytes([128 + (j - i), int(values[i])])
+            i = j
+            continue
+        j = i
+        while j < n and j - i < 128 and not (j + 2 < n and values[j] == values[j + 1] == values[j + 2]):
+            j += 1
+        j = max(j, i + 1)
+        out += bytes([j - i]) + bytes(values[i:j].tolist())
+        i = j
+    return bytes(out)
+
+
+def write_radiance_hdr(path: str | Path, rgb: AnyArray, rle: bool = True) -> Path:
+    """Write (H, W, 3) floats as a Radiance file (run-length encoded scanlines, or flat), row 0 = top."""
+    rgbe = rgbe_encode(rgb)
+    h, w = rgbe.shape[:2]
+    body = bytearray(b"#?RADIANCE\n# written by blendify_core.testing_images\nFORMAT=32-bit_rle_rgbe\n\n")
+    body += f"-Y {h} +X {w}\n".encode()
+    for y in range(h):
+        if rle and 8 <= w < 32768:
+            body += bytes([2, 2, w >> 8, w & 255])
+            for c in range(4):
+                body += _rle_channel(rgbe[y, :, c])
+        else:
+            body += rgbe[y].tobytes()
+    p = Path(path)
+    p.write_bytes(bytes(body))
+    return p
+
+
+def _filter_row(kind: int, row: AnyArray, prev: AnyArray, bpp: int) -> AnyArray:
+    """PNG filter ``kind`` applied to one row of bytes (int arrays), ``prev`` the unfiltered row above."""
+    left = np.concatenate([np.zeros(bpp, np.int32), row[:-bpp]])
+    up_left = np.concatenate([np.zeros(bpp, np.int32), prev[:-bpp]])
+    if kind == 0:
+        pred = np.zeros_like(row)
+    elif kind == 1:
+        pred = left
+    elif kind == 2:
+        pred = prev
+    elif kind == 3:
+        pred = (left + prev) >> 1
+    else:
+        pa, pb, pc = np.abs(prev - up_left), np.abs(left - up_left), np.abs(left + prev - 2 * up_left)
+        pred = np.where((pa <= pb) & (pa <= pc), left, np.where(pb <= pc, prev, up_left))
+    return (row - pred) & 255
+
+
+def write_png16(path: str | Path, values: AnyArray, filters: tuple[int, ...] = (0,)) -> Path:
+    """Write (H, W, C) uint16 values (C = 1, 2, 3, 4) as a 16-bit PNG; row y uses filter
+    ``filters[y % len(filters)]`` (0 None, 1 Sub, 2 Up, 3 Average, 4 Paeth)."""
+    arr = np.asarray(values, dtype=np.uint16)
+    if arr.ndim == 2:
+        arr = arr[..., None]
+    h, w, c = arr.shape
+    ctype = {1: 0, 2: 4, 3: 2, 4: 6}[c]
+    bpp = 2 * c
+    rows = np.frombuffer(arr.astype(">u2").tobytes(), dtype=np.uint8).reshape(h, w * bpp).astype(np.int32)
+    raw = bytearray()
+    prev = np.zeros(w * bpp, np.int32)
+    for y in range(h):
+        kind = filters[y % len(filters)]
+        raw.append(kind)
+        raw += _filter_row(kind, rows[y], prev, bpp).astype(np.uint8).tobytes()
+        prev = rows[y]
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    p = Path(path)
+    p.write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, ctype, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(bytes(raw)))
+        + chunk(b"IEND", b"")
+    )
+    return p

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError
+from blendify_core.io.images import png_bit_depth, read_png16, read_radiance_hdr, read_tiff_full_precision
 from blendify_core.ir.colorspace import srgb8_to_linear, srgb_to_linear
 from blendify_core.ir.validate import _describe, as_array, as_choice, as_float, frozen, raw_array, strict_api
 from blendify_core.typing import AnyArray
@@ -54,7 +55,8 @@ def _to_linear(values: AnyArray, color_space: str) -> AnyArray:
 
 
 def load_image(path: str | os.PathLike[str]) -> AnyArray:
-    """Read an image file: uint8 (H, W, C) for 8-bit formats, float32 for EXR/HDR/16-bit; row 0 = top."""
+    """Read an image file: uint8 (H, W, C) for 8-bit formats, float32 for EXR, Radiance HDR (linear values)
+    and 16-bit PNG/TIFF (value / 65535, full precision); row 0 = top."""
     p = Path(path)
     if not p.is_file():
         raise InvalidSceneError(f"texture_path: no such file {str(p)!r}")
@@ -76,13 +78,23 @@ def load_image(path: str | os.PathLike[str]) -> AnyArray:
             if not names:
                 raise InvalidSceneError(f"texture_path: {p.name} has no R/G/B channels")
             return np.stack([np.asarray(channels[n].pixels, dtype=np.float32) for n in names], axis=-1)
+    if suffix in (".hdr", ".pic", ".rgbe"):
+        return read_radiance_hdr(p, "texture_path")
+    if suffix == ".png" and png_bit_depth(p) == 16:
+        return read_png16(p, "texture_path")
+    if suffix in (".tif", ".tiff"):
+        deep = read_tiff_full_precision(p, "texture_path")
+        if deep is not None:
+            return deep
     from PIL import Image, UnidentifiedImageError
 
     try:
         with Image.open(p) as im:
             im.load()
-            if im.mode in ("I;16", "I;16B", "I"):
+            if im.mode in ("I;16", "I;16B", "I;16L", "I"):
                 return (np.asarray(im, dtype=np.float32) / 65535.0)[..., None]
+            if im.mode == "F":
+                return np.asarray(im, dtype=np.float32)[..., None]
             if im.mode not in ("L", "LA", "RGB", "RGBA"):
                 im = im.convert("RGBA" if "A" in im.getbands() else "RGB")
             arr = np.asarray(im)

@@ -865,8 +865,9 @@ CLI: list[BadCli] = [
     ),
     BadCli(
         "cli-output-checked-before-render",
-        "render -b povray -o into a missing folder: the output is checked before any rendering",
-        lambda c: ["render", str(c.scene_file()), "-b", "povray", "-o", str(c.out / "no" / "r.png")],
+        "render -o into a missing folder: the output is checked before any rendering (-b takes only registered "
+        "backends, so the scene is sent to one that would render; the error comes first)",
+        lambda c: ["render", str(c.scene_file()), "-b", "pyrender", "-o", str(c.out / "no" / "r.png")],
         ("--output", "does not exist"),
     ),
     BadCli(
