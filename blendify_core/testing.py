@@ -39,6 +39,7 @@ __all__ = [
     "marker_scene",
     "plane_scene",
     "occluder_scene",
+    "smooth_cylinder_scene",
     "depth_plane_scene",
     "bunny_scene",
     "textured_quad_scene",
@@ -208,6 +209,26 @@ def occluder_scene(
         )
     for lamp in scene.lights:
         lamp.use_shadow = use_shadow
+    return scene
+
+
+def smooth_cylinder_scene(resolution: tuple[int, int] = (64, 48), segments: int = 24) -> Scene:
+    """A smooth-shaded cylinder (radius 0.5, height 1) built with ``add_mesh``: ``segments`` side quads and two
+    ``segments``-gon caps sharing the rim vertices (so the rim's vertex normals mix cap and side: the case
+    where angle and area weighting differ most), seen from above at an angle, under a sun."""
+    scene = Scene()
+    phi = np.arange(segments) * 2 * np.pi / segments
+    ring = np.stack([0.5 * np.cos(phi), 0.5 * np.sin(phi)], axis=1)
+    v = np.concatenate([np.c_[ring, np.full(segments, -0.5)], np.c_[ring, np.full(segments, 0.5)]])
+    k = np.arange(segments)
+    sides = [[i, (i + 1) % segments, segments + (i + 1) % segments, segments + i] for i in k]
+    caps = [list(k[::-1]), list(segments + k)]
+    mesh = scene.renderables.add_mesh(
+        v, sides + caps, DiffuseMaterial(), UniformColors((0.6, 0.6, 0.6)), tag="cylinder"
+    )
+    mesh.set_smooth(True)
+    look_at_camera(scene, resolution, (1.6, -1.9, 1.5), (0, 0, 0), fov_x=np.deg2rad(40))
+    scene.lights.add_sun(3.0, angular_diameter=0.0, rotation_mode="eulerXYZ", rotation=(30, 10, 20))
     return scene
 
 

@@ -195,15 +195,35 @@ def face_normals(vertices: ArrayLike, faces: IntArray) -> Float64Array:
 
 
 def vertex_normals(vertices: ArrayLike, faces: IntArray) -> Float64Array:
-    """(N, 3) area-weighted unit vertex normals (zero where undefined, never NaN)."""
+    """(N, 3) unit vertex normals, angle-weighted: the sum over the triangles around a vertex of the
+    triangle's unit normal times its corner angle at the vertex (zero where undefined, never NaN).
+
+    This is the project's one vertex-normal rule; every backend receives these normals (Cycles as custom
+    normals, Mitsuba and pyrender as mesh normals). It is Blender's and trimesh's rule: the corners of a
+    planar polygon's triangles at a vertex add up to the polygon's corner, so an n-gon weighs the same
+    whether it is triangulated or not (area weighting gives a fan's first vertex all of the cap)."""
     v = np.asarray(vertices, dtype=np.float64)
-    n = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     acc = np.zeros_like(v)
+    if len(f) == 0 or len(v) == 0:
+        return acc
+    p = v[f]  # (F, 3 corners, 3)
+    e = np.roll(p, -1, axis=1) - p  # edge from corner k to k+1
+    n = np.cross(e[:, 0], -e[:, 2])  # (p1 - p0) x (p2 - p0)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    unit = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+    # corner angle at k: between the edges to k+1 and to k-1
+    a, b = e, -np.roll(e, 1, axis=1)
+    cos = np.einsum("fki,fki->fk", a, b)
+    sin = np.linalg.norm(np.cross(a, b), axis=2)
+    angle = np.arctan2(sin, cos)  # (F, 3), 0 for degenerate corners
     for k in range(3):
-        np.add.at(acc, faces[:, k], n)
-    length = np.linalg.norm(acc, axis=1, keepdims=True)
-    unit: Float64Array = np.divide(acc, length, out=np.zeros_like(acc), where=length > 0)
-    return unit
+        w = unit * angle[:, k : k + 1]
+        for j in range(3):
+            acc[:, j] += np.bincount(f[:, k], weights=w[:, j], minlength=len(v))
+    norm = np.linalg.norm(acc, axis=1, keepdims=True)
+    out: Float64Array = np.divide(acc, norm, out=np.zeros_like(acc), where=norm > 0)
+    return out
 
 
 def uv_sphere(radius: float = 1.0, segments: int = 64, rings: int = 32) -> TriMesh:

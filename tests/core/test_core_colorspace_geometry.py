@@ -194,6 +194,40 @@ def test_normals_never_nan_on_degenerate_triangles():
     assert np.all(np.isfinite(m.to_mesh().normals))
 
 
+def test_vertex_normals_are_angle_weighted():
+    """One rule (angle-weighted, Blender's and trimesh's): a corner of a box weighs its three faces equally
+    however each face is cut into triangles; an n-gon cap weighs the same fanned from any vertex."""
+    # the corner (0, 0, 0) of a unit box: on the z=0 face one triangle (area 1/2) has the corner, on the
+    # y=0 and x=0 faces two (area 1): area weighting would tilt the normal away from -Z
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, 0, 1], [0, 1, 1]], float)
+    f = np.array([[0, 2, 1], [1, 2, 4], [0, 3, 5], [0, 5, 1], [0, 6, 3], [0, 2, 6]])
+    n = vertex_normals(v, f)
+    np.testing.assert_allclose(n[0], np.array([1.0, 1.0, -1.0]) / np.sqrt(3), atol=1e-12)
+    # a 12-gon cap on a prism: the rim normals do not depend on where the cap's fan starts
+    k = 12
+    phi = np.arange(k) * 2 * np.pi / k
+    ring = np.c_[np.cos(phi), np.sin(phi)]
+    pv = np.concatenate([np.c_[ring, np.zeros(k)], np.c_[ring, np.ones(k)]])
+    sides = [[i, (i + 1) % k, k + (i + 1) % k] for i in range(k)] + [[i, k + (i + 1) % k, k + i] for i in range(k)]
+    normals = []
+    for start in (0, 5):
+        top = [[k + start, k + (start + i) % k, k + (start + i + 1) % k] for i in range(1, k - 1)]
+        normals.append(vertex_normals(pv, np.array(sides + top)))
+    np.testing.assert_allclose(normals[0], normals[1], atol=1e-12)
+    # the rim: two side-quad corners (180 degrees in all) and the cap's corner, as Blender weighs polygons
+    rim = normals[0][k]
+    # (the two quads' unit normals are pi / k off the radial direction, on either side)
+    cap_angle = np.pi * (k - 2) / k
+    want = np.array([np.pi * np.cos(np.pi / k), 0.0, cap_angle])
+    np.testing.assert_allclose(rim, want / np.linalg.norm(want), atol=1e-12)
+
+
+def test_vertex_normals_match_trimesh():
+    trimesh = pytest.importorskip("trimesh", reason="trimesh not installed")
+    m = trimesh.creation.cylinder(radius=1.0, height=2.0, sections=24)
+    np.testing.assert_allclose(vertex_normals(m.vertices, m.faces), m.vertex_normals, atol=1e-12)
+
+
 # ---------------------------------------------------------------------------------------------------
 # closed, outward-facing tessellations
 # ---------------------------------------------------------------------------------------------------

@@ -17,10 +17,9 @@ OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
 #: measured, understood differences (docs/crosscheck.md): (scene, backend in the pair) -> reason.
 #: The pairs are xfail (not strict): when a backend fixes the cause, the test XPASSes and the entry goes.
 KNOWN = {
-    ("fuze", "cycles"): "Cycles' smooth normals differ from the IR's (1 deg median, 5.3 deg q99 per pixel): "
-    "Blender recomputes angle-weighted vertex normals, blendify_core.ir.geometry.vertex_normals is area-weighted "
-    "(on fuze.obj the two differ by 1.2 deg median, 11 deg q99 per vertex); the albedo differs by 3.4 % "
-    "(Cycles filters its albedo pass over the pixel, Mitsuba looks the texture up at the pixel centre)",
+    ("fuze", "cycles"): "the albedo differs by 3.4 % (Cycles filters its albedo pass over the pixel, Mitsuba "
+    "looks the texture up at the pixel centre); the smooth normals agree since every backend gets the IR's "
+    "angle-weighted vertex normals (tests/crossbackend/test_xb_geometry.py)",
     ("pointcloud", "pyrender"): "pyrender approximates points by coarser spheres (level of detail): depth "
     "q99 1.2e-3, 9 interior mask pixels",
     ("plane_area", "pyrender"): "pyrender renders an area light as a spot light (ratio 1.45)",

@@ -181,7 +181,10 @@ def new_mesh(
             uv = me.uv_layers.new(name="UVMap")
             uv.data.foreach_set("uv", np.ascontiguousarray(corner_uv, dtype=np.float32).ravel())
         if smooth and normals is not None:
-            me.normals_split_custom_set_from_vertices(np.ascontiguousarray(normals, dtype=np.float32))
+            # the IR's vertex normals as Blender's custom normals (a point-domain "custom_normal" attribute,
+            # one bulk write), so that Cycles shades with the normals every backend gets
+            custom = me.attributes.new("custom_normal", "FLOAT_VECTOR", "POINT")
+            custom.data.foreach_set("vector", np.ascontiguousarray(normals, dtype=np.float32).ravel())
     return me
 
 
@@ -412,7 +415,14 @@ class CyclesTranslator(Translator):
         return entry
 
     # -- renderables ---------------------------------------------------------------------------------
-    @handles(Mesh, features={"mesh": EXACT, "mesh.smooth": EXACT, "mesh.faces_material": EXACT})
+    @handles(
+        Mesh,
+        features={
+            "mesh": EXACT,
+            "mesh.smooth": _exact("the IR's angle-weighted vertex normals as custom normals"),
+            "mesh.faces_material": EXACT,
+        },
+    )
     def mesh(self, r: Mesh, ctx: TranslationContext, entry: _Entry, name: str) -> Any:
         feeds = self._feeds(r, ctx)
         corner_uv = r.triangle_uvs()
@@ -420,8 +430,9 @@ class CyclesTranslator(Translator):
             raise InvalidSceneError(
                 f"uv_map: renderable {r.tag!r} uses a texture but has no UV map (pass uv_map= to add_mesh)"
             )
+        normals = r.vertex_normals() if r.smooth else None  # the IR's rule, not Blender's own computation
         return self._mesh_object(
-            r, name, entry, ctx, feeds, r.vertices, r.faces, r.smooth, None, corner_uv, r.faces_material
+            r, name, entry, ctx, feeds, r.vertices, r.faces, r.smooth, normals, corner_uv, r.faces_material
         )
 
     @handles(

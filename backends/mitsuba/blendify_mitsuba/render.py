@@ -201,7 +201,7 @@ def cast_outputs(
     vectorised: bool,
     parallel: bool = False,
 ) -> dict[str, np.ndarray]:
-    """Depth (planar z, +inf background), normal (world, shading, facing the camera), albedo (the
+    """Depth (planar z, +inf background), normal (world, shading; turned for back faces), albedo (the
     material colour input, linear) and instance (renderable index, -1 background) per pixel centre.
     ``parallel``: the camera's rays are parallel (orthographic cameras, ``MitsubaNative.parallel_rays``)."""
     o, d, tn, tf, cos = _rays(camera, parallel)
@@ -267,7 +267,7 @@ def _cast_scalar(
             hit_t[k] = start + float(si.t)
             hit_shape[k] = index[sid]
             nn = np.array(si.sh_frame.n, dtype=np.float64)
-            if nn @ dk > 0:
+            if np.array(si.n, dtype=np.float64) @ dk > 0:  # a back face (by its geometric normal) is turned
                 nn = -nn
             normal[k] = nn
             if want_albedo:
@@ -316,9 +316,9 @@ def _cast_vector(
         rows = todo[done]
         hit_t[rows] = start[rows] + t[done]
         hit_shape[rows] = idx[done]
-        nn = _vec3(si.sh_frame.n)
-        nn = nn[done]
-        flip = np.einsum("ij,ij->i", nn, d[rows]) > 0
+        nn = _vec3(si.sh_frame.n)[done]
+        # a back face (by its geometric normal, as Cycles and pyrender decide) is turned to the camera
+        flip = np.einsum("ij,ij->i", _vec3(si.n)[done], d[rows]) > 0
         nn[flip] *= -1
         normal[rows] = nn
         start[todo[through]] += t[through] * (1.0 + 1e-6) + 1e-6

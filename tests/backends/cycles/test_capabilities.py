@@ -19,7 +19,7 @@ FROZEN: dict[str, tuple[str, str]] = {
     "mesh.texture": ("exact", ""),
     "mesh.file_texture": ("exact", ""),
     "mesh.faces_material": ("exact", ""),
-    "mesh.smooth": ("exact", ""),
+    "mesh.smooth": ("exact", "the IR's angle-weighted vertex normals as custom normals"),
     "pointcloud": ("exact", "native Cycles points (Geometry Nodes Mesh to Points)"),
     "pointcloud.vertex_colors": ("exact", ""),
     "pointcloud.emission": ("exact", ""),
