@@ -318,6 +318,9 @@ def _uv_maps(r: Renderable) -> tuple[list[Any], UVMap | None]:
 
 def _mesh_node(doc: _Document, r: Renderable, points: str) -> dict[str, Any] | None:
     if isinstance(r, PointCloud):
+        if r.num_vertices == 0:  # glTF accessors hold at least one element
+            doc.note(f"PointCloud {r.tag!r}: no points, not exported")
+            return None
         return _pointcloud_mesh(doc, r) if points == "points" else _sphere_cloud_mesh(doc, r)
     tm = r.to_mesh()
     if tm.is_empty:

@@ -326,3 +326,18 @@ def test_engine_formats_are_found_through_the_registry(tmp_path):
         ("mitsuba", tmp_path / "b.xml", {"samples": 4}),
         ("mitsuba", tmp_path / "c.XML", {}),
     ]
+
+
+def test_every_hard_case_exports_a_valid_gltf_and_html_page():
+    """The numerically awkward scenes of blendify_core.testing (far from the origin, degenerate geometry,
+    empty objects, extreme cameras and lights): a structurally valid glTF and a viewer page each."""
+    from blendify_core.export.html import html_document
+    from blendify_core.testing import hard_cases
+
+    for name, build in hard_cases().items():
+        scene = build()
+        gltf, blob, _ = gltf_document(scene)
+        validate(gltf, blob)
+        for acc in gltf.get("accessors", []):
+            assert acc["count"] >= 1, name  # glTF: an accessor holds at least one element
+        assert "blendify-glb" in html_document(scene), name

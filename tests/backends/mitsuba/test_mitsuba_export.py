@@ -81,3 +81,16 @@ def test_bad_input_and_the_stand_in_engine_is_always_reset(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         textured_quad_scene().export_mitsuba(tmp_path / "ok.xml", **SETTINGS)  # nothing to warn about
+
+
+def test_every_hard_case_exports_an_xml_mitsuba_loads(tmp_path, scalar_backend):
+    """The numerically awkward scenes of blendify_core.testing (far from the origin, degenerate and empty
+    geometry, extreme cameras and lights) export, and Mitsuba loads every file."""
+    from blendify_core.testing import hard_cases
+
+    for name, build in hard_cases().items():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # what the backend does around mi.render
+            path = build().export_mitsuba(tmp_path / f"{name}.xml", variant="scalar_rgb", quality="draft", samples=8)
+        mi = scalar_backend.session.set_variant()
+        assert mi.load_file(str(path)) is not None, name
