@@ -29,6 +29,7 @@ from blendify_core.evaluate.progress import progress_bar
 from blendify_core.evaluate.report import CompareReport, CrosscheckReport
 from blendify_core.evaluate.stats import ReferenceEstimate
 from blendify_core.evaluate.tiers import TIERS, _delta_lights, choose_tier, is_path_tracer
+from blendify_core.ir.attachments import IR_LIMIT_PREFIX
 from blendify_core.ir.scene import Scene
 from blendify_core.ir.validate import strict_arguments
 from blendify_core.pipeline.render import render
@@ -115,6 +116,8 @@ def crosscheck(
             "Monte-Carlo noise alone may fail them (use more samples, or repeats=k for the statistical test)"
         )
     pairs = _compare_pairs(scene, renders.results, tier)
+    limited = _limited_by_ir(renders.results, pairs)
+    limited_reports = {k: pairs.pop(k) for k in limited}
     estimates = renders.estimates
     ztests = {(a, b): estimates[a].compare(estimates[b]) for (a, b) in pairs if a in estimates and b in estimates}
     used_settings: dict[str, Any] = {"samples": samples, "seed": seed, **FIXED_SETTINGS, **settings}
@@ -132,7 +135,25 @@ def crosscheck(
         scene_name=scene_name,
         estimates=estimates,
         ztests=ztests,
+        limited=limited,
+        limited_reports=limited_reports,
     )
+
+
+def _limited_by_ir(results: Mapping[str, RenderResult], pairs: Mapping[tuple[str, str], Any]) -> dict[Any, list[str]]:
+    """Pairs where one side renders an attached file itself and the other its IR parse: what the parse could
+    not carry (the ``IR parse of`` approximations only one side lists) makes them differ, not the engines."""
+
+    def ir_limits(name: str) -> set[str]:
+        approx = results[name].meta.get("approximations", []) if isinstance(results[name].meta, dict) else []
+        return {a for a in approx if isinstance(a, str) and a.startswith(IR_LIMIT_PREFIX)}
+
+    out = {}
+    for a, b in pairs:
+        differ = ir_limits(a) ^ ir_limits(b)
+        if differ:
+            out[(a, b)] = sorted(differ)
+    return out
 
 
 #: settings crosscheck fixes so that the backends' images are comparable

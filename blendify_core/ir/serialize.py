@@ -50,7 +50,14 @@ def scene_to_header(scene: Any, arrays: dict[str, AnyArray]) -> dict[str, Any]:
         "background": None if scene.lights.background is None else scene.lights.background.to_dict(),
         "environment": None if scene.lights.environment is None else scene.lights.environment.to_dict(arrays),
         # files attached for a backend (e.g. .blend for Cycles): part of the picture, so of the file and fingerprint
-        "attachments": [{"format": a.format, "path": str(a.path)} for a in scene.attachments],
+        "attachments": [
+            {
+                "format": a.format,
+                "path": str(a.path),
+                **({"approximations": list(a.approximations)} if a.approximations else {}),
+            }
+            for a in scene.attachments
+        ],
     }
 
 
@@ -221,7 +228,10 @@ def scene_from_header(scene: Any, h: dict[str, Any], arrays: dict[str, AnyArray]
         scene.lights._add(light, d["tag"])
     if h["background"] is not None:
         scene.lights.set_background_light(**background_from_dict(h["background"]))
-    scene.attachments = [Attachment(d["format"], str(d["path"])) for d in h.get("attachments", [])] + [
+    scene.attachments = [
+        Attachment(d["format"], str(d["path"]), tuple(str(n) for n in d.get("approximations", ())))
+        for d in h.get("attachments", [])
+    ] + [
         Attachment("blend", str(d["path"]))
         for d in h.get("attached_blends", [])  # files of 0.1.0
     ]

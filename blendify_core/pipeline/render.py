@@ -83,6 +83,16 @@ def check_capabilities(backend: Backend, scene: Scene, settings: RenderSettings)
                     backend=backend.name,
                 )
             approximations.append(text)
+    for a in scene.attachments:  # a file this backend does not read: it renders the file's IR parse
+        limits = a.ir_limits() if a.format not in backend.file_formats else []
+        if limits and settings.strict:
+            raise UnsupportedFeatureError(
+                f"backend {backend.name!r} renders the IR parse of {a.path!r}, which approximates "
+                f"{len(limits)} item(s) ({'; '.join(a.approximations[:3])}...); strict=True forbids approximations",
+                feature="attachment",
+                backend=backend.name,
+            )
+        approximations.extend(limits)
     return approximations
 
 

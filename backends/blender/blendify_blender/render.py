@@ -157,6 +157,8 @@ def render_built(built: BuiltScene, settings: RenderSettings, verbose: bool = Fa
         result.meta["samples"] = int(built.engine_settings.get("samples", settings.samples))
         result.meta["log_tail"] = cap.lines[-5:]
         result.meta["translation"] = dict(built.stats)
+        if built.stats.get("ir_limits"):  # attached objects rendered from their IR parse
+            result.meta["approximations"] = list(built.stats["ir_limits"])
         return result
     finally:
         shutil.rmtree(directory, ignore_errors=True)

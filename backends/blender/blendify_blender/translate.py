@@ -342,6 +342,9 @@ class CyclesTranslator(Translator):
                 self.dispatch(a, ctx)
             stats["attached_blends"] = len(scene.attached_blends)
         self._apply_file_plan(scene, plan, stats)
+        limits = _ir_limits(scene, plan)
+        if limits:
+            stats["ir_limits"] = limits
         file_lights = frozenset(plan.lights)
         if changes.first or changes.lights or changes.attachments or file_lights != built.file_lights:
             built.lights.remove()
@@ -1070,6 +1073,17 @@ def apply_engine_settings(
         "effects_used": eff is not None,
         "geometry_only": geometry_only,
     }
+
+
+def _ir_limits(scene: Scene, plan: FilePlan) -> list[str]:
+    """The approximations of the attached files whose parsed objects render (partly) from the IR parse."""
+    out: list[str] = []
+    for a in scene.attachments:
+        sname = plan.scenes.get(a.path)
+        from_ir = sname is None or bool(plan.hidden.get((a.path, sname))) or bool(plan.reasons)
+        if from_ir:
+            out.extend(a.ir_limits())
+    return out
 
 
 def check_cycles_settings(value: Any) -> dict[str, Any]:

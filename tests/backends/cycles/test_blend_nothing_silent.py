@@ -266,3 +266,37 @@ def test_cycles_renders_attached_objects_from_the_file(files, blender_render, tm
     assert res.meta["translation"]["from_file"]["renderables"] == 2  # the floor is not back from the file
     bottom = np.asarray(res.rgba)[-2:, :, :3]  # the file's world where the floor was, not its checker
     np.testing.assert_allclose(bottom, np.broadcast_to([0.2, 0.2, 0.25], bottom.shape), atol=0.01)
+
+
+def test_other_backends_list_what_the_ir_parse_lost_and_crosscheck_says_limited(files):
+    import blendify_core as bf
+    from blendify_core.errors import UnsupportedFeatureError
+    from blendify_core.registry import available_backends
+
+    if not available_backends()["mitsuba"].available:
+        pytest.skip(f"mitsuba unavailable: {available_backends()['mitsuba'].reason}")
+    scene, _added, _msg = _attach(files["settings"], render_settings=True)
+    res = bf.render(scene, backend="mitsuba", samples=4)
+    lost = [a for a in res.meta["approximations"] if a.startswith("IR parse of settings.blend: ")]
+    assert any("Checker" in a for a in lost) and any("Red Glass is tinted" in a for a in lost)
+    plain = Scene()  # a scene Mitsuba renders exactly, but for the attached file's IR parse
+    plain.renderables.add_cube_mesh(size=1.0, material=bf.DiffuseMaterial(), colors=bf.UniformColors((0.5,) * 3))
+    plain.lights.add_sun(strength=3.0, angular_diameter=0.0)
+    plain.set_perspective_camera(
+        (32, 24), fov_x=0.8, translation=(0, -4, 0), rotation_mode="look_at", rotation=(0, 0, 0)
+    )
+    bf.render(plain, backend="mitsuba", samples=2, strict=True)
+    plain.attachments.append(scene.attachments[0])
+    with pytest.raises(UnsupportedFeatureError, match="renders the IR parse of .*settings.blend"):
+        bf.render(plain, backend="mitsuba", samples=2, strict=True)
+    # Cycles renders the file itself: nothing of the parse is an approximation there
+    cyc = bf.render(scene, backend="cycles", samples=4)
+    assert not any(a.startswith("IR parse of") for a in cyc.meta.get("approximations", []))
+    rep = bf.crosscheck(scene, backends=("cycles", "mitsuba"), outputs=("rgb",), samples=8, passes=1)
+    assert set(rep.limited) == {("cycles", "mitsuba")} and not rep.pairs
+    assert rep.limited[("cycles", "mitsuba")] == sorted(lost)
+    assert "LIMITED BY THE IR" in rep.summary()
+    # with the albedo output Cycles renders the IR parse too: the pair is judged again
+    cyc_albedo = bf.render(scene, backend="cycles", samples=4, outputs=("rgb", "albedo"))
+    assert cyc_albedo.meta["translation"]["from_file"]["renderables"] == 0
+    assert sorted(a for a in cyc_albedo.meta["approximations"] if a.startswith("IR parse of")) == sorted(lost)

@@ -398,7 +398,7 @@ def _commit(scene: Any, p: Path, pend: _Pending, with_camera: bool) -> AttachedB
         raise
     if with_camera and camera is None:
         pend.notes.add("no usable camera in the file; scene.camera unchanged")
-    scene.attachments.append(Attachment("blend", str(p)))
+    scene.attachments.append(Attachment("blend", str(p), approximations=tuple(pend.notes)))
     record_attach(
         str(p),
         pend.scene_label,
