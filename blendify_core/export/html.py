@@ -124,6 +124,8 @@ def _payload(scene: Any, show_helpers: bool) -> tuple[dict[str, Any], list[str]]
     )
     if scene.camera is None:
         summary = "no camera set: a default view. " + summary
+    if notes:  # what the glTF (and so this view) does not show as the renders do
+        summary += ". Shown approximately: " + "; ".join(notes)
     payload = {
         "camera": info,
         "frustum": [p for seg in segments for p in seg],

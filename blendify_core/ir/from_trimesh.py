@@ -19,6 +19,7 @@ __all__ = ["add_trimesh", "load_trimesh"]
 
 SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".stl", ".off")
 _DEFAULT_COLOR = (0.8, 0.8, 0.8)
+_NAME_KEY = "blendify_name"  # the geometry's name in a trimesh.Scene, kept in its metadata
 
 
 def load_trimesh(path: str | os.PathLike[str]) -> Any:
@@ -103,8 +104,18 @@ def _dump(scene: Any) -> list[Any]:
         color = getattr(getattr(geometry, "visual", None), "vertex_attributes", {}).get("color")
         if color is not None and hasattr(moved.visual, "vertex_attributes"):
             moved.visual.vertex_attributes["color"] = np.asarray(color).copy()
+        moved.metadata[_NAME_KEY] = name
         out.append(moved)
     return out
+
+
+def _tagged(collection: Any, geometry: Any, keywords: dict[str, Any]) -> dict[str, Any]:
+    """``keywords`` with the geometry's name in the file as the tag (e.g. a glTF mesh name), unless a tag
+    is given or the name is taken."""
+    name = geometry.metadata.get(_NAME_KEY)
+    if "tag" in keywords or not isinstance(name, str) or not name or name in collection:
+        return keywords
+    return {**keywords, "tag": name}
 
 
 def _colors(desc: Any, n_total: int, offset: int, n: int, color_space: str = "srgb") -> Colors:
@@ -164,20 +175,21 @@ def add_trimesh(
         # the parts added one by one share the pose (and the tag, when there is only one part)
         single = len(clouds) + (len(meshes) if not merge else min(len(meshes), 1)) == 1
         shared = {k: v for k, v in kwargs.items() if single or k in ("rotation_mode", "rotation", "translation")}
-        out = [
-            add_trimesh(collection, c, material, colors, point_size=point_size, _color_space=space, **shared)
-            for c in clouds
-        ]
+        out = []
+        for c in clouds:
+            own = _tagged(collection, c, shared)
+            out.append(add_trimesh(collection, c, material, colors, point_size=point_size, _color_space=space, **own))
         if not meshes:
             return out[0] if len(out) == 1 else out
         if not merge:
-            out += [
-                add_trimesh(collection, m, material, colors, smooth=smooth, _color_space=space, **shared)
-                for m in meshes
-            ]
+            for m in meshes:
+                own = _tagged(collection, m, shared)
+                out.append(add_trimesh(collection, m, material, colors, smooth=smooth, _color_space=space, **own))
             return out
         parts = [_part(m) for m in meshes]
         mats = [material or _material_of(m.visual) for m in meshes]
+        if len(meshes) == 1:
+            kwargs = _tagged(collection, meshes[0], kwargs)
     elif isinstance(obj, trimesh.Trimesh):
         if len(obj.faces) == 0:
             raise InvalidSceneError("mesh_or_path: the mesh has no faces (use a trimesh.PointCloud for points)")

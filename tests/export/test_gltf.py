@@ -341,3 +341,27 @@ def test_every_hard_case_exports_a_valid_gltf_and_html_page():
         for acc in gltf.get("accessors", []):
             assert acc["count"] >= 1, name  # glTF: an accessor holds at least one element
         assert "blendify-glb" in html_document(scene), name
+
+
+def test_round_trip_of_every_renderable_keeps_tags_and_world_geometry(tmp_path):
+    scene = every_feature_scene()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        path = scene.export(tmp_path / "every.glb", y_up=False, points="spheres")
+    back = bf.Scene()
+    back.renderables.add_trimesh(path, merge=False)
+    # a mesh of two material slots comes back as two meshes (trimesh splits glTF primitives)
+    assert set(back.renderables.keys()) == set(scene.renderables.keys()) | {"pyramid_1"}
+
+    def world_triangles(*renderables):
+        tris = [(r.to_mesh().vertices @ r.rotation_matrix.T + r.translation)[r.to_mesh().faces] for r in renderables]
+        return np.concatenate(tris).reshape(-1, 9)
+
+    from scipy.spatial import cKDTree
+
+    for tag, original in scene.renderables.items():
+        got = [back.renderables[tag]] + ([back.renderables["pyramid_1"]] if tag == "pyramid" else [])
+        a, b = world_triangles(*got), world_triangles(original)
+        assert len(a) == len(b), tag
+        # every triangle (its three corners, in order) has its twin on the other side
+        assert cKDTree(b).query(a)[0].max() < 1e-4 and cKDTree(a).query(b)[0].max() < 1e-4, tag

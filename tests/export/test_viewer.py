@@ -141,6 +141,9 @@ def test_the_page_is_self_contained_and_the_libraries_ship_with_their_licence(tm
     assert "three@0.160.1" in web.joinpath("SOURCES.md").read_text()
     assert "<script src" not in page and "<link" not in page  # nothing is fetched
     assert "<title>&lt;b>x&lt;/b></title>" in page
+    wire = bf.Scene()
+    wire.renderables.add_cube_mesh(1.0, bf.PlasticWireframeMaterial(), bf.UniformColors((1, 0, 0)))
+    assert "Shown approximately: wireframe" in html_mod.html_document(wire)  # the help text names it
     with pytest.raises(InvalidSceneError, match="html"):
         scene.export(tmp_path / "x.htm5")
     with pytest.raises(InvalidSceneError, match="show_helpers"):
