@@ -5,7 +5,9 @@ Renders every scene of tests/crossbackend/xb_canonical.py with every available b
 ``choose_tier`` picks, and writes:
 
 - docs/img/crosscheck_<scene>.png: the contact sheet (renders, depth, normals, albedo, ids, diff maps)
-- docs/crosscheck.md: the tiers, the measured agreement table, marker-centroid errors, the statistical
+- docs/crosscheck.md: the tiers, the measured agreement table, marker-centroid errors, the noise-aware
+  verdict and its calibration (copied from benchmarks/results/crosscheck_calibration.md, written by
+  benchmarks/crosscheck_calibration.py), the third-party scenes (tests/third_party), the statistical
   (Z-test) checks, and which backends were unavailable.
 
 Usage: ``uv run --no-sync python benchmarks/crosscheck_report.py [--scenes a,b] [--out docs]``
@@ -26,8 +28,11 @@ from scipy.stats import norm
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "crossbackend"))
+sys.path.insert(0, str(ROOT / "tests" / "third_party" / "scenes"))
 
+from ports import PORTS  # noqa: E402
 from test_xb_canonical import KNOWN  # noqa: E402
+from test_xb_third_party import KNOWN_THIRD_PARTY  # noqa: E402
 from xb_canonical import CANONICAL  # noqa: E402
 
 import blendify_core as bf  # noqa: E402
@@ -42,6 +47,8 @@ COLUMNS = [
     ("rgb", "mean_rel_error", "rgb rel (all)"),
     ("rgb", "mean_ratio", "rgb ratio"),
     ("rgb", "ssim", "SSIM"),
+    ("rgb", "noise_global_rel_diff", "noise: image rel"),
+    ("rgb", "noise_tiles_rejected", "noise: tiles rej"),
     ("rgb", "flip", "FLIP"),
     ("depth", "rel_diff_q99", "depth q99"),
     ("mask", "n_disagree", "mask diff px"),
@@ -161,6 +168,56 @@ def statistical_crosscheck(status: dict, repeats: int = 4, spp: int = 64) -> lis
     return lines
 
 
+def third_party(out: Path) -> list[str]:
+    """Every port of tests/third_party/scenes through ``bf.crosscheck`` (64 spp as 4 passes per path tracer):
+    the Cycles/Mitsuba noise-aware verdict and pyrender's SSIM against Cycles."""
+    from PIL import Image
+
+    lines = [
+        "| scene | licence | Cycles vs Mitsuba | image rel diff | tiles beyond margin | other failures | "
+        "pyrender vs Cycles SSIM | time (s) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, port in PORTS.items():
+        t0 = time.perf_counter()
+        rep = bf.crosscheck(
+            port.build(),
+            backends=BACKENDS,
+            samples=64,
+            outputs=("rgb", "depth", "normal", "instance"),
+            backend_options={"mitsuba": {"variant": "scalar_rgb"}},
+            scene_name=name,
+            progress=False,
+        )
+        elapsed = time.perf_counter() - t0
+        print(f"{name}: {elapsed:.1f} s {rep!r}")
+        Image.fromarray(rep.contact_sheet(tile=96)).save(out / "img" / f"crosscheck_tp_{name}.png")
+        pm = rep.pairs.get(("cycles", "mitsuba"))
+        pp = rep.pairs.get(("cycles", "pyrender"))
+        ssim = fmt(pp.metrics["rgb"].get("ssim")) if pp is not None else "–"
+        if pm is None or pm.noise is None:
+            lines.append(f"| {name} | {port.licence} | not compared | | | | {ssim} | {elapsed:.1f} |")
+            continue
+        other = [f.split(" (tier")[0] for f in pm.failures if not f.startswith("rgb.noise")]
+        verdict = "pass" if pm.passed else "FAIL" + (" (known)" if name in KNOWN_THIRD_PARTY else "")
+        rel = fmt(pm.metrics["rgb"]["noise_global_rel_diff"])
+        lines.append(
+            f"| [{name}](img/crosscheck_tp_{name}.png) | {port.licence} | {verdict} (`{pm.tier}`) | {rel} | "
+            f"{pm.noise.n_tile_reject} / {pm.noise.n_tiles} | {'; '.join(other) or '-'} | {ssim} | {elapsed:.1f} |"
+        )
+    return lines
+
+
+def calibration() -> list[str]:
+    """The calibration table and plot written by benchmarks/crosscheck_calibration.py (not re-run here)."""
+    md = ROOT / "benchmarks" / "results" / "crosscheck_calibration.md"
+    if not md.exists():
+        return ["Not measured yet: run `benchmarks/crosscheck_calibration.py`."]
+    body = [ln for ln in md.read_text().splitlines()[1:] if not ln.startswith("![")]
+    body = [ln.replace("## ", "### ") for ln in body]
+    return [*body, "", "![calibration](../benchmarks/results/crosscheck_calibration.png)"]
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenes", default="", help="comma-separated subset of " + ",".join(CANONICAL))
@@ -274,6 +331,41 @@ def main(argv: list[str] | None = None) -> int:
         *marker_centroids(status),
         "",
     ]
+    doc += [
+        "## The noise-aware colour verdict",
+        "",
+        "`bf.crosscheck` renders each path tracer's samples as 4 independent passes (seeds `seed`..`seed + 3`, "
+        "about the cost of one render) and keeps the variance of the mean colour (`result.rgb_var`). A pair of "
+        "path tracers is then judged by `blendify_core/evaluate/noise.py` instead of fixed colour tolerances: for "
+        "every 8×8 tile and for the whole image, per channel, the summed difference of the two means is tested "
+        "against its standard error (Student t with Welch–Satterthwaite degrees of freedom, Šidák-corrected over "
+        "the tiles, alpha = 0.01 split between tiles and image) beyond a practical margin — 0.25 % for the whole "
+        "image and 2 % for a tile (`NOISE_MARGINS`: 3 % / 8 % for non-Lambertian materials, whose BSDFs differ "
+        "between the engines). *noise: image rel* is the largest per-channel relative difference of the image "
+        "sums, *noise: tiles rej* the tiles that differ beyond their margin and noise. `bf.compare(a, b)` does the "
+        "same whenever both results carry `rgb_var` (`blendify_core.evaluate.noise.render_passes`); `passes=1` "
+        "gives the fixed tiers back.",
+        "",
+        "### Calibration",
+        "",
+        *calibration(),
+        "",
+        "## Third-party scenes",
+        "",
+        "Ports of public example scenes (`tests/third_party/scenes/ports.py`; sources and licences in "
+        "`tests/third_party/SOURCES.md`), 64 spp as 4 passes per path tracer, Mitsuba `scalar_rgb`. Nobody "
+        "here designed them: they show where the engines still differ on scenes other people build. Known "
+        "differences (xfail in `tests/crossbackend/test_xb_third_party.py`):",
+        "",
+        *[f"- **{n}**: {why}" for n, why in KNOWN_THIRD_PARTY.items()],
+        "",
+        *third_party(out),
+        "",
+        "Public `.blend` files that cannot be committed (licence unknown) are read from "
+        "`$BLENDIFY_THIRD_PARTY_DIR` (`scenes/blendify/cornell_box.blend`, `scenes/blendify/light_box.blend`; "
+        "see SOURCES.md) by `test_xb_third_party.py`, which skips them with the reason when absent.",
+        "",
+    ]
     if not args.no_stats:
         doc += [
             "## Statistical test on real renders",
@@ -313,8 +405,14 @@ def main(argv: list[str] | None = None) -> int:
         "rep.metrics['rgb']['mean_rel_error'], rep.metrics['depth']['rel_diff_q99'], rep.metrics['mask']['iou']",
         "rep.passed, rep.failures; rep.save('out/')   # diff_<output>.png heat maps + report.md + metrics.json",
         "",
-        "xc = bf.crosscheck(scene, samples=256)      # every available backend, every pair at its tier",
+        "xc = bf.crosscheck(scene, samples=256)      # every backend; path tracers as 4 passes of 64 spp",
         "xc.pairs[('cycles', 'mitsuba')], xc.skipped; xc.save('out/')   # contact sheet + markdown report",
+        "xc.pairs[('cycles', 'mitsuba')].noise      # the noise-aware verdict: .passed, .reasons, .global_rel_diff",
+        "",
+        "from blendify_core.evaluate.noise import render_passes",
+        "a = render_passes(scene, 'cycles', samples=256)   # colour = mean of 4 passes, a.rgb_var its variance",
+        "b = render_passes(scene, 'mitsuba', samples=256)",
+        "bf.compare(a, b, scene=scene).passed        # agree within noise, fail on a bias",
         "",
         "from blendify_core.evaluate.stats import estimate_reference",
         "ref = estimate_reference(scene, k=8, samples=16, backend='mitsuba')  # mean + variance from 8 seeds",
@@ -326,7 +424,8 @@ def main(argv: list[str] | None = None) -> int:
         "progress bar over their renders on a terminal or in a notebook (`progress=False` turns it off, "
         "`progress=True` forces it; `TQDM_DISABLE=1` turns every bar off).",
         "",
-        "Command line: `blendify crosscheck scene.npz -o out/ [--backends cycles,mitsuba] [--samples 256]` "
+        "Command line: `blendify crosscheck scene.npz -o out/ [--backends cycles,mitsuba] [--samples 256] "
+        "[--passes 4]` "
         "(exit code 0 when every pair passes, 1 otherwise).",
         "",
     ]

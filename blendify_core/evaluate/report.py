@@ -351,6 +351,8 @@ _GREEN, _RED = "#067d17", "#b00020"
 #: the metric shown for each output in one-line summaries
 _KEY_METRICS = (
     ("rgb", "mean_rel_error"),
+    ("rgb", "noise_global_rel_diff"),
+    ("rgb", "noise_tiles_rejected"),
     ("depth", "rel_diff_q99"),
     ("mask", "iou"),
     ("normal", "angle_q99_deg"),

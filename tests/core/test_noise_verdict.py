@@ -161,3 +161,20 @@ def test_compare_uses_the_noise_verdict_when_both_results_carry_their_noise():
         bf.compare(bf.RenderResult(rgba=a.rgba), b, tier="pathtracer", noise=True)
     with pytest.raises(bf.InvalidSceneError, match="passes"):
         bf.compare(bf.RenderResult(rgba=a.rgba, rgb_var=a.rgb_var), b, tier="pathtracer")
+
+
+def test_dark_channel_is_judged_against_the_image_brightness():
+    """A green image: +20 % in its almost black red channel is 0.012 % of the image's mean brightness, below
+    the margin's floor (a tenth of that brightness x 0.25 %); +1 % in green is not. Without the floor
+    (``floor=0``) the red channel alone would be held to 0.25 % of itself."""
+    zero = np.zeros((H, W, 3))
+    green = np.zeros((H, W, 3))
+    green[..., 1] = 0.5
+    green[..., 0] = 1e-4
+    tinted = green.copy()
+    tinted[..., 0] += 2e-5
+    assert noise_test(tinted, zero, 3, green, zero, 3).passed
+    assert not noise_test(tinted, zero, 3, green, zero, 3, floor=0.0).passed
+    brighter = green.copy()
+    brighter[..., 1] *= 1.01
+    assert not noise_test(brighter, zero, 3, green, zero, 3).passed
