@@ -7,7 +7,7 @@ glass and rough glass, GGX against multiscatter GGX, and the Glossy / Metal / Pl
 
 Every engine renders each setting as two halves of ``--samples`` with different seeds, so the Monte-Carlo
 noise of each engine is known from the halves' difference. Per setting, over the sphere's pixels (a mask
-from the camera rays, eroded by one pixel), against Cycles:
+from the camera rays, the whole visible sphere), against Cycles:
 
 - ``mean`` -- the relative difference of the mean radiance, largest over R, G, B: ``|mean(M) - mean(C)| /
   mean(C)``; ``z`` -- that difference over its standard error (from the halves): ``|z| < 3`` means no
@@ -39,7 +39,6 @@ import numpy as np
 
 import blendify_core as bf
 from blendify_core import testing
-from blendify_core.ir.colors import UniformColors
 from blendify_core.ir.materials import (
     DiffuseMaterial,
     GlossyBSDFMaterial,
@@ -52,9 +51,7 @@ from blendify_core.ir.materials import (
 )
 
 RESULTS = Path(__file__).resolve().parent / "results"
-BASE = (0.8, 0.35, 0.15)
-CENTRE = np.array([0.0, 0.0, 1.0])
-RADIUS = 1.0
+BASE = testing.MATERIAL_SPHERE_BASE
 WHITE = (1.0, 1.0, 1.0)
 ENGINES = ("mitsuba", "pyrender")
 
@@ -106,30 +103,13 @@ def is_glass(name: str) -> bool:
 
 
 def sweep_scene(material: Any, resolution: tuple[int, int] = (64, 48)) -> bf.Scene:
-    """The sweep's scene with ``material`` on the sphere."""
-    scene = bf.Scene()
-    testing.look_at_camera(scene, resolution, (0.0, -4.6, 2.4), (0.0, 0.0, 0.85), fov_x=np.deg2rad(42))
-    scene.renderables.add_sphere_nurbs(
-        RADIUS, material, UniformColors(BASE, color_space="linear"), translation=tuple(CENTRE), tag="sphere"
-    )
-    scene.renderables.add_plane_mesh(
-        12.0, DiffuseMaterial(), UniformColors((0.5, 0.5, 0.5), color_space="linear"), tag="plane"
-    )
-    scene.lights.add_area(
-        "square", 1.5, strength=400.0, rotation_mode="look_at", rotation=tuple(CENTRE), translation=(2.5, -2.0, 4.0)
-    )
-    scene.lights.set_background_light(0.3)
-    return scene
+    """The sweep's scene with ``material`` on the sphere (:func:`blendify_core.testing.material_sphere_scene`)."""
+    return testing.material_sphere_scene(material, resolution)
 
 
 def sphere_mask(scene: bf.Scene) -> np.ndarray:
-    """(H, W) bool: pixels whose whole footprint sees the sphere (ray distance to the centre < 0.93 r)."""
-    cam: Any = scene.camera
-    o, d = cam.pixel_rays()
-    oc = CENTRE - o
-    t = np.einsum("ij,ij->i", oc, d)
-    dist = np.linalg.norm(oc - t[:, None] * d, axis=1)
-    return (dist < 0.93 * RADIUS).reshape(cam.height, cam.width)
+    """The sphere's pixels (:func:`blendify_core.testing.material_sphere_mask`)."""
+    return testing.material_sphere_mask(scene)
 
 
 def render_halves(scene: bf.Scene, backend: Any, samples: int, seed: int) -> tuple[np.ndarray, np.ndarray, float]:

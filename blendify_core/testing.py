@@ -49,6 +49,8 @@ __all__ = [
     "look_at_camera",
     "calibration_scene",
     "CALIBRATION_DEFECTS",
+    "material_sphere_scene",
+    "material_sphere_mask",
 ]
 
 DATA_DIR = Path(__file__).resolve().parents[1] / "tests" / "data"
@@ -230,6 +232,50 @@ def smooth_cylinder_scene(resolution: tuple[int, int] = (64, 48), segments: int 
     look_at_camera(scene, resolution, (1.6, -1.9, 1.5), (0, 0, 0), fov_x=np.deg2rad(40))
     scene.lights.add_sun(3.0, angular_diameter=0.0, rotation_mode="eulerXYZ", rotation=(30, 10, 20))
     return scene
+
+
+#: the material sphere's base colour (linear), centre and radius (:func:`material_sphere_scene`)
+MATERIAL_SPHERE_BASE = (0.8, 0.35, 0.15)
+MATERIAL_SPHERE_CENTRE = (0.0, 0.0, 1.0)
+
+
+def material_sphere_scene(material: Any, resolution: tuple[int, int] = (64, 48)) -> Scene:
+    """The material sweep's scene: a unit sphere at (0, 0, 1) with ``material`` and the linear base colour
+    :data:`MATERIAL_SPHERE_BASE` on a Lambertian grey plane (0.5), one square area light (1.5 m, 400 W) to the
+    upper right and a uniform background (0.3); the camera looks at the sphere from the front, above."""
+    scene = Scene()
+    look_at_camera(scene, resolution, (0.0, -4.6, 2.4), (0.0, 0.0, 0.85), fov_x=np.deg2rad(42))
+    scene.renderables.add_sphere_nurbs(
+        1.0,
+        material,
+        UniformColors(MATERIAL_SPHERE_BASE, color_space="linear"),
+        translation=MATERIAL_SPHERE_CENTRE,
+        tag="sphere",
+    )
+    scene.renderables.add_plane_mesh(
+        12.0, DiffuseMaterial(), UniformColors((0.5, 0.5, 0.5), color_space="linear"), tag="plane"
+    )
+    scene.lights.add_area(
+        "square",
+        1.5,
+        strength=400.0,
+        rotation_mode="look_at",
+        rotation=MATERIAL_SPHERE_CENTRE,
+        translation=(2.5, -2.0, 4.0),
+    )
+    scene.lights.set_background_light(0.3)
+    return scene
+
+
+def material_sphere_mask(scene: Scene) -> np.ndarray:
+    """(H, W) bool: the pixels of :func:`material_sphere_scene`'s sphere (the ray through the pixel centre
+    passes within 0.985 radii of the centre): the whole visible sphere, grazing views included."""
+    cam: Any = scene.camera
+    o, d = cam.pixel_rays()
+    oc = np.asarray(MATERIAL_SPHERE_CENTRE) - o
+    t = np.einsum("ij,ij->i", oc, d)
+    dist = np.linalg.norm(oc - t[:, None] * d, axis=1)
+    return np.asarray((dist < 0.985).reshape(cam.height, cam.width))
 
 
 def depth_plane_scene(resolution: tuple[int, int] = (64, 48), distance: float = 3.0, tilt_deg: float = 30.0) -> Scene:

@@ -66,6 +66,7 @@ from blendify_core.pipeline.translator import EXACT, TranslationContext, Transla
 
 from .aniso import SquarePixelPlan, plan_square_pixels
 from .integrator import register as register_integrator
+from .principled import glossy_scale, principled_bsdf, raw_rgb, with_bitmaps
 
 __all__ = [
     "MitsubaContext",
@@ -218,6 +219,20 @@ def _normal_texture(nmap: Any) -> dict[str, Any]:
     n = blend_normal_map(nmap.normals(), float(nmap.strength))
     data = np.ascontiguousarray(((n + 1.0) * 0.5).astype(np.float32))
     return {"type": "bitmap", "data": _mi().TensorXf(data), "raw": True, "filter_type": "bilinear"}
+
+
+def _with_normal_map(inner: dict[str, Any], material: Any) -> dict[str, Any]:
+    """``inner`` under the material's normal map (if it has one)."""
+    if material.normal_map is None:
+        return inner
+    return {"type": "normalmap", "normalmap": _normal_texture(material.normal_map), "bsdf": inner}
+
+
+def _constant_rgb(color: Any) -> np.ndarray | None:
+    """The linear RGB (3,) of a constant Mitsuba colour made by :func:`_rgb`, else None (a texture)."""
+    if isinstance(color, dict) and color.get("type") == "rgb":
+        return np.asarray(color["value"], dtype=np.float64)
+    return None
 
 
 def _emission(material: Any) -> np.ndarray | None:
@@ -774,6 +789,10 @@ class MitsubaTranslator(Translator):
             shape["emitter"] = {"type": "area", "radiance": _rgb(em)}
         ctx.entries[key] = shape
         ctx.shapes[key] = ShapeInfo(index, const, tex)
+        if mat.has_wireframe:  # the edges of the IR's tessellation, the mesh Cycles renders and wires
+            part = _split(sphere.to_mesh(), sphere.matrix_world, None, 1)[0]
+            if part is not None:
+                self._wireframe(ctx, f"{prefix}_w000", index, mat, part)
 
     def _tessellated(self, r: Any, ctx: MitsubaContext, index: int) -> None:
         """Meshes, mesh primitives, ellipsoids and curves: the IR's tessellation in world space, one Mitsuba
@@ -911,16 +930,29 @@ class MitsubaTranslator(Translator):
         MetalWireframeMaterial,
         features={
             "material.principled": approximate(
-                "Mitsuba 'principled' (Disney diffuse with retro-reflection, Schlick Fresnel, no diffuse/specular "
-                "energy coupling; eta from IOR and Specular IOR Level, alpha = roughness^2). Measured on a red "
-                "sphere under a sun vs Cycles: red channel +6-7 %, dark channels (specular) +40-65 %; roughplastic "
-                "was not closer"
+                "uniform colours, isotropic: Cycles' layer model (docs/conventions.md) as a sum of Mitsuba's "
+                "built-in lobes (blendify_mitsuba/principled.py): each GGX lobe a roughconductor with a complex "
+                "IOR fitted to Cycles' Fresnel and scaled to Cycles' albedo (MULTI_GGX compensation included), "
+                "the Lambertian diffuse attenuated by the layers above; Cycles' view-dependent attenuations "
+                "become their cosine-weighted means (sphere means match, grazing pixels differ). Material sweep "
+                "(benchmarks/results/material_sweep.md): dielectrics within about 1 % of Cycles' sphere mean. "
+                "Colour textures, vertex colours, roughness/metallic maps, anisotropy: Mitsuba 'principled' "
+                "(Disney diffuse, Schlick Fresnel; 3-13 % off on dielectrics)"
             ),
             "material.diffuse_only": _exact("Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
-            "material.metallic": approximate("Mitsuba 'principled' metallic (measured 1.008 x Cycles on a sphere)"),
-            "material.transmission": approximate("principled spec_trans (one-sided, thin-surface differences)"),
-            "material.coat": approximate("principled clearcoat (different lobe from Blender's coat)"),
-            "material.sheen": approximate("principled sheen (different lobe)"),
+            "material.metallic": approximate(
+                "roughconductor fitted to Cycles' F82-tint Fresnel, scaled to its albedo; white specular tint "
+                "within about 2 %, a dark tint's dip at grazing angles is not followed (up to ~10 % darker)"
+            ),
+            "material.transmission": approximate(
+                "roughdielectric (a solid, one-sided, relative IOR 'ior'), transmittance sqrt(base colour) per "
+                "crossing, MULTI_GGX energy restored by a scale; mixed with the opaque lobes by the weight"
+            ),
+            "material.coat": approximate("a dielectric GGX lobe of coat_ior over the rest, which it attenuates"),
+            "material.sheen": approximate(
+                "a Lambertian lobe with Cycles' sheen albedo (measured, benchmarks/measure_sheen_albedo.py): "
+                "not Cycles' grazing-angle microfiber shape"
+            ),
             "material.subsurface": unsupported("Mitsuba has no subsurface scattering in the principled BSDF"),
             "material.roughness_map": approximate(
                 "raw bitmap driving principled roughness (the principled BSDF's differences)"
@@ -947,8 +979,15 @@ class MitsubaTranslator(Translator):
         },
     )
     def principled(self, material: PrincipledBSDFMaterial, ctx: MitsubaContext, color: Any) -> dict[str, Any]:
-        """The Principled family: Lambertian ``diffuse`` when the material has no specular layer (exact),
-        else Mitsuba's ``principled``; maps as raw bitmaps, the normal map through ``normalmap``."""
+        """The Principled family: Lambertian ``diffuse`` when the material has no specular layer (exact);
+        with a uniform colour, no maps and no anisotropy Cycles' layer model as a sum of built-in lobes
+        (:func:`blendify_mitsuba.principled.principled_bsdf`); else Mitsuba's ``principled`` with the maps as
+        raw bitmaps. The normal map goes through ``normalmap``."""
+        base = _constant_rgb(color)
+        maps = material.roughness_map is not None or material.metallic_map is not None
+        if base is not None and not maps and not material.is_diffuse_only and float(material.anisotropic) == 0:
+            bsdf = principled_bsdf(material, base, lambda d: _with_normal_map(d, material))
+            return dict(with_bitmaps(bsdf, _mi().Bitmap))
         if material.is_diffuse_only:
             inner: dict[str, Any] = {"type": "diffuse", "reflectance": color}
         else:
@@ -971,19 +1010,26 @@ class MitsubaTranslator(Translator):
                 "clearcoat_gloss": 1.0 - float(material.coat_roughness),
                 "sheen": float(material.sheen_weight),
             }
-        if material.normal_map is not None:
-            inner = {"type": "normalmap", "normalmap": _normal_texture(material.normal_map), "bsdf": inner}
+        inner = _with_normal_map(inner, material)
         if float(material.transmission_weight) > 0:
             return inner  # transmission needs both sides to be distinct
         return {"type": "twosided", "bsdf": inner}
 
     @handles(
         GlossyBSDFMaterial,
-        features={"material.glossy": approximate("roughconductor with a perfect-mirror Fresnel tinted by the colour")},
+        features={
+            "material.glossy": approximate(
+                "roughconductor with a perfect-mirror Fresnel tinted by the colour; for uniform colours scaled to "
+                "Cycles' albedo (height-correlated shadowing, MULTI_GGX compensation)"
+            )
+        },
     )
     def glossy(self, material: GlossyBSDFMaterial, ctx: MitsubaContext, color: Any) -> dict[str, Any]:
         """Blender's Glossy BSDF: a (rough) conductor with a perfect-mirror Fresnel, tinted by the colour."""
         r = float(material.roughness)
+        base = _constant_rgb(color)
+        if base is not None:  # Cycles' shadowing and multiple-scattering energy, as an albedo scale
+            color = with_bitmaps(raw_rgb(base * glossy_scale(r, material.distribution, base)), _mi().Bitmap)
         inner: dict[str, Any] = {"type": "conductor", "material": "none", "specular_reflectance": color}
         if r > 0:
             inner = {

@@ -41,17 +41,40 @@ FROZEN: dict[str, tuple[str, str]] = {
     "object.no_shadow": ("unsupported", "Mitsuba has no per-object shadow visibility"),
     "material.principled": (
         "approximate",
-        "Mitsuba 'principled' (Disney diffuse with retro-reflection, Schlick Fresnel, no diffuse/specular"
-        " energy coupling; eta from IOR and Specular IOR Level, alpha = roughness^2). Measured on a red "
-        "sphere under a sun vs Cycles: red channel +6-7 %, dark channels (specular) +40-65 %; "
-        "roughplastic was not closer",
+        "uniform colours, isotropic: Cycles' layer model (docs/conventions.md) as a sum of Mitsuba's built-in"
+        " lobes (blendify_mitsuba/principled.py): each GGX lobe a roughconductor with a complex IOR fitted to"
+        " Cycles' Fresnel and scaled to Cycles' albedo (MULTI_GGX compensation included), the Lambertian "
+        "diffuse attenuated by the layers above; Cycles' view-dependent attenuations become their cosine-"
+        "weighted means (sphere means match, grazing pixels differ). Material sweep "
+        "(benchmarks/results/material_sweep.md): dielectrics within about 1 % of Cycles' sphere mean. Colour "
+        "textures, vertex colours, roughness/metallic maps, anisotropy: Mitsuba 'principled' (Disney diffuse,"
+        " Schlick Fresnel; 3-13 % off on dielectrics)",
     ),
     "material.diffuse_only": ("exact", "Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
-    "material.metallic": ("approximate", "Mitsuba 'principled' metallic (measured 1.008 x Cycles on a sphere)"),
-    "material.glossy": ("approximate", "roughconductor with a perfect-mirror Fresnel tinted by the colour"),
-    "material.transmission": ("approximate", "principled spec_trans (one-sided, thin-surface differences)"),
-    "material.coat": ("approximate", "principled clearcoat (different lobe from Blender's coat)"),
-    "material.sheen": ("approximate", "principled sheen (different lobe)"),
+    "material.metallic": (
+        "approximate",
+        "roughconductor fitted to Cycles' F82-tint Fresnel, scaled to its albedo; white specular tint within "
+        "about 2 %, a dark tint's dip at grazing angles is not followed (up to ~10 % darker)",
+    ),
+    "material.glossy": (
+        "approximate",
+        "roughconductor with a perfect-mirror Fresnel tinted by the colour; for uniform colours scaled to "
+        "Cycles' albedo (height-correlated shadowing, MULTI_GGX compensation)",
+    ),
+    "material.transmission": (
+        "approximate",
+        "roughdielectric (a solid, one-sided, relative IOR 'ior'), transmittance sqrt(base colour) per "
+        "crossing, MULTI_GGX energy restored by a scale; mixed with the opaque lobes by the weight",
+    ),
+    "material.coat": (
+        "approximate",
+        "a dielectric GGX lobe of coat_ior over the rest, which it attenuates",
+    ),
+    "material.sheen": (
+        "approximate",
+        "a Lambertian lobe with Cycles' sheen albedo (measured, benchmarks/measure_sheen_albedo.py): not "
+        "Cycles' grazing-angle microfiber shape",
+    ),
     "material.subsurface": ("unsupported", "Mitsuba has no subsurface scattering in the principled BSDF"),
     "material.emission": (
         "approximate",

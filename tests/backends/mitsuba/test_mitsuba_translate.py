@@ -174,11 +174,17 @@ def test_materials_map_to_the_documented_bsdfs(mi_scalar):
     assert d["bsdf"]["alpha"] == pytest.approx(0.09)
     d = _handle(GlossyBSDFMaterial(roughness=0.0), col)
     assert d["bsdf"]["type"] == "conductor"
+    # uniform colours: Cycles' layers as a sum of built-in lobes (blendify_mitsuba.principled)
     d = _handle(MetalMaterial(), col)
-    assert d["bsdf"]["type"] == "principled" and d["bsdf"]["metallic"] == pytest.approx(0.9)
-    # Specular IOR Level 0.5 leaves the IOR unchanged
-    d = _handle(PrincipledBSDFMaterial(ior=1.5, specular_ior=0.5), col)
-    assert d["bsdf"]["eta"] == pytest.approx(1.5)
+    assert d["bsdf"]["type"] == "blendbsdf"
+    kinds = {d["bsdf"]["bsdf_0"]["type"], d["bsdf"]["bsdf_1"]["bsdf_0"]["type"]}
+    assert kinds == {"roughconductor"}  # metal (0.9) and the dielectric specular (0.1), then the diffuse
+    d = _handle(PrincipledBSDFMaterial(roughness=0.2, transmission_weight=1.0), col)
+    assert d["type"] == "roughdielectric" and d["int_ior"] == pytest.approx(1.45)  # a solid: one-sided
+    # texture colours keep Mitsuba's principled; Specular IOR Level 0.5 leaves the IOR unchanged
+    tex = mi_scalar.load_dict({"type": "checkerboard"})
+    d = _handle(PrincipledBSDFMaterial(ior=1.5, specular_ior=0.5), tex)
+    assert d["bsdf"]["type"] == "principled" and d["bsdf"]["eta"] == pytest.approx(1.5)
 
 
 def test_meshes_from_numpy_buffers(mi_scalar):

@@ -1,0 +1,523 @@
+"""Cycles' Principled BSDF (docs/conventions.md, "Materials") as a sum of Mitsuba's built-in lobes.
+
+Mitsuba has no layered BSDF of Cycles' kind and a Python BSDF is called once per ray in ``scalar_rgb`` (the
+variant every machine has), so the model is mapped onto built-in plugins whose sum Mitsuba renders natively:
+
+- every GGX lobe of Cycles (dielectric specular, metal, coat) becomes a ``roughconductor`` whose complex
+  IOR (per channel) is fitted to the lobe's Fresnel curve (real dielectric Fresnel, Blender's tint remapping,
+  the F82-tint metal Fresnel), scaled per channel so that its albedo equals Cycles' (multiple-scattering
+  compensation of ``MULTI_GGX`` included; Mitsuba's single-scattering GGX with separable shadowing is darker);
+- the diffuse lobe is Lambertian with the base colour times the attenuation of the layers above it;
+- the lobes are summed with nested ``blendbsdf`` (weights = scale factors; the scales go into raw bitmaps,
+  which Mitsuba does not clamp to [0, 1]);
+- glass is ``roughdielectric`` (solid, one-sided) with the transmission colour ``sqrt(base colour)`` per
+  crossing and the multiple-scattering energy of Cycles' glass restored by a scale.
+
+Cycles attenuates the lower layers and compensates multiple scattering as functions of the viewing angle; a
+sum of plugins holds constants, so each lobe gets the cosine-weighted mean over viewing angles of its
+attenuated albedo (what a convex object seen whole averages; per pixel the grazing angles differ). The albedos
+are computed here (numpy, GGX with visible-normal sampling over a fixed stratified grid, no randomness),
+cached per parameter set: about 1-3 ms per material at translation, nothing per ray.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "N_MU",
+    "Lobe",
+    "ggx_albedo",
+    "cos_mean",
+    "fresnel_dielectric",
+    "fresnel_conductor",
+    "f82_tint",
+    "fit_conductor",
+    "principled_lobes",
+    "glass_scale",
+    "sum_lobes",
+    "principled_bsdf",
+    "glossy_scale",
+    "cycles_albedo_of",
+    "raw_rgb",
+    "with_bitmaps",
+]
+
+#: viewing cosines of the albedo tables (midpoints of N_MU equal bins)
+N_MU = 32
+_MU = (np.arange(N_MU) + 0.5) / N_MU
+_GRID = 24  # stratified (u1, u2) samples per viewing cosine: _GRID^2
+_U1, _U2 = np.meshgrid((np.arange(_GRID) + 0.5) / _GRID, (np.arange(_GRID) + 0.5) / _GRID, indexing="ij")
+_U1, _U2 = _U1.ravel(), _U2.ravel()
+
+Fresnel = Callable[[np.ndarray], np.ndarray]  # cos(theta) (...,) -> reflectance (..., C)
+
+
+def cos_mean(values: np.ndarray) -> np.ndarray:
+    """The cosine-weighted mean over viewing angles, ``2 int_0^1 f(mu) mu dmu``, of (N_MU, ...) values."""
+    w = 2.0 * _MU / N_MU
+    return np.tensordot(w, values, axes=(0, 0))
+
+
+def fresnel_dielectric(cos_i: np.ndarray, eta: float) -> np.ndarray:
+    """Unpolarised Fresnel reflectance (...,) of a dielectric of relative IOR ``eta`` seen from outside."""
+    c = np.clip(cos_i, 0.0, 1.0)
+    g2 = eta * eta - 1.0 + c * c
+    tir = g2 < 0
+    g = np.sqrt(np.maximum(g2, 0.0))
+    a = (g - c) / np.maximum(g + c, 1e-12)
+    b = (c * (g + c) - 1.0) / np.maximum(c * (g - c) + 1.0, 1e-12)
+    f = 0.5 * a * a * (1.0 + b * b)
+    return np.where(tir, 1.0, f)
+
+
+def fresnel_conductor(cos_i: np.ndarray, n: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Unpolarised Fresnel reflectance of a conductor of complex IOR ``n + ik`` (broadcasting)."""
+    c = np.clip(cos_i, 1e-6, 1.0)
+    c2 = c * c
+    s2 = 1.0 - c2
+    n2, k2 = n * n, k * k
+    t0 = n2 - k2 - s2
+    a2b2 = np.sqrt(t0 * t0 + 4.0 * n2 * k2)
+    a = np.sqrt(np.maximum(0.5 * (a2b2 + t0), 0.0))
+    t1 = a2b2 + c2
+    t2 = 2.0 * c * a
+    rs = (t1 - t2) / (t1 + t2)
+    t3 = c2 * a2b2 + s2 * s2
+    t4 = t2 * s2
+    rp = rs * (t3 - t4) / (t3 + t4)
+    return 0.5 * (rp + rs)
+
+
+def f82_tint(cos_i: np.ndarray, f0: np.ndarray, tint: np.ndarray) -> np.ndarray:
+    """Cycles' metal Fresnel (..., 3): Schlick with F0 = base colour, bent so that at cos = 1/7 it is
+    Schlick's times ``tint`` (Kutz et al.'s F82-tint model)."""
+    c = np.clip(cos_i, 0.0, 1.0)[..., None]
+    schlick = f0 + (1.0 - f0) * (1.0 - c) ** 5
+    c82 = 1.0 / 7.0
+    s82 = f0 + (1.0 - f0) * (1.0 - c82) ** 5
+    b = s82 * (1.0 - tint) / (c82 * (1.0 - c82) ** 6)
+    return np.clip(schlick - b * c * (1.0 - c) ** 6, 0.0, 1.0)
+
+
+def _smith_lambda(cos_t: np.ndarray, alpha: float) -> np.ndarray:
+    c2 = np.clip(cos_t * cos_t, 1e-12, 1.0)
+    return 0.5 * (np.sqrt(1.0 + alpha * alpha * (1.0 - c2) / c2) - 1.0)
+
+
+@functools.lru_cache(maxsize=64)
+def _vndf(alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Visible-normal samples for every viewing cosine (isotropic GGX, Heitz 2018): cos(v, h) and the
+    reflected direction's cosine, the Smith lambdas of v and l, shape (N_MU, _GRID^2)."""
+    mu = _MU[:, None]
+    v = np.stack([np.sqrt(1.0 - mu * mu) * np.ones_like(_U1), np.zeros_like(mu * _U1), mu * np.ones_like(_U1)], -1)
+    vh = v * np.array([alpha, alpha, 1.0])
+    vh /= np.linalg.norm(vh, axis=-1, keepdims=True)
+    t1 = np.zeros_like(vh)
+    t1[..., 1] = 1.0  # v lies in the xz plane: T1 = (-vh.y, vh.x, 0) / |.| = (0, 1, 0)
+    t2 = np.cross(vh, t1)
+    r = np.sqrt(_U1)
+    phi = 2.0 * math.pi * _U2
+    p1, p2 = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1.0 + vh[..., 2])
+    p2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - p1 * p1, 0.0)) + s * p2
+    nh = p1[..., None] * t1 + p2[..., None] * t2 + np.sqrt(np.maximum(1.0 - p1 * p1 - p2 * p2, 0.0))[..., None] * vh
+    h = nh * np.array([alpha, alpha, 1.0])
+    h[..., 2] = np.maximum(h[..., 2], 1e-9)
+    h /= np.linalg.norm(h, axis=-1, keepdims=True)
+    vdoth = np.sum(v * h, axis=-1)
+    cos_l = 2.0 * vdoth * h[..., 2] - v[..., 2]
+    return vdoth, cos_l, _smith_lambda(v[..., 2], alpha), _smith_lambda(cos_l, alpha)
+
+
+def ggx_albedo(alpha: float, fresnel: Fresnel | None, correlated: bool) -> np.ndarray:
+    """Directional albedo (N_MU, C) of single-scattering GGX reflection with ``fresnel`` (None: 1) at the
+    viewing cosines; ``correlated``: height-correlated Smith shadowing (Cycles), else separable (Mitsuba)."""
+    alpha = max(float(alpha), 1e-4)
+    vdoth, cos_l, lam_v, lam_l = _vndf(alpha)
+    above = cos_l > 0
+    if correlated:
+        g = (1.0 + lam_v) / (1.0 + lam_v + lam_l)
+    else:
+        g = 1.0 / (1.0 + lam_l)  # G1(v) G1(l) / G1(v)
+    g = np.where(above, g, 0.0)
+    f = np.ones(vdoth.shape + (1,)) if fresnel is None else fresnel(vdoth)
+    if f.ndim == vdoth.ndim:
+        f = f[..., None]
+    return np.asarray((f * g[..., None]).mean(axis=1))
+
+
+def _fresnel_mean(fresnel: Fresnel) -> np.ndarray:
+    """The cosine-weighted mean Fresnel (C,) over incidence angles (Cycles' F_ss)."""
+    f = fresnel(_MU)
+    return cos_mean(f if f.ndim > 1 else f[:, None])
+
+
+def cycles_albedo(alpha: float, fresnel: Fresnel, multiscatter: bool) -> np.ndarray:
+    """Cycles' directional albedo (N_MU, C) of a GGX reflection lobe: single scattering, times
+    ``1 + F_ms (1 - E) / E`` when compensated (docs/conventions.md, "Roughness")."""
+    single = ggx_albedo(alpha, fresnel, correlated=True)
+    if not multiscatter:
+        return single
+    e = ggx_albedo(alpha, None, correlated=True)  # (N_MU, 1)
+    e_avg = float(cos_mean(e)[0])
+    f_ss = _fresnel_mean(fresnel)
+    f_ms = f_ss * e_avg / (1.0 - f_ss * (1.0 - e_avg))
+    return single * (1.0 + f_ms * (1.0 - e) / np.maximum(e, 1e-6))
+
+
+# -- fitting a complex IOR to a Fresnel curve --------------------------------------------------------
+_FIT_N = np.concatenate([np.linspace(1.0, 1.6, 61)[1:], np.geomspace(1.6, 30.0, 60), np.geomspace(0.03, 1.0, 50)])
+_FIT_K = np.concatenate([[0.0], np.geomspace(0.01, 12.0, 70)])
+_FIT_C = np.linspace(0.005, 1.0, 64)
+
+
+@functools.lru_cache(maxsize=1)
+def _fit_table() -> np.ndarray:
+    n, k = np.meshgrid(_FIT_N, _FIT_K, indexing="ij")
+    return np.asarray(fresnel_conductor(_FIT_C[:, None, None], n[None], k[None]))  # (C, N, K)
+
+
+@functools.lru_cache(maxsize=1)
+def _fit_means() -> np.ndarray:
+    return np.maximum(np.tensordot(_FIT_C, _fit_table(), axes=(0, 0)) / np.sum(_FIT_C), 1e-9)
+
+
+def fit_conductor(target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per channel, the conductor IOR ``(n, k)`` whose Fresnel is closest (cosine-weighted least squares,
+    over a fixed grid) to ``target`` (len(_FIT_C), C) sampled at :data:`_FIT_C`."""
+    table, means = _fit_table(), _fit_means()
+    w = _FIT_C[:, None, None] ** 3  # near-normal reflection dominates what a surface shows
+    ns, ks = [], []
+    for ch in range(target.shape[1]):
+        t = target[:, ch]
+        t_mean = max(float(np.sum(_FIT_C * t) / np.sum(_FIT_C)), 1e-9)  # the cosine-weighted mean
+        # the shape (the curve over its mean; the albedo scale sets the level) and the level, relative
+        err = np.sum(w * (table / means - (t / t_mean)[:, None, None]) ** 2, axis=0) / np.sum(w)
+        i, j = np.unravel_index(int(np.argmin(err)), err.shape)
+        ns.append(_FIT_N[i])
+        ks.append(_FIT_K[j])
+    return np.array(ns), np.array(ks)
+
+
+@functools.lru_cache(maxsize=256)
+def _conductor_lobe(alpha: float, key: tuple[float, ...], kind: str, multiscatter: bool) -> tuple[Any, ...]:
+    """(n, k, albedo scale, Cycles albedo (N_MU, 3)) of one GGX lobe of Cycles (cached by parameters)."""
+    fresnel = _fresnel_of(kind, key)
+    target = fresnel(_FIT_C)
+    if target.ndim == 1:
+        target = np.repeat(target[:, None], 3, axis=1)
+    n, k = fit_conductor(target)
+    a_cyc = cycles_albedo(alpha, fresnel, multiscatter)
+    if a_cyc.shape[1] == 1:
+        a_cyc = np.repeat(a_cyc, 3, axis=1)
+    a_mi = ggx_albedo(alpha, lambda c: fresnel_conductor(c[..., None], n, k), correlated=False)
+    scale = cos_mean(a_cyc) / np.maximum(cos_mean(a_mi), 1e-9)
+    return n, k, scale, a_cyc
+
+
+def _fresnel_of(kind: str, key: tuple[float, ...]) -> Fresnel:
+    if kind == "dielectric":  # (eta, f0 tint r, g, b): the real Fresnel remapped to [F0 * tint, 1]
+        eta, tint = key[0], np.array(key[1:4])
+        f0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+
+        def remapped(c: np.ndarray) -> np.ndarray:
+            f = fresnel_dielectric(c, eta)[..., None]
+            f0t = f0 * tint
+            return np.asarray(f0t + (1.0 - f0t) * (f - f0) / (1.0 - f0))
+
+        return remapped
+    # "f82": (F0 r, g, b, tint r, g, b)
+    f0v, tint = np.array(key[0:3]), np.array(key[3:6])
+    return lambda c: f82_tint(c, f0v, tint)
+
+
+# -- the lobes of a Principled material ----------------------------------------------------------------
+@dataclass
+class Lobe:
+    """One term of the sum: a Mitsuba BSDF dict built by ``make(scale)`` with the per-channel ``scale``
+    (3,) folded into its reflectance, the scale Cycles' model gives it, and Cycles' albedo of the lobe."""
+
+    make: Callable[[np.ndarray], dict[str, Any]]
+    scale: np.ndarray
+    #: Cycles' directional albedo of the lobe (N_MU, 3), attenuation by the layers above included
+    cycles: np.ndarray
+
+
+def effective_eta(ior: float, level: float) -> tuple[float, float]:
+    """Blender's Specular IOR Level: (eta, F0) with ``F0 = F0(ior) * 2 * level`` (eta 1: no layer)."""
+    f0 = ((ior - 1.0) / (ior + 1.0)) ** 2 * 2.0 * level
+    f0 = min(max(f0, 0.0), 0.99)
+    if f0 <= 0.0:
+        return 1.0, 0.0
+    s = math.sqrt(f0)
+    return (1.0 + s) / (1.0 - s), f0
+
+
+def raw_rgb(values: Any) -> dict[str, Any]:
+    """A constant RGB as a raw 2x2 bitmap (values above 1 allowed, unlike Mitsuba's ``rgb``); its ``bitmap``
+    is a numpy array, which the translator turns into the engine's ``Bitmap`` (:func:`with_bitmaps`: a
+    ``Bitmap`` survives loading the same dictionary twice, a ``TensorXf`` does not)."""
+    v = np.asarray(values, dtype=np.float32).reshape(3)
+    data = np.ascontiguousarray(np.tile(v, (2, 2, 1)))
+    return {"type": "bitmap", "bitmap": data, "raw": True, "filter_type": "nearest"}
+
+
+def with_bitmaps(d: Any, bitmap: Callable[[np.ndarray], Any]) -> Any:
+    """``d`` (a BSDF dict tree) with every numpy ``bitmap`` replaced by ``bitmap(array)``."""
+    if isinstance(d, dict):
+        return {
+            k: bitmap(v) if k == "bitmap" and isinstance(v, np.ndarray) else with_bitmaps(v, bitmap)
+            for k, v in d.items()
+        }
+    return d
+
+
+def _ggx_lobe(alpha: float, n: np.ndarray, k: np.ndarray) -> Callable[[np.ndarray], dict[str, Any]]:
+    def make(scale: np.ndarray) -> dict[str, Any]:
+        d: dict[str, Any] = {
+            "type": "roughconductor",
+            "distribution": "ggx",
+            "alpha": max(alpha, 1e-4),
+            "eta": raw_rgb(n),
+            "k": raw_rgb(k),
+            "specular_reflectance": raw_rgb(scale),
+        }
+        if alpha <= 0.0:
+            del d["alpha"], d["distribution"]
+            d["type"] = "conductor"
+        return d
+
+    return make
+
+
+def _diffuse_lobe(make_color: Callable[[np.ndarray], Any]) -> Callable[[np.ndarray], dict[str, Any]]:
+    return lambda scale: {"type": "diffuse", "reflectance": make_color(scale)}
+
+
+def principled_lobes(material: Any, base: np.ndarray) -> list[Lobe]:
+    """The opaque part of Cycles' Principled model for ``material`` with the constant linear ``base`` colour
+    (3,), as lobes with their per-channel scales (transmission excluded: see :func:`glass_scale`)."""
+    multi = material.distribution == "MULTI_GGX"
+    rough = float(material.roughness)
+    alpha = rough * rough
+    w = np.ones((N_MU, 1))  # the attenuation handed to the layers below, per viewing cosine
+    lobes: list[Lobe] = []
+
+    sheen = float(material.sheen_weight)
+    if sheen > 0:
+        tint = material.linear("sheen_tint")[:3] * sheen
+        a_sheen = sheen_albedo(float(material.sheen_roughness))[:, None] * tint  # (N_MU, 3)
+        lobes.append(Lobe(_diffuse_lobe(raw_rgb), cos_mean(w * a_sheen), w * a_sheen))
+        w = w * (1.0 - np.max(a_sheen, axis=1, keepdims=True))
+
+    coat = float(material.coat_weight)
+    if coat > 0:
+        c_alpha = float(material.coat_roughness) ** 2
+        eta = max(float(material.coat_ior), 1.0)
+        if eta > 1.0:
+            n, k, scale, a_coat = _conductor_lobe(c_alpha, (eta, 1.0, 1.0, 1.0), "dielectric", True)
+            lobes.append(
+                Lobe(
+                    _ggx_lobe(c_alpha, n, k), scale * cos_mean(w * coat * a_coat) / cos_mean(a_coat), w * coat * a_coat
+                )
+            )
+            w = w * (1.0 - coat * a_coat[:, :1])
+        tint = material.linear("coat_tint")[:3]
+        if np.any(tint < 1.0):
+            cos_t = np.sqrt(1.0 - (1.0 - _MU**2) / (eta * eta))[:, None]
+            w = w * (1.0 - coat + coat * np.power(np.maximum(tint, 1e-6), 1.0 / cos_t))
+
+    metal = float(material.metallic)
+    if metal > 0:
+        spec_tint = material.linear("specular_tint")[:3]
+        key = tuple(float(x) for x in np.concatenate([base, spec_tint]))
+        n, k, scale, a_metal = _conductor_lobe(alpha, key, "f82", multi)
+        lobes.append(
+            Lobe(_ggx_lobe(alpha, n, k), scale * cos_mean(w * metal * a_metal) / cos_mean(a_metal), w * metal * a_metal)
+        )
+        w = w * (1.0 - metal)
+    w = w * (1.0 - float(material.transmission_weight))
+
+    eta, f0 = effective_eta(float(material.ior), float(material.specular_ior))
+    if f0 > 0:
+        spec_tint = material.linear("specular_tint")[:3]
+        key = (eta, *(float(x) for x in spec_tint))
+        n, k, scale, a_spec = _conductor_lobe(alpha, key, "dielectric", multi)
+        lobes.append(Lobe(_ggx_lobe(alpha, n, k), scale * cos_mean(w * a_spec) / cos_mean(a_spec), w * a_spec))
+        # the layers below lose the compensated albedo whichever the distribution (measured: with "GGX" the
+        # energy single scattering loses is lost, not handed to the diffuse layer)
+        a_below = a_spec if multi else _conductor_lobe(alpha, key, "dielectric", True)[3]
+        w = w * (1.0 - np.max(a_below, axis=1, keepdims=True))
+    lobes.append(Lobe(_diffuse_lobe(raw_rgb), base * cos_mean(w), w * base))
+    return lobes
+
+
+# Cycles' microfiber sheen albedo is not reproduced from Cycles' tables here: it is approximated by the
+# albedo of a sheen-only Principled sphere measured in Cycles (see sheen_albedo).
+_SHEEN_ROUGH = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
+
+
+def sheen_albedo(roughness: float) -> np.ndarray:
+    """Directional albedo (N_MU,) of Cycles' sheen layer of weight 1 and white tint (approximation)."""
+    table = _sheen_table()
+    i = float(np.interp(roughness, _SHEEN_ROUGH, np.arange(len(_SHEEN_ROUGH))))
+    lo = int(math.floor(i))
+    hi = min(lo + 1, len(_SHEEN_ROUGH) - 1)
+    t = i - lo
+    return np.asarray((1 - t) * table[lo] + t * table[hi])
+
+
+def _sheen_table() -> np.ndarray:
+    """(len(_SHEEN_ROUGH), N_MU): measured in Cycles (see :data:`SHEEN_MEASURED`), interpolated in mu."""
+    out = []
+    for row in SHEEN_MEASURED:
+        out.append(np.interp(_MU, SHEEN_MU, row))
+    return np.array(out)
+
+
+#: viewing cosines and sheen albedos per sheen roughness (rows: _SHEEN_ROUGH), measured with Cycles (bpy
+#: 5.0.1, benchmarks/measure_sheen_albedo.py, 1024 spp): a sheen-only Principled sphere (black base, no
+#: specular layer) under a uniform white background; mu below 0.1 takes the value at 0.1
+SHEEN_MU = np.array([0.1, 0.2, 0.3, 0.5, 0.7, 0.9, 1.0])
+SHEEN_MEASURED = np.array(
+    [
+        [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [0.262, 0.1787, 0.0664, 0.0077, 0.0015, 0.0004, 0.0003],
+        [0.398, 0.4291, 0.3205, 0.1552, 0.0698, 0.0296, 0.0206],
+        [0.4598, 0.5549, 0.484, 0.3476, 0.2441, 0.1682, 0.1439],
+        [0.5133, 0.6465, 0.5965, 0.4993, 0.4233, 0.3657, 0.3462],
+    ]
+)
+
+
+def glass_scale(material: Any) -> float:
+    """The factor restoring the energy Mitsuba's single-scattering ``roughdielectric`` (separable shadowing)
+    loses against Cycles' compensated glass: 1 / (cosine-weighted mean of its R + T albedo)."""
+    r = float(material.roughness)
+    if r <= 0.0 or material.distribution != "MULTI_GGX":
+        return 1.0
+    return 1.0 / _glass_albedo(r * r, float(material.ior))
+
+
+@functools.lru_cache(maxsize=64)
+def _glass_albedo(alpha: float, eta: float) -> float:
+    vdoth, cos_l, lam_v, lam_l = _vndf(max(alpha, 1e-4))
+    f = fresnel_dielectric(vdoth, eta)
+    g_r = np.where(cos_l > 0, 1.0 / (1.0 + lam_l), 0.0)
+    # refracted direction's cosine: cos_t = -(vdoth / eta - ...) ; its Smith lambda from |cos_t|
+    mu = _MU[:, None]
+    sin2_t = (1.0 - vdoth**2) / (eta * eta)
+    cos_ht = np.sqrt(np.maximum(1.0 - sin2_t, 0.0))
+    h_z = (cos_l + mu) / np.maximum(2.0 * vdoth, 1e-9)  # h.z from the reflection: l + v = 2 (v.h) h
+    cos_t = (vdoth / eta - cos_ht) * h_z - mu / eta  # t = -v/eta + (v.h/eta - cos_ht) h, z component
+    g_t = np.where(cos_t < 0, 1.0 / (1.0 + _smith_lambda(np.abs(cos_t), alpha)), 0.0)
+    e = (f * g_r + (1.0 - f) * g_t).mean(axis=1)
+    return float(cos_mean(e))
+
+
+def sum_lobes(lobes: list[Lobe]) -> dict[str, Any]:
+    """The sum of the lobes as nested ``blendbsdf``: lobe i sits under blend weights whose product is
+    1 / n, so it is built with n times its scale."""
+    live = [lb for lb in lobes if float(np.max(lb.scale)) > 0]
+    if not live:
+        return {"type": "diffuse", "reflectance": raw_rgb(np.zeros(3))}
+    n = len(live)
+    node = live[-1].make(live[-1].scale * n)
+    for i in range(n - 2, -1, -1):
+        m = n - i  # lobes in this node
+        node = {"type": "blendbsdf", "weight": (m - 1) / m, "bsdf_0": live[i].make(live[i].scale * n), "bsdf_1": node}
+    return node
+
+
+def glass_lobe(material: Any, base: np.ndarray) -> dict[str, Any]:
+    """Cycles' transmission layer: ``roughdielectric`` (a solid: one-sided, relative IOR ``ior``), the
+    transmission colour ``sqrt(base colour)`` per crossing, reflection scaled by the tint remapping's mean,
+    both scaled by :func:`glass_scale`."""
+    eta = float(material.ior)
+    r = float(material.roughness)
+    s = glass_scale(material)
+    tint = material.linear("specular_tint")[:3]
+    f_real = cos_mean(fresnel_dielectric(_MU, eta))
+    f_tint = cos_mean(_fresnel_of("dielectric", (eta, *(float(x) for x in tint)))(_MU))
+    d: dict[str, Any] = {
+        "type": "roughdielectric",
+        "distribution": "ggx",
+        "alpha": max(r * r, 1e-4),
+        "int_ior": max(eta, 1.0001),
+        "ext_ior": 1.0,
+        "specular_reflectance": raw_rgb(s * f_tint / max(float(f_real), 1e-6)),
+        "specular_transmittance": raw_rgb(s * np.sqrt(np.clip(base, 0.0, None))),
+    }
+    if r <= 0.0:
+        del d["alpha"], d["distribution"]
+        d["type"] = "dielectric"
+    return d
+
+
+def cycles_albedo_of(material: Any, base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cycles' directional albedo (N_MU, 3) of an opaque Principled material (the sum of its lobes) at the
+    viewing cosines (N_MU,): what a white uniform background shows of it."""
+    lobes = principled_lobes(material, np.asarray(base, dtype=np.float64)[:3])
+    return _MU.copy(), np.asarray(sum(np.broadcast_to(lb.cycles, (N_MU, 3)) for lb in lobes))
+
+
+def principled_bsdf(
+    material: Any, base: np.ndarray, wrap: Callable[[dict[str, Any]], dict[str, Any]]
+) -> dict[str, Any]:
+    """The Mitsuba BSDF of a Principled material with the constant linear ``base`` colour (3,): the opaque
+    lobes summed and made two-sided, blended with the one-sided glass of the transmission layer;
+    ``wrap`` wraps each part (the normal map)."""
+    base = np.asarray(base, dtype=np.float64)[:3]
+    tw = float(material.transmission_weight)
+    lobes = principled_lobes(material, base)
+    if tw <= 0.0:
+        return {"type": "twosided", "bsdf": wrap(sum_lobes(lobes))}
+    glass = wrap(glass_lobe(material, base))
+    above = transmission_weight_above(material)
+    g = min(max(above * tw, 0.0), 1.0)
+    if g >= 1.0 - 1e-6:
+        return glass
+    for lb in lobes:
+        lb.scale = lb.scale / (1.0 - g)
+    opaque = {"type": "twosided", "bsdf": wrap(sum_lobes(lobes))}
+    return {"type": "blendbsdf", "weight": g, "bsdf_0": opaque, "bsdf_1": glass}
+
+
+def transmission_weight_above(material: Any) -> float:
+    """The mean attenuation (scalar) the sheen, coat and metal layers hand to the transmission layer."""
+    w = np.ones((N_MU, 1))
+    sheen = float(material.sheen_weight)
+    if sheen > 0:
+        tint = material.linear("sheen_tint")[:3] * sheen
+        w = w * (1.0 - np.max(sheen_albedo(float(material.sheen_roughness))[:, None] * tint, axis=1, keepdims=True))
+    coat, eta = float(material.coat_weight), max(float(material.coat_ior), 1.0)
+    if coat > 0 and eta > 1.0:
+        a_coat = _conductor_lobe(float(material.coat_roughness) ** 2, (eta, 1.0, 1.0, 1.0), "dielectric", True)[3]
+        w = w * (1.0 - coat * a_coat[:, :1])
+    return float(cos_mean(w)[0]) * (1.0 - float(material.metallic))
+
+
+def glossy_scale(roughness: float, distribution: str, color: np.ndarray) -> np.ndarray:
+    """Per channel, the factor taking Mitsuba's ``roughconductor`` with a perfect-mirror Fresnel (separable
+    shadowing, single scattering) to Cycles' Glossy BSDF of colour ``color`` (GGX: height-correlated
+    shadowing; MULTI_GGX: compensated with ``F_ss`` = the colour)."""
+    alpha = roughness * roughness
+    if roughness <= 0.0 or distribution not in ("GGX", "MULTI_GGX"):
+        return np.ones(3)
+    out = []
+    for c in np.asarray(color, dtype=np.float64)[:3]:
+        a_cyc = cycles_albedo(alpha, _constant_fresnel(float(c)), distribution == "MULTI_GGX")
+        a_mi = ggx_albedo(alpha, None, correlated=False) * c
+        out.append(float(cos_mean(a_cyc)[0] / max(float(cos_mean(a_mi)[0]), 1e-9)))
+    return np.array(out)
+
+
+def _constant_fresnel(value: float) -> Fresnel:
+    return lambda c: np.full(np.shape(c) + (1,), value)
