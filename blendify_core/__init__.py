@@ -63,10 +63,11 @@ from blendify_core.ir.renderables import (
 )
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.backend import Backend, Capability
+from blendify_core.pipeline.cost import CostEstimate, estimate_cost
 from blendify_core.pipeline.effects import Effects, analyse_effects
 from blendify_core.pipeline.render import render
 from blendify_core.pipeline.result import RenderResult
-from blendify_core.pipeline.settings import RenderSettings, resolve_settings
+from blendify_core.pipeline.settings import FINAL_TARGET_ERROR, RenderSettings, resolve_settings
 from blendify_core.registry import (
     BackendStatus,
     available_backends,
@@ -87,6 +88,8 @@ __all__ = [
     "__version__",
     "Scene",
     "render",
+    "estimate_cost",
+    "CostEstimate",
     "render_many",
     "render_frames",
     "RenderJob",
@@ -97,6 +100,7 @@ __all__ = [
     "CrosscheckReport",
     "RenderResult",
     "RenderSettings",
+    "FINAL_TARGET_ERROR",
     "resolve_settings",
     "Effects",
     "analyse_effects",

@@ -23,6 +23,7 @@ from blendify_core.cli.demo import run_demo
 from blendify_core.errors import BlendifyError, InvalidSceneError, exit_code, exit_code_epilog
 from blendify_core.evaluate.crosscheck import crosscheck_main
 from blendify_core.ir.scene import Scene
+from blendify_core.pipeline.cost import estimate_cost
 from blendify_core.pipeline.render import render
 from blendify_core.pipeline.settings import QUALITIES
 from blendify_core.registry import available_backends, backend_names, get_backend_class
@@ -66,6 +67,13 @@ def _render(args: argparse.Namespace) -> int:
     if not target.absolute().parent.is_dir():
         raise InvalidSceneError(f"--output: the folder {str(target.absolute().parent)!r} does not exist")
     scene = Scene.load(args.scene, allow_outside=args.allow_outside)
+    overrides = {} if args.target_error is None else {"target_error": args.target_error}
+    if args.estimate:
+        if args.samples is not None:
+            raise InvalidSceneError("--estimate: the pilot chooses the samples; drop --samples")
+        est = estimate_cost(scene, backend=args.backend, quality=args.quality, seed=args.seed, **overrides)
+        print(est)
+        return 0
     result = render(
         scene,
         backend=args.backend,
@@ -73,12 +81,15 @@ def _render(args: argparse.Namespace) -> int:
         samples=args.samples,
         seed=args.seed,
         outputs=_outputs(args.outputs),
+        **overrides,
     )
     # the same files as a batch job: OUT = rgb (or the first output), OUT.<name>.<ext> for the others
     out = Path(args.output)
     save_outputs(result, str(out), tuple(result.meta["settings"]["outputs"]))
     t = result.meta.get("timings", {}).get("total", 0.0)
-    print(f"wrote {out} ({result.meta['backend']}, {t:.2f} s)")
+    err = result.meta.get("estimated_error")
+    accuracy = "" if err is None else f", {result.meta['samples']} samples, estimated error {err:.3g}"
+    print(f"wrote {out} ({result.meta['backend']}, {t:.2f} s{accuracy})")
     return 0
 
 
@@ -142,6 +153,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--outputs", default="rgb", help="comma-separated: rgb,depth,normal,albedo,instance")
     p.add_argument("--allow-outside", action="store_true", help="allow texture paths outside the scene's folder")
+    p.add_argument(
+        "--target-error", type=float, default=None, help="render passes until this relative RMS error (final: 0.01)"
+    )
+    p.add_argument(
+        "--estimate", action="store_true", help="print the predicted samples and time from a short pilot; no render"
+    )
     p.set_defaults(func=_render)
 
     p = sub.add_parser("demo", help="render the built-in donut demo into a labelled contact sheet", **common)

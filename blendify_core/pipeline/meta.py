@@ -103,8 +103,13 @@ class RenderMeta(TypedDict, total=False):
     estimated_error_kind: str
     #: (core, ``target_error``; ``bf.crosscheck`` of a path tracer) independent passes rendered
     passes: int
+    #: (core, ``target_error`` only) 90 % confidence interval of ``estimated_error`` (jackknife over passes)
+    estimated_error_interval: list[float]
     #: (core, ``target_error`` only) whether the estimate reached the target
     target_reached: bool
+    #: (core, ``target_error`` only) why the passes stopped: "target reached", "time_limit", "pass cap",
+    #: "sample cap"
+    stopped: str
     #: (``bf.crosscheck`` with ``repeats``) renders averaged into the colour image
     repeats: int
 

@@ -366,8 +366,13 @@ def _error_meta(meta: RenderMeta, settings: RenderSettings, path_tracer: bool) -
     meta["estimated_error"] = None
     if "rgb" not in settings.outputs:
         why = "not estimated: no colour output"
+    elif path_tracer and settings.denoise:
+        why = "not estimated: denoised (a denoiser's error is bias, not noise)"
     elif path_tracer:
-        why = "not estimated: single pass (pass target_error= for an estimate from independent passes)"
+        why = (
+            f"not estimated: a fixed {settings.samples} samples in one pass (leave samples unset under 'final', "
+            "or pass target_error=, for an estimate from independent passes)"
+        )
     else:
         why = "not estimated: raster backend (deterministic: its error is bias, not noise)"
     meta["estimated_error_kind"] = why
@@ -394,6 +399,16 @@ def _clip_check(scene: Scene, bounds: Bounds | None) -> str | None:
     return None
 
 
+def _per_sample_variance(passes: FloatArray, n: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The sample-weighted mean of passes (K, H, W, C) with n_i samples each, and the per-sample variance
+    sum(n_i (x_i - mean)^2) / (K - 1) of each pixel-channel."""
+    k = passes.shape[0]
+    w = (n / n.sum()).reshape((k,) + (1,) * (passes.ndim - 1))
+    mean = (passes * w).sum(axis=0)
+    var_one = (n.reshape(w.shape) * (passes - mean) ** 2).sum(axis=0) / (k - 1)
+    return mean, var_one
+
+
 def relative_error_estimate(passes: FloatArray, samples: FloatArray | None = None) -> float:
     """Estimated relative RMS error of the sample-weighted mean of independent passes (K, H, W, C), K >= 2.
 
@@ -401,18 +416,50 @@ def relative_error_estimate(passes: FloatArray, samples: FloatArray | None = Non
     estimated as sum(n_i (x_i - mean)^2) / (K - 1) and the variance of the mean is that / sum(n_i). The
     result is the RMS over pixel-channels of sqrt(var / (mean^2 + 0.01)) (Mitsuba's relative-MSE floor):
     its square is the relative MSE."""
-    k = passes.shape[0]
-    n = np.ones(k) if samples is None else np.asarray(samples, dtype=np.float64)
-    w = (n / n.sum()).reshape((k,) + (1,) * (passes.ndim - 1))
-    mean = (passes * w).sum(axis=0)
-    var_one = (n.reshape(w.shape) * (passes - mean) ** 2).sum(axis=0) / (k - 1)
-    var_mean = var_one / n.sum()
-    rel = var_mean / (mean * mean + 1e-2)
+    n = np.ones(passes.shape[0]) if samples is None else np.asarray(samples, dtype=np.float64)
+    mean, var_one = _per_sample_variance(passes, n)
+    rel = var_one / n.sum() / (mean * mean + 1e-2)
     return float(np.sqrt(rel.mean()))
+
+
+def error_interval(passes: FloatArray, samples: FloatArray | None = None, z: float = 1.645) -> tuple[float, float]:
+    """A two-sided 90 % (``z`` = 1.645) confidence interval of :func:`relative_error_estimate`, by the
+    jackknife over passes: each pass left out in turn re-estimates the per-sample variance (the full
+    mean's sample count kept), so a pass with a rare bright path widens the interval. K >= 3 passes."""
+    k = passes.shape[0]
+    if k < 3:
+        return 0.0, float("inf")
+    n = np.ones(k) if samples is None else np.asarray(samples, dtype=np.float64)
+    full = relative_error_estimate(passes, n) ** 2
+    mean, _ = _per_sample_variance(passes, n)
+    denom = n.sum() * (mean * mean + 1e-2)
+    loo = np.empty(k)
+    for i in range(k):
+        keep = np.arange(k) != i
+        _, var_i = _per_sample_variance(passes[keep], n[keep])
+        loo[i] = float((var_i / denom).mean())
+    sd = float(np.sqrt((k - 1) / k * ((loo - loo.mean()) ** 2).sum()))
+    return float(np.sqrt(max(full - z * sd, 0.0))), float(np.sqrt(full + z * sd))
 
 
 MAX_PASSES = 24
 MAX_SAMPLES = 1 << 16
+#: passes rendered before the first estimate (the estimate needs independent passes; 4 keep its spread small)
+FIRST_PASSES = 4
+
+
+def _next_pass_samples(total: int, estimate: float, target: float, base: int) -> int:
+    """Samples of the next pass: half of what the estimate says is still needed (error ~ 1/sqrt(samples)),
+    at least ``base``; the target is approached in a few passes without overshooting by much."""
+    needed = total * (estimate / target) ** 2 * 1.1 - total
+    return int(np.clip(np.ceil(needed / 2), base, max(MAX_SAMPLES - total, 1)))
+
+
+def _add_timings(total: dict[str, float], more: dict[str, float]) -> None:
+    """Sum a later pass's engine timings into the first pass's (translation is paid once)."""
+    for key, value in more.items():
+        if key != "translate" and isinstance(value, (int, float)):
+            total[key] = total.get(key, 0.0) + float(value)
 
 
 def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> RenderResult:
@@ -421,8 +468,9 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     sample cap is hit.
 
     The first 4 passes use ``settings.samples`` each; later passes are sized from the current estimate
-    (error falls as 1/sqrt(samples)). Geometric outputs come from the first pass. ``meta`` records the
-    estimate, the passes, the total samples and whether the target was reached."""
+    (error falls as 1/sqrt(samples)). Stopping depends only on the passes' pixels, so a seed gives the same
+    picture every time. Geometric outputs come from the first pass. ``meta`` records the estimate with its
+    90 % interval, the passes, the total samples, whether the target was reached and why the passes stopped."""
     t0 = time.perf_counter()
     if settings.target_error is None:
         raise InvalidSceneError("target_error: render_to_target needs settings.target_error (a positive number)")
@@ -436,18 +484,20 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     alphas = [first.rgba[..., 3:4].astype(np.float64)]
     counts = [base]
     estimate = float("inf")
-    while len(colours) < MAX_PASSES and sum(counts) < MAX_SAMPLES:
-        if settings.time_limit is not None and time.perf_counter() - t0 >= settings.time_limit:
-            break
-        if len(colours) >= 4:
+    stopped = "pass cap"
+    while True:
+        if len(colours) >= FIRST_PASSES:
             estimate = relative_error_estimate(np.stack(colours), np.array(counts))
             if estimate <= target:
+                stopped = "target reached"
                 break
-            total = sum(counts)
-            needed = total * (estimate / target) ** 2 * 1.1 - total
-            n = int(np.clip(np.ceil(needed / 2), base, MAX_SAMPLES - total))
-        else:
-            n = base
+        if len(colours) >= MAX_PASSES or sum(counts) >= MAX_SAMPLES:
+            stopped = "pass cap" if len(colours) >= MAX_PASSES else "sample cap"
+            break
+        if settings.time_limit is not None and time.perf_counter() - t0 >= settings.time_limit:
+            stopped = "time_limit"
+            break
+        n = base if len(colours) < FIRST_PASSES else _next_pass_samples(sum(counts), estimate, target, base)
         seed = (settings.seed + 7919 * len(colours)) % (2**31 - 1)
         r = inst.render_scene(scene, pass_settings.replace(seed=seed, samples=max(1, n)))
         if r.rgba is None:
@@ -455,11 +505,13 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
         colours.append(r.rgba[..., :3].astype(np.float64))
         alphas.append(r.rgba[..., 3:4].astype(np.float64))
         counts.append(max(1, n))
+        _add_timings(first.meta.setdefault("timings", {}), r.meta.get("timings", {}))
     n_arr = np.array(counts, dtype=np.float64)
     w = (n_arr / n_arr.sum()).reshape(-1, 1, 1, 1)
+    stack = np.stack(colours)
     if len(colours) >= 2:
-        estimate = relative_error_estimate(np.stack(colours), n_arr)
-    rgb = (np.stack(colours) * w).sum(axis=0)
+        estimate = relative_error_estimate(stack, n_arr)
+    rgb = (stack * w).sum(axis=0)
     alpha = (np.stack(alphas) * w).sum(axis=0)
     first.rgba = np.concatenate([rgb, alpha], axis=-1).astype(np.float32)
     meta = first.meta
@@ -467,9 +519,16 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     meta["samples"] = int(n_arr.sum())
     meta["estimated_error"] = estimate
     meta["estimated_error_kind"] = (
-        "relative RMS error (its square is the relative MSE), from the variance between passes"
+        "relative RMS error (its square is the relative MSE), from the variance between independent passes"
     )
+    meta["estimated_error_interval"] = list(error_interval(stack, n_arr))
     meta["target_reached"] = bool(estimate <= target)
+    meta["stopped"] = stopped
+    if not meta["target_reached"]:
+        meta.setdefault("warnings", []).append(
+            f"target_error: stopped at the {stopped} with an estimated error of {estimate:.3g} "
+            f"(target {target:g}) after {len(colours)} passes, {int(n_arr.sum())} samples"
+        )
     meta.setdefault("timings", {})["render"] = time.perf_counter() - t0
     return first
 

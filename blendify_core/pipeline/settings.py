@@ -10,7 +10,7 @@ from typing import Any, TypedDict
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.validate import as_bool, as_choice, as_float, as_int, strict_api, strict_arguments
 
-__all__ = ["RenderSettings", "QUALITIES", "OUTPUTS", "PIXEL_FILTERS", "resolve_settings", "settings_bias"]
+__all__ = ["RenderSettings", "QUALITIES", "OUTPUTS", "PIXEL_FILTERS", "FINAL_TARGET_ERROR", "resolve_settings", "settings_bias"]
 
 QUALITIES = ("preview", "draft", "final", "blendify")
 OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
@@ -19,17 +19,22 @@ PIXEL_FILTERS = {"box": 1.0, "gaussian": 1.5, "blackman_harris": 1.5}
 
 
 # Presets are backend-independent. A path tracer asked for a preview renders few samples, denoised.
-# "final" = unbiased path tracing (no denoiser, no clamp, no adaptive stop) at a fixed 256 samples per pixel:
-# its accuracy is stated by measurement (benchmarks/results/accuracy_vs_time.md: relative MSE against a
-# converged reference), not estimated per render; pass ``target_error=`` for a per-render estimate and a
-# guaranteed bound (independent passes until the estimated relative RMS error is below it).
+# "final" = unbiased path tracing (no denoiser, no clamp, no adaptive stop) that targets an error, not a
+# sample count: a path tracer renders independent passes (``samples`` each at first) until the estimated
+# relative RMS error of their mean is <= FINAL_TARGET_ERROR (relative MSE 1e-4), and reports the estimate
+# with a confidence interval. An explicit ``samples=`` without ``target_error=`` renders exactly that many
+# samples in one pass (no estimate); a raster backend renders once.
 #
 # "blendify" = the picture blendify 2.1 users had: Blender's own Cycles defaults as blendify 2.1 left them
 # (128 samples, adaptive sampling with noise threshold 0.01, indirect light clamped at 10, Filter Glossy 1,
 # bounces 12 / diffuse 4 / glossy 4 / transmission 12 / transparent 8, Blackman-Harris 1.5 px pixel filter;
 # no denoiser, which blendify's render left off unless use_denoiser=True). Biased: meta["bias"] says how.
+FINAL_TARGET_ERROR = 0.01
+
+
 class _Preset(TypedDict, total=False):
     samples: int
+    target_error: float
     denoise: bool
     max_bounces: int
     diffuse_bounces: int
@@ -45,7 +50,7 @@ class _Preset(TypedDict, total=False):
 _PRESETS: dict[str, _Preset] = {
     "preview": {"samples": 8, "denoise": True, "max_bounces": 4},
     "draft": {"samples": 32, "denoise": True, "max_bounces": 8},
-    "final": {"samples": 256, "denoise": False, "max_bounces": 12},
+    "final": {"samples": 16, "denoise": False, "max_bounces": 12, "target_error": FINAL_TARGET_ERROR},
     "blendify": {
         "samples": 128,
         "denoise": False,
@@ -67,7 +72,11 @@ _PRESETS: dict[str, _Preset] = {
 class RenderSettings:
     """Everything that decides how a scene is rendered (recorded in ``result.meta["settings"]``).
 
-    ``samples``: samples per pixel (path tracers) or supersampling/anti-aliasing level hint (raster).
+    ``samples``: samples per pixel (path tracers) or supersampling/anti-aliasing level hint (raster); with
+    ``target_error`` the samples of each of the first independent passes (later passes are sized from the
+    estimate).
+    ``target_error``: render passes until the estimated relative RMS error is at most this (``final``'s
+    preset: 0.01 unless ``samples=`` is given); ``time_limit`` stops earlier (recorded in meta).
     ``pixel_filter``: "box" (1 px, the default: comparable across engines), "gaussian" (1.5 px) or
     "blackman_harris" (1.5 px, Blender's default); ``pixel_filter_width`` overrides the width (pixels).
     ``clamp_direct`` / ``clamp_indirect``: 0 = off (unbiased). ``adaptive``: adaptive sampling on/off.
@@ -209,6 +218,11 @@ def resolve_settings(
         return None if value is None else as_int(kind, value, min_value=0, max_value=1024)
 
     s = preset["samples"] if samples is None else as_int("samples", samples, min_value=1, max_value=1 << 24)
+    dn = preset["denoise"] if denoise is None else as_bool("denoise", denoise)
+    if target_error is None and samples is None and not dn:
+        # the preset's error target applies unless the user fixed the sample count or asked for a denoised
+        # picture (denoised passes are not independent estimates)
+        target_error = defaults.get("target_error")
     if threads is not None:
         threads = as_int("threads", threads, min_value=1, max_value=4096)
     return RenderSettings(
@@ -217,7 +231,7 @@ def resolve_settings(
         seed=as_int("seed", seed, min_value=0, max_value=2**31 - 1),
         threads=threads,
         outputs=_outputs(outputs),
-        denoise=preset["denoise"] if denoise is None else as_bool("denoise", denoise),
+        denoise=dn,
         max_bounces=preset["max_bounces"]
         if max_bounces is None
         else as_int("max_bounces", max_bounces, min_value=0, max_value=1024),

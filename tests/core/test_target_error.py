@@ -8,7 +8,7 @@ import pytest
 import blendify_core as bf
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
-from blendify_core.pipeline.render import relative_error_estimate
+from blendify_core.pipeline.render import error_interval, relative_error_estimate
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.registry import register_backend, unregister_backend
 from blendify_core.testing import plane_scene
@@ -85,3 +85,88 @@ def test_estimator_weighting_matches_equal_split():
     weighted = relative_error_estimate(passes, np.full(6, 10.0))
     assert equal == pytest.approx(weighted)
     assert equal > 0
+
+
+def test_final_targets_its_error_and_reports_it(noisy):
+    """``final`` with no ``samples=`` renders passes to FINAL_TARGET_ERROR and says what it reached."""
+    result = bf.render(plane_scene("sun"), backend=noisy)
+    meta = result.meta
+    assert meta["settings"]["target_error"] == bf.FINAL_TARGET_ERROR
+    assert meta["target_reached"] is True and meta["stopped"] == "target reached"
+    assert meta["estimated_error"] <= bf.FINAL_TARGET_ERROR
+    lo, hi = meta["estimated_error_interval"]
+    truth = true_error(result.rgba)
+    assert lo <= meta["estimated_error"] <= hi
+    assert lo / 1.5 <= truth <= hi * 1.5
+    # stopping depends only on the passes' pixels: the same seed gives the same picture
+    again = bf.render(plane_scene("sun"), backend=noisy)
+    assert np.array_equal(result.rgba, again.rgba) and again.meta["samples"] == meta["samples"]
+
+
+def test_fixed_samples_are_one_pass_and_say_why_there_is_no_estimate(noisy):
+    result = bf.render(plane_scene("sun"), backend=noisy, samples=32)
+    assert "passes" not in result.meta and result.meta["samples"] == 32
+    assert result.meta["estimated_error"] is None
+    assert "fixed 32 samples" in result.meta["estimated_error_kind"]
+
+
+def test_cap_hit_is_a_warning_naming_the_reason(noisy, monkeypatch):
+    from blendify_core.pipeline import render as render_module
+
+    monkeypatch.setattr(render_module, "MAX_PASSES", 5)
+    result = bf.render(plane_scene("sun"), backend=noisy, samples=1, target_error=1e-5)
+    assert result.meta["target_reached"] is False and result.meta["stopped"] == "pass cap"
+    assert result.meta["passes"] == 5
+    assert any("pass cap" in w and "1e-05" in w for w in result.meta["warnings"])
+
+
+def test_interval_widens_when_one_pass_holds_a_firefly():
+    """The jackknife interval sees a rare bright path that the pooled variance averages away."""
+    rng = np.random.default_rng(1)
+    passes = 0.5 + 0.05 * rng.normal(size=(8, 16, 16, 3))
+    lo, hi = error_interval(passes)
+    assert lo < relative_error_estimate(passes) < hi
+    spiky = passes.copy()
+    spiky[3, 4:8, 4:8] += 40.0
+    lo2, hi2 = error_interval(spiky)
+    assert hi2 - lo2 > 5 * (hi - lo)
+    assert error_interval(passes[:2]) == (0.0, float("inf"))
+
+
+@pytest.mark.parametrize("target", [0.02, 0.005])
+def test_estimate_cost_predicts_the_samples_the_render_takes(noisy, target):
+    est = bf.estimate_cost(plane_scene("sun"), backend=noisy, target_error=target)
+    assert est.kind == "noise" and est.backend == noisy and est.reaches_target
+    result = bf.render(plane_scene("sun"), backend=noisy, target_error=target)
+    assert result.meta["samples"] / 1.5 <= est.samples <= result.meta["samples"] * 1.5
+    assert est.passes >= 4 and est.seconds >= 0 and est.seconds_range[0] <= est.seconds <= est.seconds_range[1]
+    assert "samples" in str(est) and f"{target:g}" in str(est)
+
+
+def test_estimate_cost_of_a_raster_backend_is_one_render(noisy, monkeypatch):
+    monkeypatch.setattr(NoisyBackend, "path_tracer", False)
+    est = bf.estimate_cost(plane_scene("sun"), backend=noisy)
+    assert est.kind == "bias" and est.samples == 1 and "bias" in str(est)
+
+
+@pytest.mark.parametrize(
+    ("kw", "arg"),
+    [({"samples": 4}, "samples"), ({"target_error": -1}, "target_error"), ({"pilot_samples": 0}, "pilot_samples")],
+)
+def test_estimate_cost_bad_arguments_name_themselves(noisy, kw, arg):
+    with pytest.raises(bf.InvalidSceneError, match=arg):
+        bf.estimate_cost(plane_scene("sun"), backend=noisy, **kw)
+
+
+def test_cli_estimate_prints_the_price_and_writes_nothing(noisy, tmp_path, capsys):
+    from blendify_core.cli.main import main
+
+    scene_file = tmp_path / "s.npz"
+    plane_scene("sun").save(scene_file)
+    out = tmp_path / "r.png"
+    assert main(["render", str(scene_file), "-b", noisy, "--estimate", "--target-error", "0.02", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "samples in" in printed and "0.02" in printed and not out.exists()
+    assert main(["render", str(scene_file), "-b", noisy, "-o", str(out)]) == 0
+    assert "estimated error" in capsys.readouterr().out and out.exists()
+    assert main(["render", str(scene_file), "-b", noisy, "--estimate", "-s", "4"]) != 0

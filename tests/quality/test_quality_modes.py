@@ -13,13 +13,21 @@ from blendify_core.testing import plane_scene
 
 
 @pytest.mark.parametrize(
-    ("quality", "samples", "denoise", "bounces"),
-    [("preview", 8, True, 4), ("draft", 32, True, 8), ("final", 256, False, 12)],
+    ("quality", "samples", "denoise", "bounces", "target"),
+    [("preview", 8, True, 4, None), ("draft", 32, True, 8, None), ("final", 16, False, 12, 0.01)],
 )
-def test_presets(quality, samples, denoise, bounces):
+def test_presets(quality, samples, denoise, bounces, target):
     s = resolve_settings(quality)
-    assert (s.samples, s.denoise, s.max_bounces) == (samples, denoise, bounces)
-    assert s.target_error is None and s.clamp_indirect == 0.0 and not s.adaptive and s.effects
+    assert (s.samples, s.denoise, s.max_bounces, s.target_error) == (samples, denoise, bounces, target)
+    assert s.clamp_indirect == 0.0 and not s.adaptive and s.effects
+
+
+def test_final_targets_an_error_unless_samples_or_denoise_are_fixed():
+    assert resolve_settings("final").target_error == bf.FINAL_TARGET_ERROR
+    assert resolve_settings("final", samples=64).target_error is None  # the user fixed the sample count
+    assert resolve_settings("final", denoise=True).target_error is None  # denoised passes are not independent
+    assert resolve_settings("final", samples=8, target_error=0.05).target_error == 0.05
+    assert resolve_settings("final", target_error=0.03).samples == 16
 
 
 def test_overrides_win_and_settings_are_frozen():
@@ -94,7 +102,7 @@ def test_mitsuba_receives_overrides(mitsuba):
     assert r.meta["spp"] == 5 and r.meta["max_depth"] == 3 + 2 and r.meta["pixel_filter"] == "gaussian"
     # what Mitsuba cannot do is said, not silently dropped
     assert any("adaptive" in n for n in r.meta["notes"])
-    assert "single pass" in r.meta["estimated_error_kind"]
+    assert "one pass" in r.meta["estimated_error_kind"]
 
 
 def test_mitsuba_effects_choose_direct_lighting(mitsuba):

@@ -1,0 +1,165 @@
+"""The price before paying: ``bf.estimate_cost`` predicts a render's samples and time from a short pilot.
+
+A path tracer's error falls as 1/sqrt(samples) and its time grows as a fixed cost per pass plus a cost per
+sample. The pilot renders ``PILOT_PASSES`` independent passes of ``pilot_samples`` and one pass of
+``PILOT_LONG`` times as many: the two pass sizes separate the fixed cost from the per-sample cost, and the
+passes' spread gives the error at the pilot's samples. The prediction replays the schedule
+:func:`~blendify_core.pipeline.render.render_to_target` follows (the same first passes, the same pass
+sizing), so predicted passes and samples are those the render would take if the error fell exactly as
+1/sqrt(samples).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from blendify_core.errors import InvalidSceneError
+from blendify_core.ir.scene import Scene
+from blendify_core.ir.validate import as_float, as_int
+from blendify_core.pipeline.backend import Backend
+from blendify_core.pipeline.render import (
+    FIRST_PASSES,
+    MAX_PASSES,
+    MAX_SAMPLES,
+    _next_pass_samples,
+    error_interval,
+    relative_error_estimate,
+    render,
+)
+from blendify_core.pipeline.settings import FINAL_TARGET_ERROR, resolve_settings
+from blendify_core.typing import FloatArray
+
+__all__ = ["CostEstimate", "estimate_cost", "predict_schedule"]
+
+#: short passes of the pilot (their spread estimates the error) and the long pass's size relative to them
+PILOT_PASSES = 4
+PILOT_LONG = 4
+
+
+@dataclass(frozen=True)
+class CostEstimate:
+    """What a render to ``target_error`` is predicted to cost (``seconds`` excludes the pilot itself)."""
+
+    backend: str
+    target_error: float
+    samples: int
+    passes: int
+    seconds: float
+    #: a 90 % range of ``seconds`` from the pilot's error interval (error ~ 1/sqrt(samples))
+    seconds_range: tuple[float, float]
+    pilot_samples: int
+    pilot_seconds: float
+    pilot_error: float
+    seconds_per_sample: float
+    seconds_per_pass: float
+    #: "noise" for a path tracer; "bias" for a raster backend (one render; its error is not noise)
+    kind: str
+    reaches_target: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def __str__(self) -> str:
+        if self.kind == "bias":
+            return f"{self.backend}: one render, about {self.seconds:.2f} s (raster: its error is bias, not noise)"
+        lo, hi = self.seconds_range
+        cap = "" if self.reaches_target else " (the pass/sample cap stops it first)"
+        return (
+            f"{self.backend}: about {self.samples} samples in {self.passes} passes, {self.seconds:.1f} s "
+            f"(90 %: {lo:.1f}-{hi:.1f} s) to reach a relative RMS error of {self.target_error:g}{cap}; "
+            f"pilot: {self.pilot_samples} samples, error {self.pilot_error:.3g}, {self.pilot_seconds:.1f} s"
+        )
+
+
+def predict_schedule(error_at: float, samples_at: int, target: float, base: int) -> tuple[int, int, bool]:
+    """Passes and total samples ``render_to_target`` takes if the error is ``error_at`` at ``samples_at``
+    samples and falls as 1/sqrt(samples); and whether it reaches ``target`` before the caps."""
+    counts = [base] * FIRST_PASSES
+    while True:
+        total = sum(counts)
+        estimate = error_at * np.sqrt(samples_at / total)
+        if estimate <= target:
+            return len(counts), total, True
+        if len(counts) >= MAX_PASSES or total >= MAX_SAMPLES:
+            return len(counts), total, False
+        counts.append(_next_pass_samples(total, float(estimate), target, base))
+
+
+def estimate_cost(
+    scene: Scene,
+    backend: str | Backend | None = None,
+    target_error: float | None = None,
+    quality: str = "final",
+    pilot_samples: int = 4,
+    seed: int = 0,
+    **kwargs: Any,
+) -> CostEstimate:
+    """Predict the samples and seconds a render of ``scene`` to ``target_error`` (default: the quality
+    preset's target, else :data:`FINAL_TARGET_ERROR`) takes, from a pilot of ``PILOT_PASSES`` passes of
+    ``pilot_samples`` and one of ``PILOT_LONG`` x ``pilot_samples`` at the scene's own resolution.
+    ``kwargs`` are passed to :func:`bf.render` (settings overrides and backend options)."""
+    if not isinstance(scene, Scene):
+        raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
+    for bad in ("samples", "target_error", "denoise", "time_limit"):
+        if bad in kwargs:
+            raise InvalidSceneError(f"estimate_cost: {bad!r} is chosen by the pilot; do not pass it")
+    p = as_int("pilot_samples", pilot_samples, min_value=1, max_value=1 << 12)
+    preset = resolve_settings(quality)
+    if target_error is None:
+        target = preset.target_error if preset.target_error is not None else FINAL_TARGET_ERROR
+    else:
+        target = as_float("target_error", target_error, min_value=0.0, exclusive_min=True)
+    base = preset.samples
+
+    def one(samples: int, index: int) -> tuple[FloatArray | None, float, Any]:
+        t0 = time.perf_counter()
+        r = render(scene, backend=backend, quality=quality, samples=samples, seed=seed + 7919 * index, **kwargs)
+        return (None if r.rgba is None else r.rgba[..., :3].astype(np.float64)), time.perf_counter() - t0, r
+
+    t_start = time.perf_counter()
+    _, _, warm = one(p, 0)  # translation and engine start-up: paid once by the real render too
+    name = str(warm.meta.get("backend"))
+    if not warm.meta.get("path_tracer"):
+        _, seconds, _ = one(p, 0)
+        return CostEstimate(name, target, 1, 1, seconds, (seconds, seconds), p, time.perf_counter() - t_start,
+                            0.0, 0.0, seconds, "bias", True)  # fmt: skip
+    short = [one(p, i + 1) for i in range(PILOT_PASSES)]
+    long_rgb, t_long, _ = one(PILOT_LONG * p, PILOT_PASSES + 1)
+    t_short = float(np.median([t for _, t, _ in short]))
+    per_sample = max((t_long - t_short) / ((PILOT_LONG - 1) * p), 0.0)
+    per_pass = max(t_short - p * per_sample, 0.0)
+    colours = [c for c, _, _ in short] + [long_rgb]
+    if any(c is None for c in colours):
+        raise InvalidSceneError("estimate_cost: the error is estimated on colour; the render has no 'rgb' output")
+    stack = np.stack(colours)  # type: ignore[arg-type]
+    counts = np.array([p] * PILOT_PASSES + [PILOT_LONG * p], dtype=np.float64)
+    pilot_error = relative_error_estimate(stack, counts)
+    lo_err, hi_err = error_interval(stack, counts)
+    pilot_n = int(counts.sum())
+    passes, samples, reached = predict_schedule(pilot_error, pilot_n, target, base)
+
+    def seconds_for(err: float) -> float:
+        k, n, _ = predict_schedule(err, pilot_n, target, base)
+        return k * per_pass + n * per_sample
+
+    seconds = passes * per_pass + samples * per_sample
+    hi_err = hi_err if np.isfinite(hi_err) else pilot_error * 2
+    return CostEstimate(
+        backend=name,
+        target_error=target,
+        samples=samples,
+        passes=passes,
+        seconds=seconds,
+        seconds_range=(seconds_for(lo_err), seconds_for(hi_err)),
+        pilot_samples=pilot_n,
+        pilot_seconds=time.perf_counter() - t_start,
+        pilot_error=pilot_error,
+        seconds_per_sample=per_sample,
+        seconds_per_pass=per_pass,
+        kind="noise",
+        reaches_target=reached,
+    )
