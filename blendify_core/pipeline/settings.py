@@ -10,7 +10,15 @@ from typing import Any, TypedDict
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.validate import as_bool, as_choice, as_float, as_int, strict_api, strict_arguments
 
-__all__ = ["RenderSettings", "QUALITIES", "OUTPUTS", "PIXEL_FILTERS", "FINAL_TARGET_ERROR", "resolve_settings", "settings_bias"]
+__all__ = [
+    "RenderSettings",
+    "QUALITIES",
+    "OUTPUTS",
+    "PIXEL_FILTERS",
+    "FINAL_TARGET_ERROR",
+    "resolve_settings",
+    "settings_bias",
+]
 
 QUALITIES = ("preview", "draft", "final", "blendify")
 OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
