@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -75,7 +76,8 @@ def load_scene(scene: Any, path: str | os.PathLike[str], allow_outside: bool = F
     """Fill the empty ``scene`` from a scene file; every failure is an InvalidSceneError naming the file."""
     header, arrays = read_scene_file(path, allow_outside=allow_outside)
     try:
-        return scene_from_header(scene, header, arrays)
+        with arrays:
+            return scene_from_header(scene, header, arrays)
     except InvalidSceneError as exc:
         raise InvalidSceneError(f"path: {str(path)!r} holds an invalid scene: {exc}") from None
     except (KeyError, TypeError, IndexError, AttributeError, ValueError) as exc:
@@ -92,7 +94,7 @@ def fingerprint(scene: Any) -> str:
 # -- materials and lights: each walks its class's parameter declaration (blendify_core.ir.params) ------
 
 
-def material_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray], base_dir: str | None = None) -> Material:
+def material_from_dict(d: dict[str, Any], arrays: Mapping[str, AnyArray], base_dir: str | None = None) -> Material:
     """The material a scene file's ``{"kind", "color_space", "params"}`` describes (Material.to_dict)."""
     cls = _MATERIAL_CLASSES.get(d.get("kind", ""))
     if cls is None:
@@ -113,7 +115,7 @@ def _json_equal(a: Any, b: Any) -> bool:
     return (list(a) if isinstance(a, (tuple, list)) else a) == (list(b) if isinstance(b, (tuple, list)) else b)
 
 
-def light_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray] | None = None) -> Light:
+def light_from_dict(d: dict[str, Any], arrays: Mapping[str, AnyArray] | None = None) -> Light:
     """The light a scene file's ``{"kind", "tag", "params", "quaternion", "translation"}`` describes."""
     cls = _LIGHT_CLASSES.get(d.get("kind", ""))
     if cls is None:
@@ -129,7 +131,7 @@ def background_from_dict(d: dict[str, Any]) -> dict[str, Any]:
     return decode_params("scene file: BackgroundLight", BackgroundLight._stored, d, {})
 
 
-def environment_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray]) -> dict[str, Any]:
+def environment_from_dict(d: dict[str, Any], arrays: Mapping[str, AnyArray]) -> dict[str, Any]:
     """``set_environment_map`` keywords from a scene file's environment entry (its parameters, the image
     or path and the rotation)."""
     names = {p.name for p in EnvironmentMap._stored}
@@ -138,7 +140,7 @@ def environment_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray]) -> dic
     return {"image_or_path": src, "rotation": d["quaternion"], **params}
 
 
-def _colors_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray]) -> Any:
+def _colors_from_dict(d: dict[str, Any], arrays: Mapping[str, AnyArray]) -> Any:
     def uv(u: dict[str, Any] | None) -> Any:
         if u is None:
             return None
@@ -160,11 +162,17 @@ def _colors_from_dict(d: dict[str, Any], arrays: dict[str, AnyArray]) -> Any:
     raise InvalidSceneError(f"unknown colour kind {kind!r}")
 
 
-def _polygons(arrays: dict[str, AnyArray], d: dict[str, Any]) -> Any:
+def _polygons(arrays: Mapping[str, AnyArray], d: dict[str, Any]) -> Any:
     tris = arrays[d["faces"]]
     poly = arrays[d["faces"].replace("faces", "face_polygon")]
     corner = arrays[d["faces"].replace("faces", "face_corner")]
     m, k = d["n_polygons"], d["polygon_size"]
+    # declared sizes are checked against the arrays before anything is allocated: a polygon has at least one
+    # triangle and a k-gon k - 2 of them (a crafted header declaring 1e11 polygons asked for 2 TiB)
+    if not isinstance(m, int) or isinstance(m, bool) or not 0 <= m <= len(tris):
+        raise InvalidSceneError(f"n_polygons: the header declares {m!r} polygons for {len(tris)} triangles")
+    if k is not None and (not isinstance(k, int) or isinstance(k, bool) or not 3 <= k <= len(tris) + 2):
+        raise InvalidSceneError(f"polygon_size: the header declares {k!r} for {len(tris)} triangles")
     if k is not None:
         out = np.zeros((m, k), dtype=np.int64)
         out[poly[:, None], corner] = tris
@@ -177,7 +185,7 @@ def _polygons(arrays: dict[str, AnyArray], d: dict[str, Any]) -> Any:
     return polys
 
 
-def scene_from_header(scene: Any, h: dict[str, Any], arrays: dict[str, AnyArray]) -> Any:
+def scene_from_header(scene: Any, h: dict[str, Any], arrays: Mapping[str, AnyArray]) -> Any:
     """Fill the empty ``scene`` from a header and its arrays (as :func:`scene_to_header` wrote them)."""
 
     if h["camera"] is not None:
