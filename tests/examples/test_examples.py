@@ -32,6 +32,7 @@ CASES = {
     "05_per_face_materials.py": (TINY, ["per_face_materials.png"]),
     "06_three_backends.py": (TINY, ["three_backends"]),
     "07_preview_then_final.py": (TINY, ["preview.png", "final.png"]),
+    "08_export_and_view.py": (TINY, ["scene.glb", "scene.gltf", "scene.bin", "scene.xml", "scene_files", "view.html"]),
 }
 
 
