@@ -1,4 +1,4 @@
-"""The ``blendify`` command line: ``info``, ``render``, ``demo``, ``batch``, ``crosscheck``.
+"""The ``blendify`` command line: ``info``, ``render``, ``demo``, ``batch``, ``crosscheck``, ``export``, ``show``.
 
 Every command has ``--help``; every error is one line ``blendify <command>: error: ...`` on stderr, and
 every command exits with the codes of :data:`blendify_core.errors.EXIT_CODES` (0 success, 1 the work
@@ -98,6 +98,21 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export(args: argparse.Namespace) -> int:
+    scene = Scene.load(args.scene, allow_outside=args.allow_outside)
+    print(f"wrote {scene.export(args.output)}")
+    return 0
+
+
+def _show(args: argparse.Namespace) -> int:
+    scene = Scene.load(args.scene, allow_outside=args.allow_outside)
+    view = scene.show(viewer=args.viewer, path=args.output, open_browser=False if args.no_browser else None)
+    path = getattr(view, "path", None)
+    if path is not None:
+        print(f"wrote {path}")
+    return 0
+
+
 def _crosscheck(args: argparse.Namespace) -> int:  # reached only through main()'s own dispatch
     return int(crosscheck_main(args.rest, parser_class=_Parser) or 0)
 
@@ -186,6 +201,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--manifest", default=None, help="manifest file (default: blendify_manifest.jsonl by the outputs)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_batch)
+
+    p = sub.add_parser(
+        "export",
+        help="write a scene file (.npz) as glTF (.glb/.gltf), a Mitsuba scene (.xml), a viewer page (.html) or .blend",
+        **common,
+    )
+    p.add_argument("scene", help="scene file written by Scene.save()")
+    p.add_argument("output", help="output file; its suffix picks the format: .glb, .gltf, .xml, .html, .blend")
+    p.add_argument("--allow-outside", action="store_true", help="allow texture paths outside the scene's folder")
+    p.set_defaults(func=_export)
+
+    p = sub.add_parser("show", help="look at a scene file: pyrender's viewer, or an offline HTML page", **common)
+    p.add_argument("scene", help="scene file written by Scene.save()")
+    p.add_argument("--viewer", default="auto", choices=("auto", "pyrender", "html"))
+    p.add_argument("-o", "--output", default=None, help="where the HTML page goes (default: the temporary folder)")
+    p.add_argument("--no-browser", action="store_true", help="write the HTML page without opening a browser")
+    p.add_argument("--allow-outside", action="store_true", help="allow texture paths outside the scene's folder")
+    p.set_defaults(func=_show)
 
     p = sub.add_parser("crosscheck", help="render a scene with every backend and compare them pairwise", add_help=False)
     p.add_argument("rest", nargs=argparse.REMAINDER)
