@@ -1,12 +1,13 @@
 """The price before paying: ``bf.estimate_cost`` predicts a render's samples and time from a short pilot.
 
 A path tracer's error falls as 1/sqrt(samples) and its time grows as a fixed cost per pass plus a cost per
-sample. The pilot renders ``PILOT_PASSES`` independent passes of ``pilot_samples`` and one pass of
-``PILOT_LONG`` times as many: the two pass sizes separate the fixed cost from the per-sample cost, and the
-passes' spread gives the error at the pilot's samples. The prediction replays the schedule
-:func:`~blendify_core.pipeline.render.render_to_target` follows (the same first passes, the same pass
-sizing), so predicted passes and samples are those the render would take if the error fell exactly as
-1/sqrt(samples).
+sample. The pilot renders exactly the first passes ``final`` renders (``FIRST_PASSES`` independent passes of
+the preset's samples: their spread is the render's own first estimate, with the same sampler at the same
+sample count, so a quasi-Monte-Carlo sampler's faster convergence at higher counts is not extrapolated from
+tiny passes) and one 1-sample pass: the two pass sizes separate the fixed cost from the per-sample cost. The
+prediction replays the schedule :func:`~blendify_core.pipeline.render.render_to_target` follows from there
+(the same pass sizing), so predicted passes and samples are those the render takes if the error keeps
+falling as 1/sqrt(samples). The pilot costs about as much as the cheapest ``final`` render.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.scene import Scene
-from blendify_core.ir.validate import as_float, as_int
+from blendify_core.ir.validate import as_float
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.render import (
     FIRST_PASSES,
@@ -27,6 +28,7 @@ from blendify_core.pipeline.render import (
     MAX_SAMPLES,
     _next_pass_samples,
     error_interval,
+    pass_seed,
     relative_error_estimate,
     render,
 )
@@ -34,10 +36,6 @@ from blendify_core.pipeline.settings import FINAL_TARGET_ERROR, resolve_settings
 from blendify_core.typing import FloatArray
 
 __all__ = ["CostEstimate", "estimate_cost", "predict_schedule"]
-
-#: short passes of the pilot (their spread estimates the error) and the long pass's size relative to them
-PILOT_PASSES = 4
-PILOT_LONG = 4
 
 
 @dataclass(frozen=True)
@@ -94,20 +92,18 @@ def estimate_cost(
     backend: str | Backend | None = None,
     target_error: float | None = None,
     quality: str = "final",
-    pilot_samples: int = 4,
     seed: int = 0,
     **kwargs: Any,
 ) -> CostEstimate:
     """Predict the samples and seconds a render of ``scene`` to ``target_error`` (default: the quality
-    preset's target, else :data:`FINAL_TARGET_ERROR`) takes, from a pilot of ``PILOT_PASSES`` passes of
-    ``pilot_samples`` and one of ``PILOT_LONG`` x ``pilot_samples`` at the scene's own resolution.
+    preset's target, else :data:`FINAL_TARGET_ERROR`) takes, from a pilot at the scene's own resolution: the
+    render's own first passes and one 1-sample pass (see the module's documentation).
     ``kwargs`` are passed to :func:`bf.render` (settings overrides and backend options)."""
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
     for bad in ("samples", "target_error", "denoise", "time_limit"):
         if bad in kwargs:
             raise InvalidSceneError(f"estimate_cost: {bad!r} is chosen by the pilot; do not pass it")
-    p = as_int("pilot_samples", pilot_samples, min_value=1, max_value=1 << 12)
     preset = resolve_settings(quality)
     if target_error is None:
         target = preset.target_error if preset.target_error is not None else FINAL_TARGET_ERROR
@@ -117,26 +113,26 @@ def estimate_cost(
 
     def one(samples: int, index: int) -> tuple[FloatArray | None, float, Any]:
         t0 = time.perf_counter()
-        r = render(scene, backend=backend, quality=quality, samples=samples, seed=seed + 7919 * index, **kwargs)
+        r = render(scene, backend=backend, quality=quality, samples=samples, seed=pass_seed(seed, index), **kwargs)
         return (None if r.rgba is None else r.rgba[..., :3].astype(np.float64)), time.perf_counter() - t0, r
 
     t_start = time.perf_counter()
-    _, _, warm = one(p, 0)  # translation and engine start-up: paid once by the real render too
+    _, _, warm = one(1, 0)  # translation and engine start-up: paid once by the real render too
     name = str(warm.meta.get("backend"))
     if not warm.meta.get("path_tracer"):
-        _, seconds, _ = one(p, 0)
-        return CostEstimate(name, target, 1, 1, seconds, (seconds, seconds), p, time.perf_counter() - t_start,
+        _, seconds, _ = one(1, 0)
+        return CostEstimate(name, target, 1, 1, seconds, (seconds, seconds), 0, time.perf_counter() - t_start,
                             0.0, 0.0, seconds, "bias", True)  # fmt: skip
-    short = [one(p, i + 1) for i in range(PILOT_PASSES)]
-    long_rgb, t_long, _ = one(PILOT_LONG * p, PILOT_PASSES + 1)
-    t_short = float(np.median([t for _, t, _ in short]))
-    per_sample = max((t_long - t_short) / ((PILOT_LONG - 1) * p), 0.0)
-    per_pass = max(t_short - p * per_sample, 0.0)
-    colours = [c for c, _, _ in short] + [long_rgb]
+    _, t_one, _ = one(1, 1)
+    firsts = [one(base, i) for i in range(FIRST_PASSES)]  # seeds as render_to_target's first passes
+    t_base = float(np.median([t for _, t, _ in firsts]))
+    per_sample = max((t_base - t_one) / max(base - 1, 1), 0.0)
+    per_pass = max(t_base - base * per_sample, 0.0)
+    colours = [c for c, _, _ in firsts]
     if any(c is None for c in colours):
         raise InvalidSceneError("estimate_cost: the error is estimated on colour; the render has no 'rgb' output")
     stack = np.stack(colours)  # type: ignore[arg-type]
-    counts = np.array([p] * PILOT_PASSES + [PILOT_LONG * p], dtype=np.float64)
+    counts = np.full(FIRST_PASSES, float(base))
     pilot_error = relative_error_estimate(stack, counts)
     lo_err, hi_err = error_interval(stack, counts)
     pilot_n = int(counts.sum())

@@ -448,6 +448,11 @@ MAX_SAMPLES = 1 << 16
 FIRST_PASSES = 4
 
 
+def pass_seed(seed: int, index: int) -> int:
+    """The seed of independent pass ``index`` (pass 0 uses ``seed`` itself)."""
+    return (seed + 7919 * index) % (2**31 - 1)
+
+
 def _next_pass_samples(total: int, estimate: float, target: float, base: int) -> int:
     """Samples of the next pass: half of what the estimate says is still needed (error ~ 1/sqrt(samples)),
     at least ``base``; the target is approached in a few passes without overshooting by much."""
@@ -498,8 +503,9 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
             stopped = "time_limit"
             break
         n = base if len(colours) < FIRST_PASSES else _next_pass_samples(sum(counts), estimate, target, base)
-        seed = (settings.seed + 7919 * len(colours)) % (2**31 - 1)
-        r = inst.render_scene(scene, pass_settings.replace(seed=seed, samples=max(1, n)))
+        r = inst.render_scene(
+            scene, pass_settings.replace(seed=pass_seed(settings.seed, len(colours)), samples=max(1, n))
+        )
         if r.rgba is None:
             raise RenderError(f"backend {inst.name!r} returned no 'rgb' output for pass {len(colours) + 1}")
         colours.append(r.rgba[..., :3].astype(np.float64))

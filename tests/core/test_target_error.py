@@ -151,7 +151,7 @@ def test_estimate_cost_of_a_raster_backend_is_one_render(noisy, monkeypatch):
 
 @pytest.mark.parametrize(
     ("kw", "arg"),
-    [({"samples": 4}, "samples"), ({"target_error": -1}, "target_error"), ({"pilot_samples": 0}, "pilot_samples")],
+    [({"samples": 4}, "samples"), ({"target_error": -1}, "target_error"), ({"time_limit": 3}, "time_limit")],
 )
 def test_estimate_cost_bad_arguments_name_themselves(noisy, kw, arg):
     with pytest.raises(bf.InvalidSceneError, match=arg):
