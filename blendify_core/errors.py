@@ -19,6 +19,7 @@ __all__ = [
     "EXIT_CODES",
     "exit_code",
     "exit_code_epilog",
+    "warn_at_caller",
 ]
 
 
@@ -96,6 +97,21 @@ def exit_code(exc: BaseException) -> int:
 def exit_code_epilog() -> str:
     """The exit-code table as the epilog of every subcommand's ``--help``."""
     return "exit codes (every subcommand):\n" + "\n".join(f"  {code:<4} {text}" for code, text in EXIT_CODES.items())
+
+
+_LIBRARY_MODULES = ("blendify_core", "blendify_blender", "blendify_mitsuba", "blendify_pyrender")
+
+
+def warn_at_caller(message: str, category: type[Warning] = UserWarning) -> None:
+    """``warnings.warn`` pointing at the first frame outside blendify's packages (the user's line)."""
+    import sys
+    import warnings
+
+    level, frame = 2, sys._getframe(1)  # level 2: the caller of this function
+    while frame is not None and str(frame.f_globals.get("__name__", "")).startswith(_LIBRARY_MODULES):
+        frame = frame.f_back  # type: ignore[assignment]
+        level += 1
+    warnings.warn(message, category, stacklevel=level)
 
 
 def describe(value: object) -> str:

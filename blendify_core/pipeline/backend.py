@@ -12,6 +12,7 @@ import inspect
 import logging
 import os
 import time
+from dataclasses import dataclass
 from importlib import metadata
 from typing import Any, ClassVar
 
@@ -24,9 +25,38 @@ from blendify_core.pipeline.settings import RenderSettings
 from blendify_core.pipeline.translator import Translator
 from blendify_core.registry import BackendStatus
 
-__all__ = ["Backend", "Capability"]
+__all__ = ["Backend", "Capability", "DeviceChoice", "parse_device"]
 
 log = logging.getLogger("blendify_core")
+
+
+@dataclass(frozen=True)
+class DeviceChoice:
+    """What a backend renders on (``Backend.device_choice``): ``requested`` ("cpu", "gpu" or an engine
+    device), ``used`` (``result.meta["device"]``), ``fallback``: why the request could not be honoured
+    (None when it was). ``bf.render`` refuses a fallback under ``strict=True`` (BackendUnavailableError),
+    otherwise warns."""
+
+    requested: str
+    used: str
+    fallback: str | None = None
+    #: the devices found (``blendify info``), e.g. ["CPU", "GPU OPTIX: NVIDIA ..."]
+    found: tuple[str, ...] = ()
+    #: the option the request came from ("device", or Mitsuba's "variant")
+    option: str = "device"
+
+
+def parse_device(value: object, explicit: tuple[str, ...]) -> str:
+    """``device=``: "cpu", "gpu" (any case) or one of ``explicit`` (the engine's own device names, matched
+    case-insensitively and returned as declared)."""
+    if isinstance(value, str):
+        low = value.lower()
+        if low in ("cpu", "gpu"):
+            return low
+        for name in explicit:
+            if name.lower() == low:
+                return name
+    raise InvalidSceneError(f"device: expected 'cpu', 'gpu' or one of {list(explicit)}, got {value!r}")
 
 
 class Backend(abc.ABC):
@@ -117,6 +147,10 @@ class Backend(abc.ABC):
         :class:`~blendify_core.pipeline.meta.RenderMeta`; timings under the common names of
         :data:`~blendify_core.pipeline.meta.COMMON_TIMINGS` (``render``, ``read_back``) plus any finer
         phases of the backend's own."""
+
+    def device_choice(self) -> DeviceChoice | None:
+        """The device this backend renders on (None: the backend has no ``device=`` option)."""
+        return None
 
     def scene_lock(self) -> contextlib.AbstractContextManager[object]:
         """A lock held from translation to the end of the render (default: none). A backend whose engine

@@ -73,6 +73,8 @@ class RenderMeta(TypedDict, total=False):
     scene_fingerprint: str
     #: (core) samples per pixel rendered (with ``target_error``: the sum over all passes)
     samples: int
+    #: (core, backends with ``device=``) what rendered: "CPU", "GPU (OPTIX: ...)", "CPU (llvm_ad_rgb)", ...
+    device: str
     #: (core) True for Monte Carlo path tracers (``Backend.path_tracer``)
     path_tracer: bool
     #: (core) the backends skipped by the automatic choice, each "name: reason" (only when skipped)

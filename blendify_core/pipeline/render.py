@@ -12,11 +12,17 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core.errors import BackendUnavailableError, InvalidSceneError, RenderError, UnsupportedFeatureError
+from blendify_core.errors import (
+    BackendUnavailableError,
+    InvalidSceneError,
+    RenderError,
+    UnsupportedFeatureError,
+    warn_at_caller,
+)
 from blendify_core.ir.cameras import Camera, OrthographicCamera, PerspectiveCamera
 from blendify_core.ir.scene import Scene
 from blendify_core.ir.validate import strict_arguments
-from blendify_core.pipeline.backend import Backend
+from blendify_core.pipeline.backend import Backend, DeviceChoice
 from blendify_core.pipeline.capabilities import scene_features
 from blendify_core.pipeline.compat import map_legacy_keywords
 from blendify_core.pipeline.distortion import margin_camera, remap_result
@@ -133,6 +139,8 @@ class _Preflight:
     fallback_notes: list[str]
     #: warnings already issued that also go to ``meta["warnings"]``
     warnings: list[str] = field(default_factory=list)
+    #: what the backend renders on (backends with a ``device=`` option)
+    device: DeviceChoice | None = None
 
 
 def _padded_camera(cam: Camera, width: int, height: int) -> Camera:
@@ -266,7 +274,20 @@ def _preflight(
         warnings.warn(clip_warning, stacklevel=3)
         recorded.append(clip_warning)
     approximations = check_capabilities(inst, scene, settings)
-    return _Preflight(approximations, analyse_effects(scene), fallback_notes, recorded)
+    device = inst.device_choice()
+    if device is not None and device.fallback:
+        if settings.strict:
+            raise BackendUnavailableError(
+                f"{inst.name}: {device.option}={device.requested!r} is unavailable here ({device.fallback}); "
+                f"strict=True refuses to render on {device.used} instead"
+            )
+        note = (
+            f"{inst.name}: {device.option}={device.requested!r} is unavailable here ({device.fallback}); "
+            f"rendering on {device.used}"
+        )
+        warn_at_caller(note)
+        recorded.append(note)
+    return _Preflight(approximations, analyse_effects(scene), fallback_notes, recorded, device)
 
 
 def _plan_view(scene: Scene, cam: Camera, inst: Backend, bounds: Bounds | None) -> _ViewPlan:
@@ -338,6 +359,8 @@ def _record_meta(
     if pre.fallback_notes:
         meta["backend_fallback"] = pre.fallback_notes
     meta.setdefault("samples", settings.samples)
+    if pre.device is not None:
+        meta.setdefault("device", pre.device.used)
     if plan.origin is not None:
         meta["recentred_origin"] = [float(x) for x in plan.origin]
     if pre.warnings:

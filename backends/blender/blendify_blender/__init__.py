@@ -18,7 +18,9 @@ Options (``bf.render(scene, backend="cycles", verbose=True)`` or ``CyclesBackend
 - ``isolate`` (False): render in a persistent worker subprocess (the scene travels as a portable scene
   file); Blender keeps some memory it never frees, so long runs should use it.
 - ``worker_max_renders`` (100): with ``isolate``, restart the worker after this many renders.
-- ``device`` ("CPU"): "CPU" or "GPU" (GPU falls back to CPU with a logged reason when none is found).
+- ``device`` ("cpu"): "cpu", "gpu" (the first Cycles compute type with a device: OPTIX, CUDA, HIP, METAL,
+  ONEAPI) or one of those types by name. Without such a device ``bf.render`` warns and renders on the CPU,
+  or raises ``BackendUnavailableError`` with ``strict=True``; ``result.meta["device"]`` says what ran.
 - ``cycles_settings`` (None): Cycles scene properties set after blendify's own settings, for rendering an
   attached .blend with the file's settings (``attach_blend(..., render_settings=True).cycles_settings``:
   volume bounces, caustics, light threshold and tree, adaptive threshold, film exposure); the keys are
@@ -54,21 +56,31 @@ package does it again. Details and measurements in that module's docstring.
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib.util
 import logging
 from typing import Any
 
 from blendify_core.errors import BackendUnavailableError, InvalidSceneError
 from blendify_core.ir.scene import Scene
-from blendify_core.pipeline.backend import Backend
+from blendify_core.pipeline.backend import Backend, DeviceChoice, parse_device
 from blendify_core.pipeline.capabilities import Capability
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
 from blendify_core.registry import BackendStatus
 
 from . import capabilities as _capabilities
+from . import session as _session
 from .render import render_built
-from .session import BPY_LOCK, CyclesSession, TranslatedScene, bpy_module, defer_keyboard_interrupt, enable_gpu
+from .session import (
+    BPY_LOCK,
+    GPU_TYPES,
+    CyclesSession,
+    TranslatedScene,
+    bpy_module,
+    defer_keyboard_interrupt,
+    enable_gpu,
+)
 from .translate import CyclesTranslator, apply_cycles_settings, check_cycles_settings
 from .worker import IsolatedScene, WorkerClient
 
@@ -92,6 +104,24 @@ def _fix_bpy_tags() -> None:
 _fix_bpy_tags()
 
 
+def _choose_device(requested: str) -> DeviceChoice:
+    """The device for ``device=requested``, from the GPU list Cycles reports here."""
+    if requested == "cpu":
+        return DeviceChoice("cpu", "CPU", None, ("CPU",))
+    devices = _session.list_gpu_devices()
+    found = ("CPU", *(f"GPU {kind}: {name}" for kind, name in devices))
+    kinds = [k for k in GPU_TYPES if any(kind == k for kind, _ in devices)]
+    wanted = kinds if requested == "gpu" else [k for k in kinds if k == requested]
+    if wanted:
+        names = ", ".join(name for kind, name in devices if kind == wanted[0])
+        return DeviceChoice(requested, f"GPU ({wanted[0]}: {names})", None, found)
+    if not devices:
+        why = f"Cycles found no GPU compute device (looked for {', '.join(GPU_TYPES)})"
+    else:
+        why = f"Cycles found no {requested} device (found: {', '.join(found[1:])})"
+    return DeviceChoice(requested, "CPU", why, found)
+
+
 class CyclesBackend(Backend):
     """The reference path tracer: Blender Cycles (CPU, or GPU when asked and present)."""
 
@@ -109,7 +139,7 @@ class CyclesBackend(Backend):
         verbose: bool = False,
         isolate: bool = False,
         worker_max_renders: int = 100,
-        device: str = "CPU",
+        device: str = "cpu",
         cycles_settings: dict[str, Any] | None = None,
         **options: Any,
     ) -> None:
@@ -120,12 +150,13 @@ class CyclesBackend(Backend):
             raise InvalidSceneError(f"isolate: expected True or False, got {isolate!r}")
         if isinstance(worker_max_renders, bool) or not isinstance(worker_max_renders, int) or worker_max_renders < 1:
             raise InvalidSceneError(f"worker_max_renders: expected a positive integer, got {worker_max_renders!r}")
-        if not isinstance(device, str) or device.upper() not in ("CPU", "GPU"):
-            raise InvalidSceneError(f"device: expected 'CPU' or 'GPU', got {device!r}")
+        #: "cpu", "gpu" (the first of GPU_TYPES with a device) or a Cycles compute type ("OPTIX", "CUDA", ...)
+        self.device = parse_device(device, GPU_TYPES)
         self.verbose = verbose
         self.isolate = isolate
         self.worker_max_renders = worker_max_renders
-        self.device = device.upper()
+        self._device_choice: DeviceChoice | None = None
+        self._gpu_type = ""
         self.cycles_settings = check_cycles_settings(cycles_settings)
         if self.cycles_settings and isolate:
             raise InvalidSceneError("cycles_settings: not available with isolate=True (the worker uses its own)")
@@ -163,6 +194,23 @@ class CyclesBackend(Backend):
         return cls.attach_blend(scene, path, **kwargs)
 
     @classmethod
+    def info_details(cls) -> list[str]:
+        """Lines for ``blendify info``: the devices Cycles finds here."""
+        return [f"devices: {', '.join(_choose_device('gpu').found)}"]
+
+    def device_choice(self) -> DeviceChoice | None:
+        """What this backend renders on: the CPU for ``device="cpu"``; otherwise the GPU devices Cycles finds
+        (:func:`blendify_blender.session.list_gpu_devices`, enumerated once per backend), or the CPU with
+        the reason. With ``isolate=True`` the worker decides (None here: no bpy in this process)."""
+        if self.isolate and self.device != "cpu":
+            return None
+        if self._device_choice is None:
+            self._device_choice = _choose_device(self.device)
+            used = self._device_choice.used
+            self._gpu_type = used[5 : used.index(":")] if used.startswith("GPU (") else ""
+        return self._device_choice
+
+    @classmethod
     def export_blend(cls, scene: Any, path: Any, **kwargs: Any) -> Any:
         """Write a .blend file that renders ``scene`` in Blender (see :mod:`blendify_blender.export`)."""
         from .export import export_blend
@@ -180,8 +228,10 @@ class CyclesBackend(Backend):
     def _ensure_session(self) -> CyclesSession:
         if self._session is None:
             bpy_module()
-            gpu = enable_gpu if self.device == "GPU" else None
-            self._session = CyclesSession(CyclesTranslator, device=self.device, gpu_setup=gpu)
+            self.device_choice()
+            kind = self._gpu_type
+            gpu = functools.partial(enable_gpu, kind) if kind else None
+            self._session = CyclesSession(CyclesTranslator, device="GPU" if kind else "CPU", gpu_setup=gpu)
         return self._session
 
     def _check_open(self) -> None:

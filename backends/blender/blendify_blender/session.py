@@ -51,6 +51,8 @@ __all__ = [
     "datablock_counts",
     "defer_keyboard_interrupt",
     "enable_gpu",
+    "list_gpu_devices",
+    "GPU_TYPES",
     "engine_errors",
     "factory_reset",
     "generation",
@@ -288,27 +290,49 @@ def defer_keyboard_interrupt() -> Iterator[None]:
                 raise KeyboardInterrupt
 
 
-def enable_gpu() -> str:
-    """Enable the first available GPU compute backend; '' (CPU fallback, logged) when there is none."""
-    bpy = bpy_module()
+#: Cycles' GPU compute backends, preferred first (``device="gpu"`` takes the first with a device)
+GPU_TYPES = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
+
+
+def _cycles_prefs() -> Any:
+    return bpy_module().context.preferences.addons["cycles"].preferences
+
+
+def list_gpu_devices() -> list[tuple[str, str]]:
+    """(compute type, device name) of every GPU device Cycles finds here, in :data:`GPU_TYPES` order.
+
+    The one place devices are enumerated: ``CyclesBackend.device_choice`` and ``blendify info`` call it
+    through this module, so a test can replace it with a faked list."""
     try:
-        prefs = bpy.context.preferences.addons["cycles"].preferences
-    except Exception as exc:  # pragma: no cover - depends on the build
-        log.warning("cycles: GPU requested but the Cycles preferences are unavailable (%s); using the CPU", exc)
+        prefs = _cycles_prefs()
+    except Exception as exc:  # noqa: BLE001 - depends on the build
+        log.debug("cycles: the Cycles preferences are unavailable (%s): no GPU", exc)
+        return []
+    found: list[tuple[str, str]] = []
+    with capture_output("list GPU devices"):  # Cycles prints a line per missing driver library
+        for kind in GPU_TYPES:
+            try:
+                prefs.compute_device_type = kind
+                prefs.get_devices()
+            except Exception:  # noqa: BLE001 - a compute type this build does not have
+                continue
+            found += [(kind, str(d.name)) for d in prefs.devices if d.type == kind]
+    return found
+
+
+def enable_gpu(kind: str) -> str:
+    """Enable Cycles' ``kind`` devices (called after every factory reset, which forgets the preferences);
+    returns ``kind``, or '' (CPU, logged) when Blender refuses it."""
+    try:
+        prefs = _cycles_prefs()
+        prefs.compute_device_type = kind
+        prefs.get_devices()
+        for d in prefs.devices:
+            d.use = d.type == kind
+    except Exception as exc:  # noqa: BLE001 - reported, rendered on the CPU
+        log.warning("cycles: enabling %s devices failed (%s); rendering on the CPU", kind, exc)
         return ""
-    for kind in ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI"):
-        try:
-            prefs.compute_device_type = kind
-            prefs.get_devices()
-        except Exception:
-            continue
-        devices = [d for d in prefs.devices if d.type == kind]
-        if devices:
-            for d in prefs.devices:
-                d.use = d.type == kind
-            return kind
-    log.warning("cycles: GPU requested but no GPU compute device was found; rendering on the CPU")
-    return ""
+    return kind
 
 
 # ---------------------------------------------------------------------------------------------------

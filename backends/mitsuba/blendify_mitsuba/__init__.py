@@ -23,13 +23,14 @@ import numpy as np
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.scene import Scene
-from blendify_core.pipeline.backend import Backend
+from blendify_core.pipeline.backend import Backend, DeviceChoice, parse_device
 from blendify_core.pipeline.capabilities import Capability
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
 from blendify_core.registry import BackendStatus
 
 from . import capabilities as _capabilities
+from . import variant as _variant
 from .render import render_native
 from .session import DEFAULT_MAX_ANALYTIC_SPHERES, MitsubaNative, MitsubaSession
 from .translate import DEFAULT_SAMPLER, MitsubaTranslator
@@ -41,6 +42,33 @@ logging.getLogger("blendify_mitsuba").addHandler(logging.NullHandler())
 __all__ = ["MitsubaBackend", "MitsubaNative", "MitsubaTranslator", "DEFAULT_MAX_ANALYTIC_SPHERES"]
 
 
+#: ``device=`` -> the variant asked for ("cpu": the fastest CPU variant, llvm_ad_rgb else scalar_rgb)
+#: ("gpu": cuda_ad_rgb, else the fastest CPU variant, with the reason)
+_DEVICE_VARIANT = {
+    "cpu": "cpu",
+    "gpu": "gpu",
+    "cuda": "gpu",
+    "llvm": "llvm_ad_rgb",
+    "scalar": "scalar_rgb",
+}
+_DEVICE_MEANING = {
+    "cpu": "a CPU variant (llvm or scalar)",
+    "gpu": "a CUDA variant",
+    "cuda": "a CUDA variant",
+    "llvm": "an llvm variant",
+    "scalar": "a scalar variant",
+}
+DEVICE_FAMILIES = ("cuda", "llvm", "scalar")
+
+
+def _family(variant: str) -> str:
+    """The variant family: "cuda", "llvm", "scalar"; "cpu" for the CPU request (llvm and scalar both
+    satisfy it); "cuda" for the GPU request."""
+    if variant in ("cpu", "gpu"):
+        return "cpu" if variant == "cpu" else "cuda"
+    return variant.split("_", 1)[0]
+
+
 class MitsubaBackend(Backend):
     """Mitsuba 3 backend.
 
@@ -49,6 +77,10 @@ class MitsubaBackend(Backend):
     back to ``scalar_rgb`` with the reason in ``result.meta["variant_reason"]``),
     ``max_analytic_spheres`` (point clouds up to this size are analytic spheres, larger ones the IR's merged
     icosphere mesh; None = the measured default of the variant, see DEFAULT_MAX_ANALYTIC_SPHERES) and
+    ``device`` (None: as ``variant``; "cpu": llvm_ad_rgb when its probe passes, else scalar_rgb; "gpu" or
+    "cuda": cuda_ad_rgb; "llvm" / "scalar": that variant; without the device ``bf.render`` warns and renders
+    on the variant that works, or raises ``BackendUnavailableError`` with ``strict=True``, as it does for an
+    explicit ``variant`` that falls back; ``result.meta["device"]`` says what ran),
     ``sampler`` (Mitsuba's sampler plugin, one of :attr:`SAMPLERS`; default ``multijitter``, measured in
     benchmarks/results/mitsuba_noise.md).
     """
@@ -68,9 +100,12 @@ class MitsubaBackend(Backend):
         variant: str | None = None,
         max_analytic_spheres: int | None = None,
         sampler: str = DEFAULT_SAMPLER,
+        device: str | None = None,
         **options: Any,
     ) -> None:
         super().__init__(**options)
+        #: None (automatic, as ``variant=None``), "cpu", "gpu", or a variant family: "cuda", "llvm", "scalar"
+        self.device = None if device is None else parse_device(device, DEVICE_FAMILIES)
         if sampler not in self.SAMPLERS:
             raise InvalidSceneError(f"sampler: expected one of {list(self.SAMPLERS)}, got {sampler!r}")
         if variant is not None and (not isinstance(variant, str) or variant not in KNOWN_VARIANTS):
@@ -85,9 +120,35 @@ class MitsubaBackend(Backend):
             raise InvalidSceneError(
                 f"max_analytic_spheres: expected None or an integer >= 0, got {max_analytic_spheres!r}"
             )
+        if self.device is not None:
+            implied = _DEVICE_VARIANT[self.device]
+            if variant is not None and _family(variant) != _family(implied):
+                raise InvalidSceneError(
+                    f"device={device!r} and variant={variant!r} disagree (device {device!r} means "
+                    f"{_DEVICE_MEANING[self.device]}); give one of them"
+                )
+            variant = variant or implied
         self.session = MitsubaSession(
             variant, None if max_analytic_spheres is None else int(max_analytic_spheres), sampler
         )
+
+    def device_choice(self) -> DeviceChoice | None:
+        """What this backend renders on: the variant chosen (probes run once per process) and, when the
+        device or variant asked for is not the one that runs (no GPU for ``cuda_ad_rgb``, no usable
+        libLLVM for ``llvm_ad_rgb``), why. ``bf.render`` refuses that under ``strict=True``."""
+        requested = self.session.requested_variant
+        choice = self.session.variant_choice
+        used = f"{'GPU' if choice.variant.startswith('cuda') else 'CPU'} ({choice.variant})"
+        label = self.device or requested or "auto"
+        fallback = None
+        if requested not in (None, "cpu") and _family(choice.variant) != _family(requested):
+            family = _family(requested)
+            causes = [a.summary for a in choice.attempts if _family(a.variant) == family]
+            fallback = (
+                f"{family} variants unavailable: {'; '.join(causes)}" if causes else choice.summary or choice.reason
+            )
+        gpus = tuple(f"GPU {g}" for g in _variant.gpu_devices())
+        return DeviceChoice(label, used, fallback, ("CPU", *gpus), "device" if self.device else "variant")
 
     # -- discovery -------------------------------------------------------------------------------
     @classmethod
@@ -100,7 +161,8 @@ class MitsubaBackend(Backend):
     def info_details(cls) -> list[str]:
         """Lines for ``blendify info``: the variant a default ``MitsubaBackend()`` uses here and why, one line
         per variant probe (the probes run now when the probe cache has no result for them)."""
-        return describe(None)
+        gpus = _variant.gpu_devices()
+        return [*describe(None), f"devices: CPU; GPU: {', '.join(gpus) if gpus else 'none (no NVIDIA device node)'}"]
 
     @classmethod
     def capabilities(cls) -> dict[str, Capability]:

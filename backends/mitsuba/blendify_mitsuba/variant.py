@@ -46,6 +46,7 @@ __all__ = [
     "libllvm_candidates",
     "probe_cache_path",
     "describe",
+    "gpu_devices",
     "KNOWN_VARIANTS",
 ]
 
@@ -383,8 +384,17 @@ def cached_probe(variant: str, libllvm: str | None) -> ProbeAttempt:
 # -- the choice ---------------------------------------------------------------------------------------
 
 
+def gpu_devices() -> list[str]:
+    """The NVIDIA GPUs here (their device nodes; the CUDA variants need one). The one place GPUs are
+    enumerated: the variant choice, ``device_choice`` and ``blendify info`` call it through this module,
+    so a test can replace it with a faked list."""
+    if not os.path.exists("/dev/nvidiactl"):
+        return []
+    return sorted(glob.glob("/dev/nvidia[0-9]*"))
+
+
 def _gpu_present() -> bool:
-    return any(os.path.exists(p) for p in ("/dev/nvidiactl", "/dev/nvidia0"))
+    return bool(gpu_devices())
 
 
 _memo: dict[tuple[str | None, str | None], VariantChoice] = {}
@@ -448,7 +458,8 @@ def quiet_engine_import(variant: str) -> Iterator[None]:
 
 
 def choose_variant(requested: str | None, *, quiet: bool = False) -> VariantChoice:
-    """Resolve ``requested`` (None = the fastest variant that works here) into a usable variant.
+    """Resolve ``requested`` (None = the fastest variant that works here; "cpu" = the fastest CPU variant;
+    "gpu" = cuda_ad_rgb, else as None; or a variant name) into a usable variant.
 
     Never raises for an unusable JIT variant: it falls back to ``scalar_rgb`` with the reason, logged as
     one WARNING line (at INFO with ``quiet``) the first time in the process; probe output at DEBUG."""
@@ -517,7 +528,12 @@ def _choose(requested: str | None, user_llvm: str | None) -> VariantChoice:
     reasons: list[str] = []
     attempts: list[ProbeAttempt] = []
     no_lib = False
-    wanted = [requested] if requested is not None else ["cuda_ad_rgb", "llvm_ad_rgb"]
+    if requested == "cpu":  # device="cpu": the fastest CPU variant
+        wanted = ["llvm_ad_rgb"]
+    elif requested == "gpu":  # device="gpu": CUDA, else the fastest CPU variant (the caller says why)
+        wanted = ["cuda_ad_rgb", "llvm_ad_rgb"]
+    else:
+        wanted = [requested] if requested is not None else ["cuda_ad_rgb", "llvm_ad_rgb"]
     for variant in wanted:
         if variant.startswith("cuda"):
             if not _gpu_present():
