@@ -9,7 +9,8 @@ What is written (docs/export.md has the table):
   ``NORMAL``, flat shading as no normals (glTF viewers then shade flat); UVs as ``TEXCOORD_n`` (v flipped:
   glTF's UV origin is the top-left); vertex colours as linear float ``COLOR_0``;
 - point clouds as ``POINTS`` primitives (``points="points"``, the default; the point size, which glTF cannot
-  express, is kept in the primitive's ``extras``) or as merged icospheres (``points="spheres"``);
+  express, is kept in the primitive's ``extras.point_size``, per-point sizes in a ``_POINT_SIZE`` attribute)
+  or as merged icospheres (``points="spheres"``);
 - materials as metallic-roughness PBR: base colour (linear factor, or an sRGB PNG texture), metallic,
   roughness (with ``roughness_map`` / ``metallic_map`` packed into one metallicRoughness texture), normal
   map, emission, alpha; transmission, IOR, clear coat, sheen and the specular level through the
@@ -393,8 +394,13 @@ def _pointcloud_mesh(doc: _Document, r: PointCloud) -> dict[str, Any]:
     if isinstance(colors, VertexColors):
         attributes["COLOR_0"] = doc.accessor(colors.linear_rgba)
     size = r.point_size
-    extras = {"point_size": float(size) if np.ndim(size) == 0 else [float(s) for s in np.asarray(size)]}
-    doc.note("point clouds: written as POINTS (glTF has no point size; it is kept in the primitive's extras)")
+    extras = {"point_size": float(np.mean(size))}  # the diameter (world units); the mean of per-point sizes
+    if np.ndim(size):  # one per point: an application-specific attribute (glTF: names starting with "_")
+        attributes["_POINT_SIZE"] = doc.accessor(np.asarray(size, dtype=np.float64)[:, None])
+    doc.note(
+        "point clouds: written as POINTS (glTF has no point size: the diameter is in the primitive's "
+        "extras.point_size, per-point sizes in the _POINT_SIZE attribute)"
+    )
     prim = {"attributes": attributes, "material": _material(doc, r.materials[0], colors, {}), "mode": 0}
     return {"name": r.tag, "primitives": [{**prim, "extras": extras}]}
 

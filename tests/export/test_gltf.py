@@ -251,6 +251,14 @@ def test_camera_lights_and_points(tmp_path):
         accessor_data(gltf, blob, prim["attributes"]["COLOR_0"])[:, :3], srgb_to_linear(pts), rtol=1e-5
     )
     assert any("POINTS" in n for n in notes)
+    # per-point sizes: their mean in the extras, each in the _POINT_SIZE attribute
+    sizes = np.linspace(0.01, 0.05, 30)
+    scene.renderables["pc"].point_size = sizes
+    gltf3, blob3, _ = gltf_document(scene)
+    validate(gltf3, blob3)
+    prim3 = gltf3["meshes"][0]["primitives"][0]
+    assert prim3["extras"]["point_size"] == pytest.approx(sizes.mean())
+    np.testing.assert_allclose(accessor_data(gltf3, blob3, prim3["attributes"]["_POINT_SIZE"])[:, 0], sizes, rtol=1e-6)
     # and as spheres: the same tessellation the renders use
     gltf2, blob2, _ = gltf_document(scene, points="spheres")
     validate(gltf2, blob2)

@@ -36,7 +36,7 @@ try {
       const size = o.geometry.userData.point_size;
       const old = o.material;
       o.material = new THREE.PointsMaterial({
-        size: Array.isArray(size) ? size.reduce((a, b) => a + b, 0) / size.length : size || 0.01,
+        size: size || 0.01, // the diameter (the mean of per-point sizes)
         sizeAttenuation: true,
         vertexColors: old.vertexColors,
         color: old.color,
