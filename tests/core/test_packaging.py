@@ -74,7 +74,7 @@ def test_cli_help_and_bad_arguments():
         h = subprocess.run([*run, sub, "--help"], capture_output=True, text=True, timeout=60)
         assert h.returncode == 0, sub
     bad = subprocess.run([*run, "render", "missing-scene.npz"], capture_output=True, text=True, timeout=60)
-    assert bad.returncode == 1
+    assert bad.returncode == 2  # bad input (errors.EXIT_CODES)
     assert bad.stderr.strip().count("\n") == 0 and "no such scene file" in bad.stderr
     bad = subprocess.run([*run, "nonsense"], capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and bad.stderr.strip().count("\n") == 0
