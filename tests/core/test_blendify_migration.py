@@ -240,3 +240,18 @@ def test_bias_is_recorded_in_meta(fake_backend, simple_scene):
         resolve_settings(pixel_filter="mitchell")
     with pytest.raises(bf.InvalidSceneError, match="pixel_filter_width"):
         resolve_settings(pixel_filter_width=0)
+
+
+def test_use_gpu_reaches_every_backend():
+    """blendify's default use_gpu=True maps to device='gpu', which every backend takes (pyrender: EGL
+    device 0); use_gpu=False on pyrender says what to pass instead."""
+    from blendify_core.registry import get_backend_class
+
+    for name in ("cycles", "mitsuba", "pyrender"):
+        if not bf.available_backends()[name].available:
+            continue
+        get_backend_class(name)(device="gpu")
+    if bf.available_backends()["pyrender"].available:
+        assert get_backend_class("pyrender")(device="gpu").device == 0
+        with pytest.raises(bf.InvalidSceneError, match="platform='osmesa'"):
+            get_backend_class("pyrender")(device="cpu")

@@ -21,7 +21,8 @@ Usage::
 Options: ``platform`` ("egl", "osmesa" or None = ``PYOPENGL_PLATFORM`` if set, else EGL when present,
 else OSMesa), ``antialias`` ("auto", "coverage", "msaa", "ssaa"), ``msaa`` (samples of multisampled
 passes, default 4; 0 = none), ``supersample`` (factor for "ssaa", and for the coverage pass where the
-platform has no MSAA; default 2), ``device`` (EGL device index).
+platform has no MSAA; default 2), ``device`` (EGL device index; "gpu" = 0, as ``bf.render(device="gpu")``
+and blendify 2.1's ``use_gpu=True`` give).
 
 Anti-aliasing follows ``settings.samples``: 1 = a plain frame (one sample per pixel, binary alpha); more
 = the ``antialias`` scheme:
@@ -85,7 +86,7 @@ class PyrenderBackend(Backend):
         antialias: str = "auto",
         msaa: int = 4,
         supersample: int = 2,
-        device: int = 0,
+        device: int | str = 0,
         **options: Any,
     ) -> None:
         super().__init__(**options)
@@ -99,6 +100,12 @@ class PyrenderBackend(Backend):
         self.supersample = _as_int_option("supersample", supersample, 1)
         if self.supersample > 8:
             raise InvalidSceneError(f"supersample: expected 1..8, got {supersample}")
+        if isinstance(device, str) and device.lower() == "gpu":
+            device = 0  # bf.render's device="gpu" (and blendify 2.1's use_gpu=True): the first EGL device
+        elif isinstance(device, str) and device.lower() == "cpu":
+            raise InvalidSceneError(
+                "device: pyrender renders with OpenGL; for software rendering on the CPU pass platform='osmesa'"
+            )
         self.device = _as_int_option("device", device, 0)
         self._engine: Any = None
         self._lock = threading.RLock()

@@ -82,3 +82,18 @@ def test_info_lists_the_devices(fake_gpus, capsys):
     assert main(["info"]) == 0
     out = capsys.readouterr().out
     assert "devices: CPU, GPU CUDA: Fake RTX 1, GPU OPTIX: Fake RTX 1, GPU HIP: Fake Radeon" in out
+
+
+def test_blendify_look_reaches_cycles():
+    """quality='blendify': Blender's render defaults as blendify 2.1 left them, stated as bias in meta."""
+    scene = testing.plane_scene("sun", resolution=(8, 8))
+    r = bf.render(scene, backend="cycles", quality="blendify", samples=2, effects=False)
+    es = r.meta["engine_settings"]
+    assert es["pixel_filter"] == ("BLACKMAN_HARRIS", 1.5)
+    assert (es["clamp_indirect"], es["blur_glossy"], es["adaptive"]) == (10.0, 1.0, True)
+    bounces = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "transparent_max_bounces")
+    assert [es[k] for k in bounces] == [12, 4, 4, 12, 8]
+    assert any("clamp_indirect=10" in b for b in r.meta["bias"]) and any("filter_glossy" in b for b in r.meta["bias"])
+    final = bf.render(testing.plane_scene("sun", resolution=(8, 8)), backend="cycles", quality="final", samples=2)
+    assert final.meta["bias"] == [] and final.meta["engine_settings"]["blur_glossy"] == 0.0
+    assert final.meta["engine_settings"]["pixel_filter"] == ("BOX", 1.0)
