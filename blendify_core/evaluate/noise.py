@@ -14,10 +14,11 @@ For every block of pixels (``tile`` x ``tile`` tiles, and the whole image) and e
 - the block *rejects* when ``(|D| - margin) / sqrt(V)`` exceeds the Student-t critical value with the
   block's Welch-Satterthwaite degrees of freedom (``V**2 / sum(v_i**2 / dof_i)``: K - 1 per pixel, more
   for a block pooling many pixels), Šidák-corrected over the blocks and channels of its family;
-- ``margin = rel * (|S| + floor * n_pixels * image_mean)`` with ``rel = margin_global`` for the whole
+- ``margin = rel * max(|S|, floor * n_pixels * image_mean)`` with ``rel = margin_global`` for the whole
   image and ``margin_tile`` for a tile; ``image_mean`` is the mean pixel value over *all* channels, so
   ``floor`` keeps dark tiles and dark channels (the red of a green object) from being held to a zero
-  margin, where the tiny absolute differences of two engines' specular lobes would fail.
+  margin, where the tiny absolute differences of two engines' specular lobes would fail. The reported
+  relative differences use the same base: ``D / max(|S|, floor * n_pixels * image_mean)``.
 
 The two families (tiles, global) get ``alpha / 2`` each, so when the two engines' expected images are
 equal the probability of a false failure is at most ``alpha`` (the margin only makes the test more
@@ -60,7 +61,8 @@ DEFAULT_FLOOR = 0.1
 class NoiseTest:
     """Outcome of :func:`noise_test` (a is compared with the reference b).
 
-    ``global_rel_diff``: per channel, (sum a - sum b) / sum b; ``global_excess``: the largest per-channel
+    ``global_rel_diff``: per channel, (sum a - sum b) relative to the channel's brightness (the mean of both
+    sums; at least ``floor`` x the image's mean brightness over all channels); ``global_excess``: the largest per-channel
     statistic ``(|D| - margin) / sqrt(V)`` of the whole image; ``global_crit``: its critical value;
     ``tile_excess`` / ``tile_crit``: (tiles_y, tiles_x, C) the same per tile; ``n_tile_reject``: tiles where
     any channel rejects; ``reasons``: readable failures.
@@ -162,7 +164,7 @@ def _excess(
     image_mean: Float64Array,
 ) -> tuple[Float64Array, Float64Array]:
     """(|D| - margin) / sqrt(V) per block and the blocks' Welch-Satterthwaite degrees of freedom."""
-    margin = rel * (np.abs(s) + floor * n_px * image_mean)
+    margin = rel * _base(s, n_px, floor, image_mean)
     gap = np.abs(d) - margin
     with np.errstate(divide="ignore", invalid="ignore"):
         sd = np.sqrt(v)
@@ -172,6 +174,13 @@ def _excess(
         )
         dof = np.where(q > 0, v * v / np.where(q > 0, q, 1.0), np.inf)
     return z, dof
+
+
+def _base(s: Float64Array, n_px: Float64Array, floor: float, image_mean: Float64Array) -> Float64Array:
+    """What a block's margin and relative difference are relative to: its brightness, at least ``floor``
+    times the image's mean brightness (over all channels) per pixel."""
+    out: Float64Array = np.maximum(np.abs(s), floor * n_px * image_mean)
+    return out
 
 
 def _critical(alpha_one: float, dof: Float64Array) -> Float64Array:
@@ -255,9 +264,9 @@ def noise_test(
     gz, gdof = _excess(sums[0], sums[1], sums[2], sums[3], sums[4], margin_global, floor, image_mean)
     gcrit = _critical(sidak_alpha(a_family, c), gdof)
     worst = int(np.argmax(gz - gcrit))
-    sb = (mb * w).sum(axis=(0, 1))
+    base = _base(sums[1], sums[4], floor, image_mean)
     with np.errstate(divide="ignore", invalid="ignore"):
-        rel = np.where(sb != 0, sums[0] / np.where(sb != 0, sb, 1.0), 0.0)
+        rel = np.where(base > 0, sums[0] / np.where(base > 0, base, 1.0), 0.0)
     reasons = []
     if n_tile_reject:
         reasons.append(
