@@ -7,7 +7,11 @@ import numpy as np
 import pytest
 
 import blendify_core as bf
-from blendify_core.evaluate.noise import combine_passes, estimate_from_passes, noise_test, pass_samples
+from blendify_core.evaluate.noise import combine_passes, estimate_from_passes, noise_test, pass_samples, render_passes
+from blendify_core.pipeline.backend import Backend
+from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.registry import register_backend, unregister_backend
+from blendify_core.testing import depth_plane_scene
 
 H, W, K = 48, 64, 4
 
@@ -178,3 +182,65 @@ def test_dark_channel_is_judged_against_the_image_brightness():
     brighter = green.copy()
     brighter[..., 1] *= 1.01
     assert not noise_test(brighter, zero, 3, green, zero, 3).passed
+
+
+class _Seeded(Backend):
+    """A fake path tracer: a constant grey plus Gaussian noise drawn from the render's seed."""
+
+    name = "noise-fake-pt"
+    path_tracer = True
+
+    @classmethod
+    def capabilities(cls):
+        return {k: Capability("exact") for k in ALL_FEATURES}
+
+    def translate(self, scene, settings):
+        return scene
+
+    def render(self, native, settings):
+        w, h = native.camera.resolution
+        rng = np.random.default_rng(settings.seed)
+        rgba = np.ones((h, w, 4), np.float32)
+        rgba[..., :3] = 0.5 + rng.normal(size=(h, w, 3)).astype(np.float32) * 0.1 / np.sqrt(settings.samples)
+        return bf.RenderResult(rgba=rgba, meta={"samples": settings.samples, "seed": settings.seed})
+
+
+class _Raster(_Seeded):
+    name = "noise-fake-raster"
+    path_tracer = False
+
+
+@pytest.fixture
+def seeded():
+    for cls in (_Seeded, _Raster):
+        register_backend(cls.name, cls)
+    yield
+    for cls in (_Seeded, _Raster):
+        unregister_backend(cls.name)
+    bf.close_backends()
+
+
+def test_render_passes_splits_samples_and_keeps_the_noise(seeded):
+    scene = depth_plane_scene((16, 12))
+    r = render_passes(scene, "noise-fake-pt", samples=64, passes=4, seed=10)
+    assert r.meta["passes"] == 4 and r.meta["samples"] == 64
+    passes = [bf.render(scene, backend="noise-fake-pt", samples=16, seed=10 + i).rgb for i in range(4)]
+    assert np.allclose(r.rgb, np.mean(passes, axis=0), atol=1e-6)
+    # the variance of the mean of 4 passes of 16 samples: 0.1^2 / 64 per pixel-channel, on average
+    assert r.rgb_var.mean() == pytest.approx(0.01 / 64, rel=0.15)
+    other = render_passes(scene, "noise-fake-pt", samples=64, passes=4, seed=100)
+    assert bf.compare(r, other, tier="pathtracer").noise.passed
+    raster = render_passes(scene, "noise-fake-raster", samples=64)
+    assert raster.rgb_var is None and "passes" not in raster.meta
+    with pytest.raises(bf.InvalidSceneError, match="passes"):
+        render_passes(scene, "noise-fake-pt", passes=1)
+
+
+def test_crosscheck_passes_argument(seeded):
+    scene = depth_plane_scene((16, 12))
+    rep = bf.crosscheck(scene, backends=("noise-fake-pt", "noise-fake-raster"), samples=8, outputs=("rgb",))
+    assert rep.results["noise-fake-pt"].meta["passes"] == 4 and rep.settings["passes"] == 4
+    assert rep.results["noise-fake-raster"].rgb_var is None  # a raster backend renders once
+    for bad in (0, 1.5, "4"):
+        with pytest.raises(bf.InvalidSceneError, match="passes"):
+            bf.crosscheck(scene, backends=("noise-fake-pt",), passes=bad)
