@@ -62,8 +62,8 @@ class NoiseTest:
     """Outcome of :func:`noise_test` (a is compared with the reference b).
 
     ``global_rel_diff``: per channel, (sum a - sum b) relative to the channel's brightness (the mean of both
-    sums; at least ``floor`` x the image's mean brightness over all channels); ``global_excess``: the largest per-channel
-    statistic ``(|D| - margin) / sqrt(V)`` of the whole image; ``global_crit``: its critical value;
+    sums; at least ``floor`` x the image's mean brightness over all channels); ``global_excess``: the
+    largest per-channel statistic ``(|D| - margin) / sqrt(V)`` of the whole image; ``global_crit``: its critical value;
     ``tile_excess`` / ``tile_crit``: (tiles_y, tiles_x, C) the same per tile; ``n_tile_reject``: tiles where
     any channel rejects; ``reasons``: readable failures.
     """
