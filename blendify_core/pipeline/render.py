@@ -543,6 +543,9 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     rgb = (stack * w).sum(axis=0)
     alpha = (np.stack(alphas) * w).sum(axis=0)
     first.rgba = np.concatenate([rgb, alpha], axis=-1).astype(np.float32)
+    if len(colours) >= 2:  # the variance of the weighted mean (the noise-aware comparison uses it)
+        var_one = (n_arr.reshape(w.shape) * (np.stack(colours) - rgb) ** 2).sum(axis=0) / (len(colours) - 1)
+        first.rgb_var = (var_one / n_arr.sum()).astype(np.float32)
     meta = first.meta
     meta["passes"] = len(colours)
     meta["samples"] = int(n_arr.sum())

@@ -50,9 +50,10 @@ class RenderResult:
     - ``albedo``: (H, W, 3) float32 linear base colour of the visible material, 0 where nothing was hit
     - ``instance``: (H, W) int32 index into ``instance_tags``, -1 for background
     - ``rgb_var``: (H, W, 3) float32 or None: the variance of each colour pixel-channel *as an estimate
-      of the expected image*, measured from ``meta["passes"]`` independent passes (``bf.crosscheck`` and
-      ``blendify_core.evaluate.noise.render_passes`` keep it; the noise-aware verdict of ``bf.compare``
-      uses it); None when not measured (a single pass, or a raster backend)
+      of the expected image*, measured from ``meta["passes"]`` independent passes (``bf.crosscheck``,
+      ``blendify_core.evaluate.noise.render_passes`` and ``bf.render(target_error=...)`` keep it; the
+      noise-aware verdict of ``bf.compare`` uses it); None when not measured (a single pass, a raster
+      backend)
     - ``meta``: backend, engine version, settings, effects, approximations, timings, samples, ...: the
       keys documented in :class:`~blendify_core.pipeline.meta.RenderMeta` (a plain dict at run time)
     """

@@ -60,6 +60,11 @@ def test_target_error_reached_and_estimate_is_honest(noisy, target):
     # the estimate is within a factor of 1.5 of the true error
     truth = true_error(result.rgba)
     assert truth / 1.5 <= meta["estimated_error"] <= truth * 1.5
+    # the per-pixel variance of the mean is kept (the noise-aware comparison uses it): on average the
+    # squared error of the mean against the truth
+    assert result.rgb_var is not None and result.rgb_var.shape == result.rgba.shape[:2] + (3,)
+    mse = float(np.mean((result.rgba[..., :3] - TRUTH) ** 2))
+    assert mse / 1.5 <= float(result.rgb_var.mean()) <= mse * 1.5
     # and the work was not wildly more than needed (error ~ 1/sqrt(samples))
     needed = (SIGMA / TRUTH) ** 2 * (TRUTH**2 / (TRUTH**2 + 1e-2)) / target**2
     assert meta["samples"] <= 4 * needed + 64
