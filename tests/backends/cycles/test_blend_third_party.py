@@ -1,0 +1,80 @@
+"""Third-party .blend files (tests/third_party/blend, SOURCES.md): attached as a new user would, rendered by
+Blender itself and by blendify's Cycles backend -- the same picture (benchmarks/blend_fidelity.py measures
+all of them with Mitsuba and pyrender too).
+
+Committed files (open licences) always run; files under ``$BLENDIFY_THIRD_PARTY_DIR/blend`` (cache-only)
+run when the variable names a folder that has them.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from blendify_blender.blendfile import BlendAttachWarning, attach_blend
+from blendify_blender.blendfile.reference import blender_render, prepare_blend
+
+import blendify_core as bf
+from blendify_core.ir.scene import Scene
+from blendify_core.testing import THIRD_PARTY_DIR, THIRD_PARTY_ENV
+
+COMMITTED = sorted((THIRD_PARTY_DIR / "blend").rglob("*.blend"))
+#: one quick file in the default run; the rest are slow
+QUICK = ("04_lights",)
+
+
+def _cached() -> list[Path]:
+    cache = os.environ.get(THIRD_PARTY_ENV)
+    folder = Path(cache) / "blend" if cache else None
+    return sorted(folder.rglob("*.blend")) if folder is not None and folder.is_dir() else []
+
+
+def _params() -> list:
+    out = [pytest.param(p, id=p.stem, marks=() if p.stem in QUICK else pytest.mark.slow) for p in COMMITTED + _cached()]
+    if not _cached():
+        reason = f"${THIRD_PARTY_ENV} is {'not set' if not os.environ.get(THIRD_PARTY_ENV) else 'without blend/'}"
+        out.append(pytest.param(None, id="cache-only", marks=pytest.mark.skip(reason=f"cache-only files: {reason}")))
+    return out
+
+
+def test_the_committed_suite_is_there():
+    assert len(COMMITTED) >= 10
+    sources = (THIRD_PARTY_DIR / "SOURCES.md").read_text()
+    for p in COMMITTED:
+        assert f"blend/{p.parent.name}/{p.name}" in sources, f"{p.name} is not listed in SOURCES.md"
+        assert (p.parent / "LICENSE.txt").is_file()
+
+
+@pytest.mark.parametrize("path", COMMITTED, ids=[p.stem for p in COMMITTED])
+def test_every_committed_file_attaches(path: Path, cycles):
+    scene = Scene()
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        added = attach_blend(scene, path, render_settings=True)
+    assert len(added) >= 1
+    assert added.render_settings is not None and added.render_settings["samples"] >= 1
+    lines = scene.attachments[-1].approximations
+    msgs = [str(w.message) for w in rec if issubclass(w.category, BlendAttachWarning)]
+    assert len(msgs) == (1 if lines else 0)  # whatever the parse lost is said once, line by line
+    assert all(line in msgs[0] for line in lines)
+
+
+@pytest.mark.parametrize("path", _params())
+def test_cycles_renders_the_file_like_blender(path: Path, tmp_path: Path, cycles):
+    copy = tmp_path / "prepared.blend"
+    prepare_blend(path, copy, (40, 30), 8)
+    _info, ref = blender_render(copy, tmp_path / "ref.exr")
+    scene = Scene()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BlendAttachWarning)
+        att = attach_blend(scene, copy, with_camera=True, render_settings=True)
+    settings = {**att.render_settings, "outputs": ("rgba",)}
+    res = bf.render(scene, backend="cycles", cycles_settings=att.cycles_settings, **settings)
+    img = np.asarray(res.rgba)
+    assert img.shape == ref.shape
+    assert res.meta["translation"]["from_file"]["renderables"] == len(att)
+    # the same engine, scene, settings and seed: the same samples (within float noise of the passes)
+    assert np.abs(img - ref).mean() <= 1e-3 * max(float(np.abs(ref).mean()), 1e-3)
