@@ -29,12 +29,9 @@ def main() -> None:
     view = scene.show(viewer="html", path=out / "view.html", open_browser=False)
     print(f"offline viewer page: {view.path} (open it in a web browser)")
     back = bf.Scene()
-    back.renderables.add_trimesh(out / "scene.glb", merge=False, rotation_mode="rotmat", rotation=Y_UP_TO_Z_UP)
+    back.renderables.add_trimesh(out / "scene.glb", merge=False)  # back in +Z up, with the tags
     print(f"read back from the .glb: {sorted(back.renderables.keys())}")
 
-
-#: undoes the exporter's +Y-up root rotation (glTF is +Y up, the IR +Z up)
-Y_UP_TO_Z_UP = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]
 
 if __name__ == "__main__":
     main()

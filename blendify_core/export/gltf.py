@@ -56,6 +56,7 @@ from blendify_core.ir.colors import (
     VertexUV,
 )
 from blendify_core.ir.colorspace import linear_to_srgb8
+from blendify_core.ir.from_trimesh import GLTF_ROOT
 from blendify_core.ir.lights import AreaLight, PointLight, SpotLight, SunLight
 from blendify_core.ir.materials import GlossyBSDFMaterial
 from blendify_core.ir.physics import point_intensity, spot_cone
@@ -518,7 +519,7 @@ def gltf_document(
         doc.note("the world light (background / environment map): not expressible in glTF")
     if scene.camera is not None:
         children.append(doc.add("nodes", _camera(doc, scene.camera)))
-    root: dict[str, Any] = {"name": "blendify_scene", "children": children}
+    root: dict[str, Any] = {"name": GLTF_ROOT, "children": children}
     if y_up:
         root["rotation"] = list(Y_UP_ROTATION)
     doc.gltf["scenes"][0]["nodes"] = [doc.add("nodes", root)]

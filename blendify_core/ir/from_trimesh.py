@@ -20,6 +20,10 @@ __all__ = ["add_trimesh", "load_trimesh"]
 SUFFIXES = (".obj", ".ply", ".glb", ".gltf", ".stl", ".off")
 _DEFAULT_COLOR = (0.8, 0.8, 0.8)
 _NAME_KEY = "blendify_name"  # the geometry's name in a trimesh.Scene, kept in its metadata
+#: the root node blendify's glTF export hangs a scene under, and its rotation from the IR's +Z up to glTF's
+#: +Y up ((x, y, z) -> (x, z, -y)): reading such a file undoes it, so an exported scene comes back as it was
+GLTF_ROOT = "blendify_scene"
+GLTF_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
 def load_trimesh(path: str | os.PathLike[str]) -> Any:
@@ -109,6 +113,17 @@ def _dump(scene: Any) -> list[Any]:
     return out
 
 
+def _undo_blendify_y_up(scene: Any) -> None:
+    """Rotate a scene read from blendify's own glTF export back to +Z up (its root node says so)."""
+    if GLTF_ROOT not in scene.graph.nodes:
+        return
+    matrix = np.asarray(scene.graph.get(GLTF_ROOT)[0], dtype=np.float64)
+    if np.allclose(matrix[:3, :3], GLTF_Y_UP, atol=1e-9):
+        undo = np.eye(4)
+        undo[:3, :3] = GLTF_Y_UP.T
+        scene.apply_transform(undo)
+
+
 def _tagged(collection: Any, geometry: Any, keywords: dict[str, Any]) -> dict[str, Any]:
     """``keywords`` with the geometry's name in the file as the tag (e.g. a glTF mesh name), unless a tag
     is given or the name is taken."""
@@ -154,6 +169,8 @@ def add_trimesh(
     # glTF stores vertex colours and colour factors linear (the spec); other formats sRGB-encoded
     gltf = isinstance(mesh_or_path, (str, os.PathLike)) and Path(mesh_or_path).suffix.lower() in (".glb", ".gltf")
     space = kwargs.pop("_color_space", "linear" if gltf else "srgb")
+    if gltf and isinstance(obj, trimesh.Scene):
+        _undo_blendify_y_up(obj)
     if isinstance(obj, trimesh.PointCloud):
         pts = np.asarray(obj.vertices, dtype=np.float64)
         if colors is None:
