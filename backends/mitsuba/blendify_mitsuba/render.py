@@ -181,10 +181,20 @@ def catch_shadows(native: MitsubaNative, rgba: np.ndarray, settings: RenderSetti
     return out
 
 
-def _rays(camera: Any, parallel: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Pixel-centre rays clipped to [near, far] (planar): origins, directions, t_near, t_far, cos.
-    ``parallel``: every ray is along the view direction (orthographic cameras), cos = 1."""
-    o, d = camera.pixel_rays()
+#: the second ray of every pixel passes this far (pixels) from its centre: Mitsuba's ray-triangle test is
+#: not watertight, a ray exactly through an edge between two non-coplanar triangles can slip between them
+#: (measured: the pixel-centre rays through the 45 degree meridian of the IR's UV sphere)
+_SECOND_RAY_OFFSET = (2.6e-4, 1.4e-4)
+
+
+def _rays(
+    camera: Any, parallel: bool, offset: tuple[float, float] = (0.0, 0.0)
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Pixel-centre rays (moved by ``offset`` pixels) clipped to [near, far] (planar): origins, directions,
+    t_near, t_far, cos. ``parallel``: every ray is along the view direction (orthographic cameras), cos = 1."""
+    vv, uu = np.mgrid[0 : camera.height, 0 : camera.width]
+    pixels = np.stack([uu.ravel() + offset[0], vv.ravel() + offset[1]], axis=1).astype(np.float64)
+    o, d = camera.pixel_rays(pixels)
     cos = d @ camera.viewdir
     if parallel:
         cos = np.ones(len(d))
@@ -204,24 +214,37 @@ def cast_outputs(
     """Depth (planar z, +inf background), normal (world, shading; turned for back faces), albedo (the
     material colour input, linear) and instance (renderable index, -1 background) per pixel centre.
     ``parallel``: the camera's rays are parallel (orthographic cameras, ``MitsubaNative.parallel_rays``)."""
-    o, d, tn, tf, cos = _rays(camera, parallel)
-    n = len(d)
     shape_list = list(scene.shapes())
     ids = [s.id() for s in shape_list]
-    hit_t = np.full(n, np.inf)
-    hit_shape = np.full(n, -1, dtype=np.int64)
-    normal = np.zeros((n, 3), np.float32)
-    albedo = np.zeros((n, 3), np.float32)
     want_albedo = "albedo" in outputs
-    if vectorised:
-        _cast_vector(scene, shape_list, ids, shapes, o, d, tn, tf, hit_t, hit_shape, normal, albedo, want_albedo)
-    else:
-        _cast_scalar(scene, ids, shapes, o, d, tn, tf, hit_t, hit_shape, normal, albedo, want_albedo)
+    casts = []
+    for offset in ((0.0, 0.0), _SECOND_RAY_OFFSET):
+        o, d, tn, tf, cos = _rays(camera, parallel, offset)
+        n = len(d)
+        hit_t = np.full(n, np.inf)
+        hit_shape = np.full(n, -1, dtype=np.int64)
+        normal = np.zeros((n, 3), np.float32)
+        albedo = np.zeros((n, 3), np.float32)
+        if vectorised:
+            _cast_vector(scene, shape_list, ids, shapes, o, d, tn, tf, hit_t, hit_shape, normal, albedo, want_albedo)
+        else:
+            _cast_scalar(scene, ids, shapes, o, d, tn, tf, hit_t, hit_shape, normal, albedo, want_albedo)
+        casts.append((hit_t * cos, hit_shape, normal, albedo))
+    # the centre ray's hit, unless the second ray found a surface clearly nearer (the centre ray slipped
+    # through a crack between two triangles)
+    (z, hit_shape, normal, albedo), (z2, shape2, normal2, albedo2) = casts
+    slipped = np.isfinite(z2) & ~(z2 >= z * (1.0 - 1e-3))
+    z[slipped], hit_shape[slipped], normal[slipped], albedo[slipped] = (
+        z2[slipped],
+        shape2[slipped],
+        normal2[slipped],
+        albedo2[slipped],
+    )
     h, w = camera.height, camera.width
     out: dict[str, np.ndarray] = {}
     valid = hit_shape >= 0
     if "depth" in outputs:
-        z = np.where(valid, hit_t * cos, np.inf)
+        z = np.where(valid, z, np.inf)
         out["depth"] = z.reshape(h, w).astype(np.float32)
     if "normal" in outputs:
         out["normal"] = normal.reshape(h, w, 3)

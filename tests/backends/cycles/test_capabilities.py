@@ -29,7 +29,10 @@ FROZEN: dict[str, tuple[str, str]] = {
     "primitive.plane": ("exact", ""),
     "primitive.sphere": ("exact", _SPHERE),
     "primitive.ellipsoid": ("exact", "the IR's shared tessellation (64x32, exact normals)"),
-    "primitive.curve": ("exact", "Blender curve: POLY spline bevelled to the radius, filled caps"),
+    "primitive.curve": (
+        "exact",
+        "the IR's tessellation (tube along the polyline, flat caps), the mesh Mitsuba and pyrender render",
+    ),
     "shadow_catcher": ("exact", ""),
     "object.no_shadow": ("exact", ""),
     "material.principled": ("exact", ""),

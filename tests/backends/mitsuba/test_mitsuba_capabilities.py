@@ -29,7 +29,10 @@ FROZEN: dict[str, tuple[str, str]] = {
     "primitive.circle": ("exact", "IR tessellation"),
     "primitive.cylinder": ("exact", "IR tessellation"),
     "primitive.plane": ("exact", "IR tessellation"),
-    "primitive.sphere": ("exact", "analytic sphere"),
+    "primitive.sphere": (
+        "exact",
+        "the IR's shared tessellation (64x32 UV sphere, exact vertex normals), as in Cycles and pyrender",
+    ),
     "primitive.ellipsoid": ("exact", "IR tessellation"),
     "primitive.curve": ("exact", "IR tessellation (tube along the polyline)"),
     "shadow_catcher": (

@@ -252,15 +252,16 @@ def test_emission_builds_an_emitter_and_compositing_scenes(mi_scalar):
     )
     scene.set_perspective_camera((64, 48), fov_x=1.0, translation=(0, 0, 5))
     tr = _translate(scene, mi_scalar)
-    shape = tr.scene_dict["r00000_sphere"]
+    shape = tr.scene_dict["r00000_m000"]  # the sphere's tessellation, an area emitter on it
     expected = PrincipledBSDFMaterial(emission_color=(1, 0.5, 0.25)).linear("emission_color")[:3] * 3.0
-    assert shape["emitter"]["radiance"]["value"] == pytest.approx(list(expected))
+    radiance = mi_scalar.traverse(shape.emitter())["radiance.value"]
+    assert [radiance[i] for i in range(3)] == pytest.approx(list(expected), rel=1e-6)
     assert tr.coverage_dict is None  # no sky: no compositing needed
     scene.lights.set_background_light(0.5)
     tr = _translate(scene, mi_scalar, 10, resolve_settings(samples=4, transparent_background=True))
     assert tr.coverage_dict["integrator"]["max_depth"] == 2 and "background" not in tr.coverage_dict
-    assert "r00000_sphere" in tr.coverage_dict
-    assert "background" in tr.background_dict and "r00000_sphere" not in tr.background_dict
+    assert "r00000_m000" in tr.coverage_dict
+    assert "background" in tr.background_dict and "r00000_m000" not in tr.background_dict
 
 
 def test_settings_drive_integrator(mi_scalar):
@@ -291,3 +292,18 @@ def test_bad_options_and_inputs():
         MitsubaBackend(foo=1)
     with pytest.raises(bf.InvalidSceneError, match="scene"):
         MitsubaBackend(variant="scalar_rgb").translate("not a scene", resolve_settings())
+
+
+def test_sphere_is_the_irs_tessellation_with_its_wireframe(mi_scalar):
+    """A sphere is the IR's UV-sphere mesh (the surface Cycles and pyrender render), so a wireframe material
+    on it gets its tubes as on any mesh (it was dropped on Mitsuba's analytic sphere)."""
+    scene = bf.Scene()
+    s = scene.renderables.add_sphere_nurbs(
+        0.5, bf.PrincipledBSDFWireframeMaterial(wireframe_thickness=0.01), UniformColors((0.5, 0.5, 0.5))
+    )
+    scene.set_perspective_camera((32, 24), fov_x=1.0, translation=(0, 0, 5))
+    tr = _translate(scene, mi_scalar)
+    mesh = tr.scene_dict["r00000_m000"]
+    tm = s.to_mesh()
+    assert mesh.face_count() == len(tm.faces)  # (vertices split per corner for the UVs)
+    assert "r00000_w000" in tr.scene_dict and tr.n_analytic_spheres == 0
