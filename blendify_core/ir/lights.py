@@ -33,6 +33,7 @@ from blendify_core.ir.params import (
     Declared,
     Param,
     Signature,
+    emission_param,
     encode_params,
 )
 from blendify_core.ir.transforms import Positionable, ValidatedParam, quaternion_from_rotation, quaternion_to_matrix
@@ -74,7 +75,7 @@ BACKGROUND_COLOR = replace(
     COLOR, channels=(3, 4), opaque_alpha=True, doc="Colour of the background, RGB (sRGB unless color_space='linear')"
 )
 USE_SHADOW = Param("use_shadow", True, "bool", doc="Whether the light casts shadows")
-POWER = Param("strength", 100.0, "float", 0.0, None, unit="W", doc="Emitted power")
+POWER = emission_param("strength", 100.0, "Emitted power", unit="W")
 SHADOW_SOFT_SIZE = Param(
     "shadow_soft_size", 0.25, "float", 0.0, None, unit="m", doc="Emitter radius (soft shadows; 0 = a point)"
 )
@@ -118,7 +119,7 @@ class Light(Positionable, Declared):
     """Base of positioned lights."""
 
     _declared: tuple[Param, ...] = (
-        Param("strength", REQUIRED, "float", 0.0, None, unit="W or W/m^2", doc="Power"),
+        emission_param("strength", REQUIRED, "Power", unit="W or W/m^2"),
         COLOR,
         USE_SHADOW,
         *_LIGHT_TAIL,
@@ -180,7 +181,7 @@ class SunLight(Light):
     """A sun: irradiance ``strength`` W/m^2 on a surface facing it, ``angular_diameter`` radians."""
 
     _declared = (
-        Param("strength", 10.0, "float", 0.0, None, unit="W/m^2", doc="Irradiance on a surface facing the sun"),
+        emission_param("strength", 10.0, "Irradiance on a surface facing the sun", unit="W/m^2"),
         Param("angular_diameter", 0.00918043, "float", 0.0, np.pi, unit="rad", doc="Angular diameter of the disc"),
         COLOR,
         USE_SHADOW,
@@ -280,7 +281,7 @@ class BackgroundLight(Declared):
     """Uniform light from the whole sky: radiance = colour x strength (Blender's world Background)."""
 
     _declared = (
-        Param("strength", 1.0, "float", 0.0, None, doc="Multiplies the colour (radiance = color x strength)"),
+        emission_param("strength", 1.0, "Multiplies the colour (radiance = color x strength)"),
         BACKGROUND_COLOR,
         COLOR_SPACE,
     )
@@ -322,7 +323,7 @@ class EnvironmentMap(Declared):
             type_text="(H, W, 3|4) array or a path",
             doc="The equirectangular image: float HDR (linear), uint8 (sRGB) or an image file",
         ),
-        Param("strength", 1.0, "float", 0.0, None, doc="Multiplies the image"),
+        emission_param("strength", 1.0, "Multiplies the image"),
         ROTATION_MODE,
         ROTATION,
         Param(

@@ -24,7 +24,7 @@ import numpy as np
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import COLOR_SPACES, _to_linear
-from blendify_core.ir.params import Clamp, Declared, Param, Signature, encode_params
+from blendify_core.ir.params import Clamp, Declared, Param, Signature, emission_param, encode_params
 from blendify_core.ir.physics import material_lobes
 from blendify_core.typing import AnyArray
 
@@ -86,14 +86,8 @@ PRINCIPLED: tuple[Param, ...] = (
     _factor("coat_weight", 0.0, "Strength of the clear coat layer"),
     _factor("diffuse_roughness", 0.0, "Oren-Nayar roughness of the diffuse lobe (0 = Lambertian)"),
     _colour("emission_color", (0.0, 0.0, 0.0, 0.0), "Emitted colour"),
-    Param(
-        "emission_strength",
-        0.0,
-        "float",
-        0.0,
-        None,
-        unit="W/(m^2 sr)",
-        doc="Emitted radiance = emission_color x emission_strength",
+    emission_param(
+        "emission_strength", 0.0, "Emitted radiance = emission_color x emission_strength", unit="W/(m^2 sr)"
     ),
     Param("ior", 1.45, "float", 1.0, 1000.0, doc="Index of refraction of the dielectric (specular and transmission)"),
     _factor("metallic", 0.0, "Blend from dielectric (0) to metal (1)"),

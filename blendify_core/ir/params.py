@@ -63,6 +63,13 @@ class _Required:
 
 REQUIRED: Any = _Required()
 
+#: the largest light strength / emission strength accepted. Engines compute radiance in float32 (largest
+#: value 3.4e38): Cycles rendered emission 1e38 as inf and 1e39 black, Mitsuba NaN, a 1e308 W point light
+#: NaN / black. 1e30 renders finite in all three (the hard case ``huge_emission_1e30``; a 1e30 W point light
+#: of radius 0.01 m too) and leaves 8 orders of magnitude for the geometry factors (1 / radius^2, 1 / area).
+MAX_EMISSION = 1e30
+_EMISSION_NOTE = "render engines compute in float32: larger strengths overflow to inf or NaN"
+
 
 class BlenderClampWarning(UserWarning):
     """A value inside a declared Blender clamp range was replaced by what Blender renders it as."""
@@ -144,6 +151,8 @@ class Param:
     min_open: bool = False
     max_open: bool = False
     clamps: tuple[Clamp, ...] = ()
+    #: said after the valid range when a value is outside it (why the range ends there)
+    range_note: str = ""
     #: choice: the options (matched case-insensitively, stored as declared)
     choices: tuple[str, ...] = ()
     #: choice: other accepted spellings, (alias, option) pairs (e.g. Blender's "disk" for "circle")
@@ -238,11 +247,17 @@ class Param:
 # ---------------------------------------------------------------------------------------------------
 
 
+def emission_param(name: str, default: Any, doc: str, unit: str = "") -> Param:
+    """A light power or emission strength: [0, MAX_EMISSION] (engines overflow beyond)."""
+    return Param(name, default, "float", 0.0, MAX_EMISSION, unit=unit, doc=doc, range_note=_EMISSION_NOTE)
+
+
 def _out_of_range(p: Param, label: str, shown: str, value: float | None = None) -> InvalidSceneError:
     extra = f" (Blender's clamp ranges {p.clamp_text()} are accepted with a warning)" if p.clamps else ""
     what = f"{UNIT_NAMES.get(p.unit, p.unit)} in" if p.unit in UNIT_NAMES else "a value in"
     hint = "" if value is None else unit_hint(p.unit, value, p.max_value)
-    return InvalidSceneError(f"{label}: expected {what} {p.range_text()}{extra}, got {shown}{hint}")
+    note = f" ({p.range_note})" if p.range_note else ""
+    return InvalidSceneError(f"{label}: expected {what} {p.range_text()}{extra}{note}, got {shown}{hint}")
 
 
 def _warn_clamped(label: str, value: float, clamp: Clamp) -> None:

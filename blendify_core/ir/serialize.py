@@ -171,7 +171,7 @@ def _polygons(arrays: Mapping[str, AnyArray], d: dict[str, Any]) -> Any:
     # triangle and a k-gon k - 2 of them (a crafted header declaring 1e11 polygons asked for 2 TiB)
     if not isinstance(m, int) or isinstance(m, bool) or not 0 <= m <= len(tris):
         raise InvalidSceneError(f"n_polygons: the header declares {m!r} polygons for {len(tris)} triangles")
-    if k is not None and (not isinstance(k, int) or isinstance(k, bool) or not 3 <= k <= len(tris) + 2):
+    if k is not None and (not isinstance(k, int) or isinstance(k, bool) or (m and not 1 <= k <= len(tris) + 2)):
         raise InvalidSceneError(f"polygon_size: the header declares {k!r} for {len(tris)} triangles")
     if k is not None:
         out = np.zeros((m, k), dtype=np.int64)

@@ -20,7 +20,7 @@ import numpy as np
 
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.scene import Scene
-from blendify_core.ir.validate import as_float
+from blendify_core.ir.validate import as_float, strict_api, strict_arguments
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.render import (
     FIRST_PASSES,
@@ -38,6 +38,7 @@ from blendify_core.typing import FloatArray
 __all__ = ["CostEstimate", "estimate_cost", "predict_schedule"]
 
 
+@strict_api
 @dataclass(frozen=True)
 class CostEstimate:
     """What a render to ``target_error`` is predicted to cost (``seconds`` excludes the pilot itself)."""
@@ -87,6 +88,7 @@ def predict_schedule(error_at: float, samples_at: int, target: float, base: int)
         counts.append(_next_pass_samples(total, float(estimate), target, base))
 
 
+@strict_arguments
 def estimate_cost(
     scene: Scene,
     backend: str | Backend | None = None,

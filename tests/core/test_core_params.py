@@ -171,7 +171,7 @@ def test_values_inside_the_valid_range_do_not_warn():
 def test_outside_the_valid_range_raises_naming_the_parameter(cls, p):
     lows = [c.low for c in p.clamps] + ([p.min_value] if p.min_value is not None else [])
     highs = [c.high for c in p.clamps] + ([p.max_value] if p.max_value is not None else [])
-    bad = ([min(lows) - 0.5] if lows else []) + ([max(highs) + 0.5] if highs else [])
+    bad = ([min(lows) - 0.5] if lows else []) + ([max(highs) + max(0.5, max(highs) / 2)] if highs else [])
     assert bad, f"{p.name} has no range to test"
     for value in bad:
         with pytest.raises(InvalidSceneError, match=p.name):

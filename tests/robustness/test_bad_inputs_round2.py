@@ -520,14 +520,7 @@ ENGINE: list[Case] = [
 CASES: list[Case] = BOOLS + KINDS + COLOURS + MATERIAL_PARAMS + KEYWORDS + HIERARCHY + SAVE + SCENE_FILES + ENGINE
 
 #: cases that are not yet a clear error (the issue's "before"); fixing one makes its xfail pass (strict)
-OPEN: set[str] = {
-    "emission_strength_1e39",
-    "point_strength_1e308",
-    "sun_strength_1e300",
-    "background_strength_1e40",
-    "particle_emission_1e39",
-    "emission_strength_attr_1e39",
-}
+OPEN: set[str] = set()
 
 
 def classify(case: Case, tmp: Path) -> tuple[str, str]:

@@ -11,6 +11,7 @@ from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import UniformColors, VertexColors
 from blendify_core.ir.geometry import TriMesh, icosphere
+from blendify_core.ir.params import MAX_EMISSION
 from blendify_core.ir.renderables.base import Renderable, _column_bounds
 from blendify_core.ir.transforms import ValidatedParam
 from blendify_core.ir.validate import as_array, as_choice, as_float, raw_array
@@ -27,7 +28,7 @@ class PointCloud(Renderable):
     prefix = "PointCloud"
     allowed_colors = (UniformColors, VertexColors)
     particle_emission_strength = ValidatedParam(
-        lambda obj, name, v: as_float(name, v, min_value=0.0),
+        lambda obj, name, v: as_float(name, v, min_value=0.0, max_value=MAX_EMISSION),
         doc="Self-illumination of the points (0 = lit like everything else).",
     )
 
