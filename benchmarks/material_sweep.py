@@ -277,7 +277,7 @@ def write_table() -> None:
         a = after["rows"].get(name, {}).get("mitsuba") if after else None
         goal = 0.05 if is_glass(name) else 0.02
         ok = "-" if a is None else ("met" if a["mean"] <= goal else "**missed**")
-        p = row.get("pyrender")
+        p = row.get("pyrender") or before["rows"].get(name, {}).get("pyrender")
         lines.append(
             f"| {name} | {_fmt(b, 'mean')} | {_fmt(a, 'mean')} | {_fmt(b, 'pixel')} | {_fmt(a, 'pixel')} | "
             f"{goal * 100:.0f} %: {ok} | {_fmt(p, 'mean')} | {_fmt(p, 'pixel')} |"

@@ -39,6 +39,7 @@ __all__ = [
     "fresnel_conductor",
     "f82_tint",
     "fit_conductor",
+    "fit_conductor_albedo",
     "principled_lobes",
     "glass_scale",
     "sum_lobes",
@@ -206,6 +207,36 @@ def fit_conductor(target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.array(ns), np.array(ks)
 
 
+@functools.lru_cache(maxsize=64)
+def _albedo_operator(alpha: float) -> np.ndarray:
+    """(N_MU, len(_FIT_C)): Mitsuba's single-scattering GGX albedo is linear in the Fresnel curve,
+    ``A(mu) = op[mu] @ F(_FIT_C)`` (the visible-normal samples binned by cos(v, h), separable shadowing)."""
+    vdoth, cos_l, _lam_v, lam_l = _vndf(max(alpha, 1e-4))
+    g = np.where(cos_l > 0, 1.0 / (1.0 + lam_l), 0.0)
+    edges = np.concatenate([[0.0], 0.5 * (_FIT_C[1:] + _FIT_C[:-1]), [1.0]])
+    op = np.zeros((N_MU, len(_FIT_C)))
+    for i in range(N_MU):
+        op[i] = np.histogram(np.clip(vdoth[i], 0.0, 1.0), bins=edges, weights=g[i])[0] / vdoth.shape[1]
+    return op
+
+
+def fit_conductor_albedo(alpha: float, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per channel, the conductor IOR ``(n, k)`` (over a fixed grid) whose Mitsuba albedo curve, at its best
+    scale, is closest to ``target`` (N_MU, C), Cycles' albedo curve (cosine-weighted least squares): the
+    fit that matters for the picture, where Cycles' Fresnel has shapes no conductor has (the F82 dip)."""
+    cand = (_albedo_operator(alpha) @ _fit_table().reshape(len(_FIT_C), -1)).T  # (candidates, N_MU)
+    w = _MU
+    ns, ks = [], []
+    for ch in range(target.shape[1]):
+        t = target[:, ch]
+        s = (cand * t * w).sum(axis=1) / np.maximum((cand * cand * w).sum(axis=1), 1e-12)
+        err = ((s[:, None] * cand - t) ** 2 * w).sum(axis=1)
+        i, j = np.unravel_index(int(np.argmin(err)), (len(_FIT_N), len(_FIT_K)))
+        ns.append(_FIT_N[i])
+        ks.append(_FIT_K[j])
+    return np.array(ns), np.array(ks)
+
+
 @functools.lru_cache(maxsize=256)
 def _conductor_lobe(alpha: float, key: tuple[float, ...], kind: str, multiscatter: bool) -> tuple[Any, ...]:
     """(n, k, albedo scale, Cycles albedo (N_MU, 3)) of one GGX lobe of Cycles (cached by parameters)."""
@@ -213,10 +244,10 @@ def _conductor_lobe(alpha: float, key: tuple[float, ...], kind: str, multiscatte
     target = fresnel(_FIT_C)
     if target.ndim == 1:
         target = np.repeat(target[:, None], 3, axis=1)
-    n, k = fit_conductor(target)
     a_cyc = cycles_albedo(alpha, fresnel, multiscatter)
     if a_cyc.shape[1] == 1:
         a_cyc = np.repeat(a_cyc, 3, axis=1)
+    n, k = fit_conductor_albedo(alpha, a_cyc)
     a_mi = ggx_albedo(alpha, lambda c: fresnel_conductor(c[..., None], n, k), correlated=False)
     scale = cos_mean(a_cyc) / np.maximum(cos_mean(a_mi), 1e-9)
     return n, k, scale, a_cyc
@@ -314,7 +345,9 @@ def principled_lobes(material: Any, base: np.ndarray) -> list[Lobe]:
     if sheen > 0:
         tint = material.linear("sheen_tint")[:3] * sheen
         a_sheen = sheen_albedo(float(material.sheen_roughness))[:, None] * tint  # (N_MU, 3)
-        lobes.append(Lobe(_diffuse_lobe(raw_rgb), cos_mean(w * a_sheen), w * a_sheen))
+        s_alpha = sheen_alpha(float(material.sheen_roughness))
+        n, k, shape = _sheen_lobe(float(material.sheen_roughness))
+        lobes.append(Lobe(_ggx_lobe(s_alpha, n, k), cos_mean(w * a_sheen) / shape, w * a_sheen))
         w = w * (1.0 - np.max(a_sheen, axis=1, keepdims=True))
 
     coat = float(material.coat_weight)
@@ -364,6 +397,24 @@ def principled_lobes(material: Any, base: np.ndarray) -> list[Lobe]:
 _SHEEN_ROUGH = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
 
 
+def sheen_alpha(roughness: float) -> float:
+    """The GGX alpha of the lobe standing in for Cycles' sheen of ``roughness``: broad, so that its conductor
+    Fresnel (fitted to the sheen's albedo curve) puts the energy where the sheen has it, towards grazing."""
+    return max(roughness, 0.1)
+
+
+@functools.lru_cache(maxsize=32)
+def _sheen_lobe(roughness: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(n, k, cosine-weighted mean albedo of that conductor lobe) of the roughconductor whose albedo curve
+    follows the shape of Cycles' sheen albedo at ``roughness``."""
+    a = np.repeat(sheen_albedo(roughness)[:, None], 3, axis=1)
+    if float(np.max(a)) <= 0.0:
+        a = np.ones_like(a)
+    n, k = fit_conductor_albedo(sheen_alpha(roughness), a)
+    a_mi = ggx_albedo(sheen_alpha(roughness), lambda c: fresnel_conductor(c[..., None], n, k), correlated=False)
+    return n, k, np.maximum(cos_mean(a_mi), 1e-9)
+
+
 def sheen_albedo(roughness: float) -> np.ndarray:
     """Directional albedo (N_MU,) of Cycles' sheen layer of weight 1 and white tint (approximation)."""
     table = _sheen_table()
@@ -397,29 +448,37 @@ SHEEN_MEASURED = np.array(
 )
 
 
-def glass_scale(material: Any) -> float:
-    """The factor restoring the energy Mitsuba's single-scattering ``roughdielectric`` (separable shadowing)
-    loses against Cycles' compensated glass: 1 / (cosine-weighted mean of its R + T albedo)."""
+#: roughness and IOR of :data:`GLASS_T_SCALE`
+GLASS_ROUGH = np.array([0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0])
+GLASS_IOR = np.array([1.2, 1.45, 1.9, 2.5])
+#: transmittance factors of Mitsuba's ``roughdielectric`` that make a white glass sphere in a white furnace
+#: as bright as Cycles' compensated MULTI_GGX glass (Cycles: 0.98-1.0; Mitsuba loses energy at each rough
+#: interaction, most in rough total internal reflection); measured by bisection with
+#: benchmarks/calibrate_mitsuba_glass.py (bpy 5.0.1, Mitsuba 3.9.1 scalar_rgb, 128 spp; below roughness
+#: 0.3 within the noise of 1; 2.5 was the search's limit)
+GLASS_T_SCALE = np.array(
+    [
+        [1.0, 1.0, 1.0, 1.0],
+        [1.0, 1.0, 1.0, 1.0],
+        [1.006, 1.018, 1.029, 1.053],
+        [1.041, 1.076, 1.123, 1.217],
+        [1.1, 1.182, 1.322, 1.533],
+        [1.229, 1.404, 1.732, 2.225],
+        [1.404, 1.721, 2.307, 2.5],
+    ]
+)
+
+
+def glass_scale(material: Any) -> tuple[float, float]:
+    """(reflection, transmission) factors of Mitsuba's ``roughdielectric`` for Cycles' glass: reflection 1
+    (a scaled reflection would amplify the rough internal reflections), transmission from
+    :data:`GLASS_T_SCALE` (bilinear in roughness and IOR, clamped to the table); 1 for "GGX"."""
     r = float(material.roughness)
-    if r <= 0.0 or material.distribution != "MULTI_GGX":
-        return 1.0
-    return 1.0 / _glass_albedo(r * r, float(material.ior))
-
-
-@functools.lru_cache(maxsize=64)
-def _glass_albedo(alpha: float, eta: float) -> float:
-    vdoth, cos_l, lam_v, lam_l = _vndf(max(alpha, 1e-4))
-    f = fresnel_dielectric(vdoth, eta)
-    g_r = np.where(cos_l > 0, 1.0 / (1.0 + lam_l), 0.0)
-    # refracted direction's cosine: cos_t = -(vdoth / eta - ...) ; its Smith lambda from |cos_t|
-    mu = _MU[:, None]
-    sin2_t = (1.0 - vdoth**2) / (eta * eta)
-    cos_ht = np.sqrt(np.maximum(1.0 - sin2_t, 0.0))
-    h_z = (cos_l + mu) / np.maximum(2.0 * vdoth, 1e-9)  # h.z from the reflection: l + v = 2 (v.h) h
-    cos_t = (vdoth / eta - cos_ht) * h_z - mu / eta  # t = -v/eta + (v.h/eta - cos_ht) h, z component
-    g_t = np.where(cos_t < 0, 1.0 / (1.0 + _smith_lambda(np.abs(cos_t), alpha)), 0.0)
-    e = (f * g_r + (1.0 - f) * g_t).mean(axis=1)
-    return float(cos_mean(e))
+    if r <= GLASS_ROUGH[0] or material.distribution != "MULTI_GGX":
+        return 1.0, 1.0
+    ior = float(np.clip(float(material.ior), GLASS_IOR[0], GLASS_IOR[-1]))
+    by_ior = np.array([np.interp(ior, GLASS_IOR, row) for row in GLASS_T_SCALE])
+    return 1.0, float(np.interp(min(r, 1.0), GLASS_ROUGH, by_ior))
 
 
 def sum_lobes(lobes: list[Lobe]) -> dict[str, Any]:
@@ -442,7 +501,7 @@ def glass_lobe(material: Any, base: np.ndarray) -> dict[str, Any]:
     both scaled by :func:`glass_scale`."""
     eta = float(material.ior)
     r = float(material.roughness)
-    s = glass_scale(material)
+    s_r, s_t = glass_scale(material)
     tint = material.linear("specular_tint")[:3]
     f_real = cos_mean(fresnel_dielectric(_MU, eta))
     f_tint = cos_mean(_fresnel_of("dielectric", (eta, *(float(x) for x in tint)))(_MU))
@@ -452,8 +511,8 @@ def glass_lobe(material: Any, base: np.ndarray) -> dict[str, Any]:
         "alpha": max(r * r, 1e-4),
         "int_ior": max(eta, 1.0001),
         "ext_ior": 1.0,
-        "specular_reflectance": raw_rgb(s * f_tint / max(float(f_real), 1e-6)),
-        "specular_transmittance": raw_rgb(s * np.sqrt(np.clip(base, 0.0, None))),
+        "specular_reflectance": raw_rgb(s_r * f_tint / max(float(f_real), 1e-6)),
+        "specular_transmittance": raw_rgb(s_t * np.sqrt(np.clip(base, 0.0, None))),
     }
     if r <= 0.0:
         del d["alpha"], d["distribution"]

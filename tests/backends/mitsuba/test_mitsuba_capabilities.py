@@ -56,8 +56,9 @@ FROZEN: dict[str, tuple[str, str]] = {
     "material.diffuse_only": ("exact", "Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
     "material.metallic": (
         "approximate",
-        "roughconductor fitted to Cycles' F82-tint Fresnel, scaled to its albedo; white specular tint within "
-        "about 2 %, a dark tint's dip at grazing angles is not followed (up to ~10 % darker)",
+        "roughconductor whose complex IOR is fitted to the albedo curve of Cycles' F82-tint metal, scaled to "
+        "its mean; a dark specular tint's dip at grazing angles has no conductor equivalent (up to ~10 % off "
+        "on a sphere; white tint within about 2 %)",
     ),
     "material.glossy": (
         "approximate",
@@ -67,16 +68,17 @@ FROZEN: dict[str, tuple[str, str]] = {
     "material.transmission": (
         "approximate",
         "roughdielectric (a solid, one-sided, relative IOR 'ior'), transmittance sqrt(base colour) per "
-        "crossing, MULTI_GGX energy restored by a scale; mixed with the opaque lobes by the weight",
+        "crossing, scaled so that a white glass sphere in a white furnace is as bright as Cycles' MULTI_GGX "
+        "glass (measured table); mixed with the opaque lobes by the layers' weight",
     ),
     "material.coat": (
         "approximate",
-        "a dielectric GGX lobe of coat_ior over the rest, which it attenuates",
+        "a dielectric GGX lobe of coat_ior (as the specular layer) over the rest, which it attenuates",
     ),
     "material.sheen": (
         "approximate",
-        "a Lambertian lobe with Cycles' sheen albedo (measured, benchmarks/measure_sheen_albedo.py): not "
-        "Cycles' grazing-angle microfiber shape",
+        "a broad roughconductor whose albedo follows Cycles' sheen albedo (measured with Cycles, "
+        "benchmarks/measure_sheen_albedo.py), attenuating the layers below: not the microfiber lobe",
     ),
     "material.subsurface": ("unsupported", "Mitsuba has no subsurface scattering in the principled BSDF"),
     "material.emission": (
