@@ -137,11 +137,17 @@ _ALPHA8 = (np.arange(256, dtype=np.float64) / 255.0).astype(np.float32)
 _SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 _TWO_SIDED_ANCHOR = "vec3 n = normalize(get_normal());"
 _TWO_SIDED_PATCH = _TWO_SIDED_ANCHOR + "\n    if (!gl_FrontFacing) { n = -n; }"
+#: Blender's spot cone: smoothstep over the blend band (pyrender squares the linear ramp, glTF's suggestion:
+#: 16 % less light than Cycles on a plane under a 75 degree spot with blend 0.6). pyrender's uniforms give
+#: t = (cos - cos_outer) / (cos_inner - cos_outer), the blend band of blendify_core.ir.physics.spot_cone
+_SPOT_ANCHOR = "attenuation = attenuation * attenuation * spot_lights[i].intensity;"
+_SPOT_PATCH = "attenuation = attenuation * attenuation * (3.0 - 2.0 * attenuation) * spot_lights[i].intensity;"
 _patched_dir: str | None = None
 
 
 def _shader_dir() -> str:
-    """A per-process folder holding pyrender's shaders (mesh.frag patched for two-sided shading) and ours."""
+    """A per-process folder holding pyrender's shaders (mesh.frag patched for two-sided shading and
+    Blender's spot cone) and ours."""
     global _patched_dir
     if _patched_dir is not None and os.path.isdir(_patched_dir):
         return _patched_dir
@@ -152,12 +158,14 @@ def _shader_dir() -> str:
             shutil.copyfile(f, os.path.join(dst, f.name))
     mesh_frag = Path(dst) / "mesh.frag"
     text = mesh_frag.read_text()
-    if _TWO_SIDED_ANCHOR not in text:
-        raise RenderError(
-            f"pyrender {pyrender.__version__}: mesh.frag changed (no {_TWO_SIDED_ANCHOR!r}); this backend "
-            "supports pyrender 0.1.45"
-        )
-    mesh_frag.write_text(text.replace(_TWO_SIDED_ANCHOR, _TWO_SIDED_PATCH, 1))
+    for anchor in (_TWO_SIDED_ANCHOR, _SPOT_ANCHOR):
+        if anchor not in text:
+            raise RenderError(
+                f"pyrender {pyrender.__version__}: mesh.frag changed (no {anchor!r}); this backend "
+                "supports pyrender 0.1.45"
+            )
+    text = text.replace(_TWO_SIDED_ANCHOR, _TWO_SIDED_PATCH, 1).replace(_SPOT_ANCHOR, _SPOT_PATCH, 1)
+    mesh_frag.write_text(text)
     for f in _SHADER_DIR.iterdir():
         if f.suffix in (".vert", ".frag"):
             shutil.copyfile(f, os.path.join(dst, f.name))

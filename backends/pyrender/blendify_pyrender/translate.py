@@ -712,8 +712,8 @@ class PyrenderTranslator(Translator):
             "light.spot": exact(
                 "intensity P/(4 pi) W/sr, cone half-angle exact; shadow-mapped shadows (none for cones over 160 deg)"
             ),
-            "light.spot.blend": approximate(
-                "pyrender's quadratic edge clamp((cos t - cos o)/(cos i - cos o))^2 instead of Cycles' smoothstep"
+            "light.spot.blend": exact(
+                "Blender's smoothstep over the blend band (pyrender's shader patched; its own edge was quadratic)"
             ),
         },
     )
