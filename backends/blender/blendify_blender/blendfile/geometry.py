@@ -255,6 +255,10 @@ class _MeshReader:
         if uvm is None:
             self.notes.add(f"{self.where}: image texture without a UV map, used a uniform colour")
             return None
+        transform = col.get("uv_transform")
+        if transform is not None:  # a Mapping node: an affine transform of the UVs
+            uv = np.asarray(uvm.data, dtype=np.float64)
+            uvm = FacesUV(uv @ transform[:, :2].T + transform[:, 2])
         kind, data, cs = col["image"]
         if col.get("opaque"):
             kind, data = _opaque_image(kind, data)
@@ -293,18 +297,41 @@ class _MeshReader:
         uv_default = self._faces_uv("") if len(self.me.uv_layers) else None
         if uv_default is not None and np.linalg.det(s) < 0:
             uv_default = FacesUV(uv_default.data[:, ::-1])
+        uv_map = self._mesh_uv(uv_default, colors, mats)
         return {
             "vertices": verts,
             "faces": faces,
             "material": mats if len(mats) > 1 else mats[0],
             "colors": colors if len(colors) > 1 else colors[0],
             "faces_material": faces_material,
-            "uv_map": uv_default,
+            "uv_map": uv_map,
             "smooth": smooth,
             "rotation_mode": "rotmat",
             "rotation": r,
             "translation": t,
         }
+
+    def _mesh_uv(self, uv_default: Any, colors: list[Any], mats: list[Any]) -> Any:
+        """The mesh's UV map: the render UV layer, or the UVs of the image textures when they read another
+        layer or go through a Mapping node (the renderers read every texture through the mesh's UVs)."""
+        tex = [c.uv_map for c in colors if isinstance(c, (TextureColors, FileTextureColors))]
+        other = []
+        for uv in tex:
+            same = uv_default is not None and np.array_equal(uv.data, uv_default.data)
+            if not same and not any(np.array_equal(uv.data, o.data) for o in other):
+                other.append(uv)
+        if not other:
+            return uv_default
+        if len(other) > 1:
+            self.notes.add(f"{self.where}: image textures on several UV maps / mappings: all read through the first")
+        if any(
+            m.get(k) is not None
+            for m in mats
+            for k in ("roughness_map", "metallic_map", "normal_map")
+            if k in m.parameter_names()
+        ):
+            self.notes.add(f"{self.where}: roughness / metallic / normal maps read through the base colour's UVs")
+        return other[0]
 
 
 def read_color_attribute(me: Any, nm: str, where: str, notes: Notes) -> tuple[str, np.ndarray] | None:

@@ -107,21 +107,58 @@ class MaterialReader:
         return self._cache[key]
 
     # -- texture and colour sources --------------------------------------------------------------
-    def _uv_layer_name(self, image_node: Any, where: str) -> str | None:
-        """'' = the mesh's render UV layer, a name, or None when the vector input is not a plain UV."""
+    def _uv_layer_name(self, image_node: Any, where: str) -> tuple[str, np.ndarray | None]:
+        """(UV layer: '' = the mesh's render UV layer, or a name; 2x3 affine UV transform of a Mapping node
+        or None). Other texture coordinates are noted and replaced by the UV map."""
         vec = image_node.inputs.get("Vector")
-        if vec is None:
-            return ""
-        src = link_from(vec)
+        src = link_from(vec) if vec is not None else None
         if src is None:
-            return ""
+            return "", None
         node, sock = src
+        transform = None
+        if node.type == "MAPPING":
+            transform = self._mapping(node, where)
+            inner = link_from(node.inputs["Vector"])
+            if inner is None:
+                self.notes.add(f"{where}: Mapping node {node.name!r} without an input vector, read as the UV map")
+                return "", transform
+            node, sock = inner
         if node.type == "UVMAP":
-            return node.uv_map
+            return node.uv_map, transform
         if node.type == "TEX_COORD" and sock.name == "UV":
-            return ""
+            return "", transform
         self.notes.add(f"{where}: texture coordinates from a {node.bl_idname} node replaced by the UV map")
-        return ""
+        return "", transform
+
+    def _mapping(self, node: Any, where: str) -> np.ndarray | None:
+        """A Mapping node on UVs as a 2x3 affine transform of (u, v) (rotation about Z only; a driven or
+        out-of-plane input is noted and left out)."""
+        kind = node.vector_type
+        if kind not in ("POINT", "TEXTURE", "VECTOR"):
+            self.notes.add(f"{where}: Mapping node {node.name!r} of type {kind} not applied to the UVs")
+            return None
+        vals = {}
+        for name in ("Location", "Rotation", "Scale"):
+            sock = node.inputs.get(name)
+            if sock is None or not sock.enabled:
+                vals[name] = np.array([0.0, 0.0, 0.0]) if name != "Scale" else np.ones(3)
+                continue
+            if sock.is_linked:
+                self.notes.add(f"{where}: Mapping node {node.name!r} input {name!r} driven by nodes, default used")
+            vals[name] = np.array(sock.default_value, dtype=np.float64)
+        loc, rot, scale = vals["Location"], vals["Rotation"], vals["Scale"]
+        if abs(rot[0]) > 1e-9 or abs(rot[1]) > 1e-9 or abs(loc[2]) > 1e-9:
+            self.notes.add(f"{where}: Mapping node {node.name!r} out-of-plane rotation/location left out")
+        c, sn = math.cos(rot[2]), math.sin(rot[2])
+        a = np.array([[c, -sn], [sn, c]]) @ np.diag(scale[:2])
+        b = loc[:2] if kind != "VECTOR" else np.zeros(2)
+        if kind == "TEXTURE":  # the inverse of POINT
+            if abs(np.linalg.det(a)) < 1e-12:
+                self.notes.add(f"{where}: Mapping node {node.name!r} with a zero scale not applied")
+                return None
+            a = np.linalg.inv(a)
+            b = -a @ loc[:2]
+        return np.hstack([a, b[:, None]])
 
     def texture_input(self, socket: Any, where: str, what: str) -> dict[str, Any] | None:
         """An Image Texture feeding ``socket``: {'image': source, 'uv': layer name, 'channel', ...}."""
@@ -142,9 +179,15 @@ class MaterialReader:
         img = self.images.source(node.image, where)
         if img is None:
             return None
+        if node.extension != "REPEAT":
+            self.notes.add(f"{where}: {what} image extension {node.extension} read as REPEAT")
+        if node.interpolation not in ("Linear", "Closest"):
+            self.notes.add(f"{where}: {what} image interpolation {node.interpolation} read as Linear")
+        uv, transform = self._uv_layer_name(node, where)
         return {
             "image": img,
-            "uv": self._uv_layer_name(node, where),
+            "uv": uv,
+            "uv_transform": transform,
             "channel": 3 if out.name == "Alpha" else 0,
             "interpolation": "closest" if node.interpolation == "Closest" else "linear",
         }
@@ -233,7 +276,14 @@ class MaterialReader:
                 else "GGX"
             )
             rough = float(np.clip(node.inputs["Roughness"].default_value, 0.0, 1.0))
+            aniso = node.inputs.get("Anisotropy")
+            if aniso is not None and (aniso.is_linked or abs(float(aniso.default_value)) > 1e-6):
+                self.notes.add(f"{where}: {node.name} anisotropy left out (the IR's Glossy BSDF is isotropic)")
             return GlossyBSDFMaterial(roughness=rough, distribution=dist, color_space="linear"), col
+        if node.type in ("BSDF_GLASS", "BSDF_REFRACTION"):
+            return self._glass(node, where)
+        if node.type == "ADD_SHADER":
+            return self._add_shader(node, where)
         if node.type == "EMISSION":
             self._ignore_links(node, (), where)
             c, k = rgb01(node.inputs["Color"].default_value)
@@ -262,6 +312,73 @@ class MaterialReader:
             return self._wireframe(fsrc[0], a[0], b[0], where)
         if a[0].type == "BSDF_TRANSPARENT" or b[0].type == "BSDF_TRANSPARENT":
             return self._transparent(node, a[0], b[0], fsrc, where)
+        # any other mix: the IR has no mixed material -- the shader with the larger weight, said so
+        f = 0.5 if fsrc is not None else float(np.clip(node.inputs[0].default_value, 0.0, 1.0))
+        first, second = (a[0], b[0]) if f <= 0.5 else (b[0], a[0])
+        parsed = self._shader(first, where) or self._shader(second, where)
+        if parsed is None:
+            return None
+        factor = "driven by nodes" if fsrc is not None else f"{f:g}"
+        self.notes.add(
+            f"{where}: {node.name} (factor {factor}) of {a[0].name} and {b[0].name} approximated by one of them "
+            "(the IR has no mixed material)"
+        )
+        return parsed
+
+    def _glass(self, node: Any, where: str) -> tuple[Any, dict[str, Any]]:
+        """Glass / Refraction BSDF -> Principled with full transmission (its roughness, IOR, distribution)."""
+        col = self._color_source(node.inputs["Color"], where)
+        self._ignore_links(node, ("Color",), where)
+        if node.type == "BSDF_REFRACTION":
+            self.notes.add(f"{where}: {node.name} (refraction only) approximated by glass (with its reflection)")
+        dist = node.distribution
+        if dist not in ("GGX", "MULTI_GGX"):
+            self.notes.add(f"{where}: {node.name} distribution {dist} read as GGX")
+            dist = "GGX"
+        if col["kind"] != "uniform" or min(col["rgba"][:3]) < 0.999:
+            self.notes.add(
+                f"{where}: {node.name} colour tints the transmission only in the IR (also the reflection in Blender)"
+            )
+        m = PrincipledBSDFMaterial(
+            color_space="linear",
+            transmission_weight=1.0,
+            metallic=0.0,
+            roughness=self._clip("roughness", node.inputs["Roughness"].default_value, where),
+            ior=self._clip("ior", node.inputs["IOR"].default_value, where),
+            specular_ior=0.5,
+            specular_tint=(1.0, 1.0, 1.0, 1.0),
+            distribution=dist,
+        )
+        return m, col
+
+    def _add_shader(self, node: Any, where: str) -> tuple[Any, dict[str, Any]] | None:
+        """Add Shader: a shader plus an Emission of a uniform colour -> the shader with that emission; any
+        other sum -> the first shader that parses, said so."""
+        srcs = [link_from(node.inputs[0]), link_from(node.inputs[1])]
+        nodes = [s_[0] for s_ in srcs if s_ is not None]
+        emission = [n for n in nodes if n.type == "EMISSION" and not n.inputs["Color"].is_linked]
+        others = [n for n in nodes if n not in emission[:1]]
+        if emission and len(others) == 1:
+            parsed = self._shader(others[0], where)
+            if parsed is not None and "emission_strength" in parsed[0].parameter_names():
+                m, col = parsed
+                enode = emission[0]
+                self._ignore_links(enode, ("Color",), where)
+                rgb = np.asarray(enode.inputs["Color"].default_value[:3], dtype=np.float64)
+                rgb = rgb * max(float(enode.inputs["Strength"].default_value), 0.0)
+                rgb = rgb + np.asarray(m.linear("emission_color")[:3]) * float(m.emission_strength)
+                c, k = rgb01(rgb)
+                if float(m.get("coat_weight")) > 0:
+                    self.notes.add(f"{where}: {node.name}: the added emission is under the coat in the IR")
+                return m.copy(
+                    emission_color=(*(float(x) for x in c), 1.0), emission_strength=k if c.max() > 0 else 0.0
+                ), col
+        for n in nodes:
+            parsed = self._shader(n, where)
+            if parsed is not None:
+                names = " + ".join(x.name for x in nodes)
+                self.notes.add(f"{where}: {node.name} ({names}) approximated by {n.name} alone")
+                return parsed
         return None
 
     def _wireframe(self, wire: Any, surface: Any, lines: Any, where: str) -> tuple[Any, dict[str, Any]]:
@@ -375,7 +492,7 @@ class MaterialReader:
             if sock.is_linked and ir_name in ("roughness", "metallic"):
                 tex = self.texture_input(sock, where, bl_name)
                 if tex is not None:
-                    params[f"{ir_name}_map"] = self._texture_map(tex, TextureMap)
+                    params[f"{ir_name}_map"] = self._texture_map(tex, TextureMap, where=where)
             elif ir_name == "alpha" and sock.is_linked:
                 alpha = self._alpha_value(node)
                 if alpha is None:
@@ -427,7 +544,8 @@ class MaterialReader:
             tex = self.texture_input(nnode.inputs["Color"], where, "Normal Map color")
             if tex is None:
                 return None
-            return self._texture_map(tex, NormalMap, strength=float(nnode.inputs["Strength"].default_value))
+            strength = float(nnode.inputs["Strength"].default_value)
+            return self._texture_map(tex, NormalMap, where=where, strength=strength)
         if src is not None:
             self.notes.add(f"{where}: Normal input from a {src[0].bl_idname} node not parsed")
         return None
@@ -454,8 +572,9 @@ class MaterialReader:
                 return float(i1.default_value)
         return None
 
-    @staticmethod
-    def _texture_map(tex: dict[str, Any], cls: Any, **kw: Any) -> Any:
+    def _texture_map(self, tex: dict[str, Any], cls: Any, where: str, **kw: Any) -> Any:
+        if tex.get("uv_transform") is not None:
+            self.notes.add(f"{where}: a {cls.__name__} reads the mesh's UV map as it is: its Mapping node left out")
         kind, data, _cs = tex["image"]
         if cls is NormalMap:
             return cls(data, **kw)
