@@ -76,6 +76,11 @@ class Backend(abc.ABC):
     path_tracer: ClassVar[bool] = False
     #: the smallest image the engine renders; the core pads smaller cameras and crops the result
     min_resolution: ClassVar[tuple[int, int]] = (1, 1)
+    #: where the engine's arithmetic stops rendering right (measured; the core warns, naming the backend, when a
+    #: scene crosses one; :data:`NUMERIC_LIMITS` lists the keys): ``max_distance`` (m of geometry from the
+    #: camera), ``max_clip_ratio`` (far / near), ``min_near`` (m), ``coincident_faces`` (1: faces of two
+    #: objects at the same place render wrong, not just z-fighting)
+    numeric_limits: ClassVar[dict[str, float]] = {}
     #: file formats (suffix without the dot) this backend can export a scene to and attach to a scene
     #: (:meth:`export_file`, :meth:`attach_file`); found by :func:`blendify_core.registry.backend_for_format`
     file_formats: ClassVar[tuple[str, ...]] = ()

@@ -20,6 +20,7 @@ from blendify_core.errors import (
     warn_at_caller,
 )
 from blendify_core.ir.cameras import Camera, OrthographicCamera, PerspectiveCamera
+from blendify_core.ir.renderables import PointCloud
 from blendify_core.ir.scene import Scene
 from blendify_core.ir.validate import strict_arguments
 from blendify_core.pipeline.backend import Backend, DeviceChoice
@@ -273,6 +274,9 @@ def _preflight(
     if clip_warning:
         warnings.warn(clip_warning, stacklevel=3)
         recorded.append(clip_warning)
+    for note in numeric_limit_warnings(scene, inst, bounds):
+        warnings.warn(note, stacklevel=3)
+        recorded.append(note)
     approximations = check_capabilities(inst, scene, settings)
     device = inst.device_choice()
     if device is not None and device.fallback:
@@ -399,6 +403,89 @@ def _error_meta(meta: RenderMeta, settings: RenderSettings, path_tracer: bool) -
     else:
         why = "not estimated: raster backend (deterministic: its error is bias, not noise)"
     meta["estimated_error_kind"] = why
+
+
+def numeric_limit_warnings(scene: Scene, inst: Backend, bounds: Bounds | None) -> list[str]:
+    """Warnings, each naming the backend and the cause, for a scene beyond where the backend's arithmetic
+    renders right (its measured ``numeric_limits``): geometry too far from the camera, a clip range it
+    cannot represent, faces of objects at the same place."""
+    limits, cam = type(inst).numeric_limits, scene.camera
+    out: list[str] = []
+    if cam is None:
+        return out
+    name = inst.name
+    if "max_distance" in limits and bounds is not None:
+        lo, hi = bounds
+        far = float(np.max(np.abs(np.stack([lo, hi]) - cam.translation)))
+        if far > limits["max_distance"]:
+            out.append(
+                f"{name}: geometry {far:.3g} m from the camera is beyond what {name} renders right "
+                f"({limits['max_distance']:g} m; its float32 arithmetic renders nothing there): scale the scene "
+                "down (the camera's near/far with it)"
+            )
+    if "max_clip_ratio" in limits and cam.far / cam.near > limits["max_clip_ratio"]:
+        out.append(
+            f"{name}: camera far / near = {cam.far / cam.near:.3g} is beyond what {name}'s depth buffer resolves "
+            f"({limits['max_clip_ratio']:g}; objects disappear): raise `near` or lower `far`"
+        )
+    if "min_near" in limits and cam.near < limits["min_near"]:
+        out.append(
+            f"{name}: camera near = {cam.near:g} m is below what {name} represents ({limits['min_near']:g} m; "
+            "the image comes out empty): raise `near`"
+        )
+    if limits.get("coincident_faces"):
+        pairs = coincident_faces(scene)
+        if pairs:
+            shown = ", ".join(f"{a!r} and {b!r}" if a != b else f"{a!r} (with itself)" for a, b in pairs[:5])
+            out.append(
+                f"{name}: faces at the same place in {shown}: {name} renders coincident faces dark (each "
+                "shadows the other), not just z-fighting; remove the duplicate or offset one object"
+            )
+    return out
+
+
+#: above this many triangles in a scene, coincident faces are not looked for (the check would cost seconds)
+COINCIDENT_MAX_TRIANGLES = 2_000_000
+
+
+def coincident_faces(scene: Scene) -> list[tuple[str, str]]:
+    """Pairs of renderable tags (a tag twice: within one object) that have a triangle at exactly the same
+    place in world space (vertices equal to 1e-9 of the scene's size, in any order)."""
+    parts, owners, total = [], [], 0
+    for i, r in enumerate(scene.renderables):
+        if isinstance(r, PointCloud):
+            continue
+        m = r.to_mesh()
+        total += len(m.faces)
+        if total > COINCIDENT_MAX_TRIANGLES:
+            return []
+        if len(m.faces) == 0:
+            continue
+        mw = r.matrix_world
+        v = m.vertices @ mw[:3, :3].T + mw[:3, 3]
+        parts.append(v[m.faces])
+        owners.append(np.full(len(m.faces), i))
+    if not parts:
+        return []
+    tris = np.concatenate(parts)
+    owner = np.concatenate(owners)
+    eps = 1e-9 * max(1.0, float(np.abs(tris).max()))
+    q = np.round(tris / eps).astype(np.int64)
+    h = q @ np.array([73856093, 19349663, 83492791], dtype=np.int64)
+    q = np.take_along_axis(q, np.argsort(h, axis=1)[..., None], axis=1).reshape(len(q), 9)
+    _, inverse, counts = np.unique(q, axis=0, return_inverse=True, return_counts=True)
+    dup = counts[inverse.reshape(-1)] > 1
+    if not dup.any():
+        return []
+    tags = [r.tag for r in scene.renderables]
+    pairs: set[tuple[str, str]] = set()
+    groups: dict[int, list[int]] = {}
+    for g, o in zip(inverse.reshape(-1)[dup].tolist(), owner[dup].tolist()):
+        groups.setdefault(g, []).append(o)
+    for members in groups.values():
+        a, b = sorted(members)[:2]
+        pairs.add((tags[a], tags[b]))
+    return sorted(pairs)
 
 
 def _clip_check(scene: Scene, bounds: Bounds | None) -> str | None:

@@ -132,6 +132,9 @@ class CyclesBackend(Backend):
     #: Blender renders at least 4x4 pixels; the core renders smaller images padded and crops them
     min_resolution = (4, 4)
     file_formats = ("blend",)
+    # measured with bpy 5.0.1 (tests/robustness/test_hard_cases_round2.py): a sphere 4.5e13 m away renders,
+    # 4.5e14 m away nothing; two coincident quads render black (each shadows the other)
+    numeric_limits = {"max_distance": 1e14, "coincident_faces": 1.0}
     translator_class = CyclesTranslator
 
     def __init__(

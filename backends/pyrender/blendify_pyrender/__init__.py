@@ -79,6 +79,8 @@ class PyrenderBackend(Backend):
     engine = "pyrender"
     qualities = ("preview",)
     translator_class = PyrenderTranslator
+    # measured (tests/robustness/test_hard_cases_round2.py): far / near = 1e8 renders, 1e9 loses the sphere
+    numeric_limits = {"max_clip_ratio": 1e8}
 
     def __init__(
         self,
