@@ -82,7 +82,11 @@ def build(name: str) -> None:
         r.add_sphere_nurbs(0.35, glass, UniformColors((1.0, 1.0, 1.0)), translation=(-0.4, -0.2, 0.35))
         r.add_sphere_nurbs(0.3, M.MetalMaterial(), UniformColors((0.9, 0.6, 0.3)), translation=(0.45, 0.3, 0.3))
         r.add_cylinder_mesh(
-            0.15, 0.6, M.GlossyBSDFMaterial(roughness=0.2), UniformColors((0.9, 0.8, 0.3)), translation=(0.5, -0.45, 0.3)
+            0.15,
+            0.6,
+            M.GlossyBSDFMaterial(roughness=0.2),
+            UniformColors((0.9, 0.8, 0.3)),
+            translation=(0.5, -0.45, 0.3),
         )
         r.add_circle_mesh(
             0.25, M.MetalMaterial(), UniformColors((0.8, 0.8, 0.9)), rotation_mode=e, rotation=(70, 0, 20),

@@ -19,6 +19,16 @@ RESOLUTION = (200, 150)
 SAMPLES = 128
 
 
+def _midpoint(verts: list[np.ndarray], cache: dict[tuple[int, int], int], a: int, b: int) -> int:
+    """Index of the unit-sphere point between vertices a and b (added once)."""
+    key = (min(a, b), max(a, b))
+    if key not in cache:
+        m = verts[a] + verts[b]
+        verts.append(m / np.linalg.norm(m))
+        cache[key] = len(verts) - 1
+    return cache[key]
+
+
 def icosphere(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """Unit icosphere (vertices, triangles): the procedural stand-in for a scanned mesh."""
     t = (1.0 + 5**0.5) / 2.0
@@ -31,18 +41,9 @@ def icosphere(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:
     faces = f
     for _ in range(subdivisions):
         cache: dict[tuple[int, int], int] = {}
-
-        def mid(a: int, b: int) -> int:
-            key = (min(a, b), max(a, b))
-            if key not in cache:
-                m = verts[a] + verts[b]
-                verts.append(m / np.linalg.norm(m))
-                cache[key] = len(verts) - 1
-            return cache[key]
-
         new = []
         for a, b, c in faces:
-            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            ab, bc, ca = (_midpoint(verts, cache, i, j) for i, j in ((a, b), (b, c), (c, a)))
             new += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
         faces = new
     return np.array(verts), np.array(faces, dtype=np.int64)

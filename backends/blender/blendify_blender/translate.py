@@ -504,8 +504,11 @@ class CyclesTranslator(Translator):
     @handles(PlaneMesh, features={"primitive.plane": EXACT, "shadow_catcher": EXACT})
     def plane(self, r: PlaneMesh, ctx: TranslationContext, entry: _Entry, name: str) -> Any:
         obj = self._primitive(r, ctx, entry, name, self._mesh_primitive_key(r))
-        if r.shadow_catcher:
-            obj.is_shadow_catcher = True
+        # a catcher shows only the shadows it receives: not in reflections, refractions or bounced light
+        # (blendify 2.1's catcher, Blender's shadow catcher with those ray visibilities off)
+        obj.is_shadow_catcher = bool(r.shadow_catcher)
+        for ray in ("visible_glossy", "visible_diffuse", "visible_transmission", "visible_volume_scatter"):
+            setattr(obj, ray, not r.shadow_catcher)
         return obj
 
     @handles(
