@@ -159,3 +159,50 @@ def test_numeric_limit_warnings_name_the_backend_without_rendering():
     v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
     rotated.renderables.add_mesh(v[[2, 3, 0, 1]], [[0, 1, 2, 3]], bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1)))
     assert len(coincident_faces(rotated)) == 1  # the same quad given from another corner
+
+
+def _zoom(fov: float, distance: float) -> bf.Scene:
+    s = bf.Scene()
+    s.set_perspective_camera((64, 48), fov_x=fov, translation=(0, 0, distance), near=distance * 0.5, far=distance * 2)
+    s.lights.add_sun(5.0, rotation_mode="look_at", rotation=(0, 0, -1))
+    s.renderables.add_sphere_nurbs(0.05, bf.DiffuseMaterial(), bf.UniformColors((0.5, 0.5, 0.5)), tag="ball")
+    return s
+
+
+def test_small_object_at_extreme_zoom(backend):
+    """A 0.05 m sphere 1e6 m away through fov 1e-7 rad covers what it covers 100 m away through fov 1e-3 rad
+    (the same picture: ~2750 of 3072 pixels); the benign variant is the 100 m one itself (no warning)."""
+
+    def same(a, b):
+        return abs(_coverage(a) - _coverage(b)) <= 0.02 * _coverage(b) and _coverage(b) > 2000
+
+    _benign(backend, _zoom(1e-3, 100.0), _zoom(1e-3, 100.0), same, "from the camera")
+    _right_or_warned(backend, _zoom(1e-7, 1e6), _zoom(1e-3, 100.0), same, "zoom")
+
+
+def _ramp(alpha_bottom: float) -> bf.Scene:
+    s = bf.Scene()
+    s.set_perspective_camera(RES, fov_x=0.8, translation=(0, 0, 4))
+    s.lights.add_point(200.0, translation=(1, 2, 4))
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    c = np.array([[1, 0, 0, alpha_bottom], [1, 0, 0, alpha_bottom], [1, 0, 0, 1], [1, 0, 0, 1]], float)
+    s.renderables.add_mesh(v, [[0, 1, 2, 3]], bf.DiffuseMaterial(), bf.VertexColors(c), tag="quad")
+    return s
+
+
+def test_vertex_colours_with_alpha_zero(backend):
+    """Known answer: vertex alpha 0 at the bottom edge and 1 at the top is a linear ramp of coverage (alpha
+    is never colour-managed): the quad's mean alpha is 1/2 and its rows fall monotonically from top to
+    bottom. Benign: alpha 1 everywhere covers the quad fully. Neither warns."""
+    full, messages = _render(_ramp(1.0), backend)
+    quad = full.rgba[..., 3] > 0.5
+    assert quad.sum() > 100 and np.all(full.rgba[..., 3][quad] > 0.99)
+    assert not [m for m in messages if m.startswith(f"{backend}:")]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ramp = bf.render(_ramp(0.0), backend=backend, samples=64, outputs=("rgb",))
+    alpha = ramp.rgba[..., 3]
+    assert abs(alpha[quad].mean() - 0.5) < 0.05, f"{backend}: mean alpha {alpha[quad].mean():.3f}"
+    rows = np.array([alpha[y][quad[y]].mean() for y in range(alpha.shape[0]) if quad[y].sum() > 4])
+    assert np.all(np.diff(rows) < 0.05) and rows[0] > 0.8 and rows[-1] < 0.2, rows.round(2)
+    assert not [str(w.message) for w in caught if str(w.message).startswith(f"{backend}:")]

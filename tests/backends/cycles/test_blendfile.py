@@ -145,6 +145,16 @@ def test_fixture_is_live_when_opened_as_main_file_with_autorun(evil_blend: tuple
     m_driver.unlink()
 
 
+def test_attaching_the_same_file_twice_lists_the_removed_drivers_both_times(evil_blend: tuple[Path, Path, Path]):
+    """Issue 15: the second attach of the same .blend in one process gave an empty warning."""
+    path = evil_blend[0]
+    scene = Scene()
+    for _ in range(2):
+        with pytest.warns(BlendAttachWarning, match="Python driver") as rec:
+            attach_blend(scene, path)
+        assert str(rec[0].message).count("Python driver") == 2
+
+
 def test_attach_never_runs_embedded_python(evil_blend: tuple[Path, Path, Path]):
     import bpy
 
