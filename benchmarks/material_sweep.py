@@ -189,7 +189,9 @@ def run(
             print(f"{e}: not available ({type(exc).__name__}: {exc})")
     out: dict[str, Any] = {}
     images: dict[str, Any] = {}
-    for i, name in enumerate(chosen):
+    order = list(table)
+    for name in chosen:
+        i = order.index(name)  # the seed follows the setting, not the selection
         scene = sweep_scene(table[name], resolution)
         mask = sphere_mask(scene)
         c0, c1, tc = _cycles_halves(name, scene, backends["cycles"], samples, 11 + i, cache)

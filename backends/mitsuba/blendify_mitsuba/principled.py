@@ -384,9 +384,10 @@ def principled_lobes(material: Any, base: np.ndarray) -> list[Lobe]:
         key = (eta, *(float(x) for x in spec_tint))
         n, k, scale, a_spec = _conductor_lobe(alpha, key, "dielectric", multi)
         lobes.append(Lobe(_ggx_lobe(alpha, n, k), scale * cos_mean(w * a_spec) / cos_mean(a_spec), w * a_spec))
-        # the layers below lose the compensated albedo whichever the distribution (measured: with "GGX" the
-        # energy single scattering loses is lost, not handed to the diffuse layer)
-        a_below = a_spec if multi else _conductor_lobe(alpha, key, "dielectric", True)[3]
+        # with "GGX" the layers below lose the single-scattering albedo over the lobe's albedo without
+        # Fresnel, A_ss / E (measured with white-furnace spheres in Cycles: at normal incidence 1 - F0 for
+        # every roughness)
+        a_below = a_spec if multi else a_spec / np.maximum(ggx_albedo(alpha, None, correlated=True), 1e-6)
         w = w * (1.0 - np.max(a_below, axis=1, keepdims=True))
     lobes.append(Lobe(_diffuse_lobe(raw_rgb), base * cos_mean(w), w * base))
     return lobes
