@@ -37,11 +37,11 @@ from .variant import VariantChoice, before_engine_import, choose_variant, quiet_
 
 __all__ = ["DEFAULT_MAX_ANALYTIC_SPHERES", "MitsubaNative", "MitsubaSession"]
 
-#: point clouds up to this many points become analytic spheres, larger ones one merged icosphere mesh.
+#: point clouds up to this many points become analytic spheres (exact), larger ones one shape of capsules
+#: (blendify_mitsuba.points; the merged icosphere mesh when the points are emissive or partly transparent).
 #: Measured (benchmarks/results/mitsuba_pointcloud_*.md): in scalar_rgb analytic spheres load and render
-#: faster than the merged mesh up to ~100k points (load_dict of the 1.6M-triangle mesh of 20k icospheres
-#: takes ~7 s); in the JIT variants one BSDF per sphere makes rendering slow (20k spheres: 22 s vs 1.2 s),
-#: the merged mesh wins from ~1000 points on.
+#: fast up to ~100k points; in the JIT variants one BSDF per sphere makes rendering slow (20k spheres: 22 s
+#: vs 1.2 s), one shape wins from ~1000 points on.
 DEFAULT_MAX_ANALYTIC_SPHERES = {"scalar": 100_000, "jit": 500}
 
 # mi.set_variant is process-global: every use of the engine holds this lock and sets its variant

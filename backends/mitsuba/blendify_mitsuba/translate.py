@@ -66,6 +66,7 @@ from blendify_core.pipeline.translator import EXACT, TranslationContext, Transla
 
 from .aniso import SquarePixelPlan, plan_square_pixels
 from .integrator import register as register_integrator
+from .points import curve_points, curves_fit, point_bitmap
 from .principled import glossy_scale, principled_bsdf, raw_rgb, with_bitmaps
 
 __all__ = [
@@ -829,15 +830,19 @@ class MitsubaTranslator(Translator):
         PointCloud,
         features={
             "pointcloud": _exact(
-                "analytic spheres up to max_analytic_spheres points, beyond that the IR's merged icosphere mesh"
+                "analytic spheres up to max_analytic_spheres points; beyond that one shape of sphere-capped "
+                "capsules (Embree round curves 1 % of the radius long) for opaque, non-emissive clouds, else the "
+                "IR's merged icosphere mesh"
             ),
             "pointcloud.vertex_colors": EXACT,
             "pointcloud.emission": approximate("area emitter on the spheres, front (outer) side only"),
         },
     )
     def pointcloud(self, r: PointCloud, ctx: MitsubaContext, index: int) -> None:
-        """Analytic spheres (one shape and BSDF per point) up to ``max_analytic_spheres`` points, else one
-        merged icosphere mesh with per-vertex colours."""
+        """Analytic spheres (one shape and BSDF per point) up to ``max_analytic_spheres`` points; beyond that
+        one ``linearcurve`` shape of capsules (:mod:`blendify_mitsuba.points`) for opaque, non-emissive,
+        non-transmissive clouds under a similarity transform, else one merged icosphere mesh with per-vertex
+        colours."""
         mi = _mi()
         prefix = f"r{index:05d}"
         matrix = r.matrix_world
@@ -871,6 +876,18 @@ class MitsubaTranslator(Translator):
                 ctx.entries[key] = shape
                 ctx.shapes[key] = ShapeInfo(index, np.asarray(c, dtype=np.float64))
             ctx.n_analytic_spheres += n
+            return
+        if curves_fit(mat, src.opacity(alpha)[1], strength > 0 or _emission(mat) is not None, matrix) is None:
+            key = f"{prefix}_curves"
+            scale = float(np.linalg.svd(np.asarray(matrix)[:3, :3], compute_uv=False)[0])
+            if per_point is not None:
+                tex = mi.load_dict(point_bitmap(per_point))
+                bsdf_d = self.dispatch(mat, ctx, tex)
+                ctx.shapes[key] = ShapeInfo(index, None, tex)
+            else:
+                bsdf_d = self.dispatch(mat, ctx, _rgb(uniform))
+                ctx.shapes[key] = ShapeInfo(index, np.asarray(uniform, dtype=np.float64))
+            ctx.entries[key] = curve_points(centres, radii * scale, bsdf_d)
             return
         tm = r.to_mesh()
         # to_mesh works in object space around the raw vertices: move to world space

@@ -21,8 +21,10 @@ FROZEN: dict[str, tuple[str, str]] = {
     "mesh.smooth": ("exact", "vertex normals"),
     "pointcloud": (
         "exact",
-        "analytic spheres up to max_analytic_spheres points, beyond that the IR's merged icosphere mesh",
-    ),
+        "analytic spheres up to max_analytic_spheres points; beyond that one shape of sphere-capped "
+        "capsules (Embree round curves 1 % of the radius long) for opaque, non-emissive clouds, else the "
+        "IR's merged icosphere mesh",
+    ),  # issue 17: the capsules replaced the mesh for opaque clouds
     "pointcloud.vertex_colors": ("exact", ""),
     "pointcloud.emission": ("approximate", "area emitter on the spheres, front (outer) side only"),
     "primitive.cube": ("exact", "IR tessellation"),

@@ -474,6 +474,27 @@ def test_pointcloud_per_point_alpha(max_spheres):
     assert r.rgba[8, 24, 3] == pytest.approx(1 - 0.75**2, abs=0.08)
 
 
+def test_large_pointclouds_are_one_curve_shape_matching_the_spheres():
+    """Beyond max_analytic_spheres an opaque cloud is one shape of capsules (blendify_mitsuba.points):
+    coverage, brightness and per-point colours agree with the exact analytic spheres."""
+    scene = testing.pointcloud_scene(300, (64, 64), point_size=0.12)
+    results = {}
+    for max_spheres in (1000, 0):
+        with MitsubaBackend(variant="scalar_rgb", max_analytic_spheres=max_spheres) as b:
+            r = bf.render(scene, backend=b, samples=64, outputs=("rgb", "albedo", "instance"))
+            keys = list(b.session._native.shapes)
+        results[max_spheres] = (r, keys)
+    spheres, curves = results[1000][0], results[0][0]
+    assert results[0][1] == ["r00000_curves"] and len(results[1000][1]) == 300
+    cov_s, cov_c = spheres.rgba[..., 3].mean(), curves.rgba[..., 3].mean()
+    mean_s, mean_c = spheres.rgba[..., :3].mean(), curves.rgba[..., :3].mean()
+    both = (spheres.instance >= 0) & (curves.instance >= 0)
+    same_colour = np.all(np.abs(spheres.albedo[both] - curves.albedo[both]) < 1e-5, axis=1).mean()
+    print(f"coverage {cov_c / cov_s:.4f}, mean {mean_c / mean_s:.4f}, same albedo at {same_colour:.3f} of the pixels")
+    assert abs(cov_c / cov_s - 1) < 0.01 and abs(mean_c / mean_s - 1) < 0.02
+    assert same_colour > 0.97  # silhouettes of overlapping points may differ
+
+
 def test_every_feature_scene_renders(scalar_backend):
     scene = testing.every_feature_scene((48, 36))
     r = _render(scalar_backend, scene, samples=4, outputs=ALL)

@@ -240,8 +240,12 @@ def test_pointcloud_analytic_then_merged(mi_scalar):
     first = tr.scene_dict["r00000_p0000000"]
     assert first["radius"] == pytest.approx(pc.radii()[0])
     assert first["center"] == pytest.approx(list(pc.vertices[0]))
+    tr = _translate(scene, mi_scalar, max_spheres=10)  # opaque: one shape of capsules (blendify_mitsuba.points)
+    assert tr.n_analytic_spheres == 0 and list(k for k in tr.scene_dict if k.startswith("r")) == ["r00000_curves"]
+    assert tr.scene_dict["r00000_curves"].primitive_count() == 2 * 50  # a capsule and a spacer per point
+    pc.materials[0].alpha = 0.5  # partly transparent points need their inside: the merged icosphere mesh
     tr = _translate(scene, mi_scalar, max_spheres=10)
-    assert tr.n_analytic_spheres == 0 and list(k for k in tr.scene_dict if k.startswith("r")) == ["r00000_mesh"]
+    assert list(k for k in tr.scene_dict if k.startswith("r")) == ["r00000_mesh"]
     assert tr.scene_dict["r00000_mesh"].face_count() == len(pc.to_mesh().faces)
 
 
