@@ -91,6 +91,9 @@ def compare(
         metrics["rgb"]["noise_global_excess"] = nt.global_excess
         metrics["rgb"]["noise_global_rel_diff"] = float(np.max(np.abs(nt.global_rel_diff)))
         thresholds = {**thresholds, "rgb": {"noise_tiles_rejected": 0.0, "noise_global_excess": nt.global_crit}}
+        if nt.n_tile_reject and "rgb" in diffs:
+            diffs["rgb"] = _frame_tiles(diffs["rgb"], nt)
+            legends["rgb"] = legends.get("rgb", "") + "; magenta frames: tiles that differ beyond their noise"
     verdict = _Verdict(tier_name)
     for out, ms in thresholds.items():
         if out not in metrics:
@@ -118,6 +121,24 @@ def compare(
         results=(a, b),
         noise=nt,
     )
+
+
+def _frame_tiles(image: AnyArray, nt: NoiseTest) -> AnyArray:
+    """A copy of the (H, W, 3) uint8 heat map with a magenta frame around every tile the noise test rejected."""
+    out = np.array(image, copy=True)
+    h, w = out.shape[:2]
+    t = nt.tile
+    for ty, tx in zip(*np.nonzero(nt.tile_reject), strict=True):
+        y0, x0 = ty * t, tx * t
+        y1, x1 = min(y0 + t, h) - 1, min(x0 + t, w) - 1
+        for ys, xs in (
+            (slice(y0, y1 + 1), x0),
+            (slice(y0, y1 + 1), x1),
+            (y0, slice(x0, x1 + 1)),
+            (y1, slice(x0, x1 + 1)),
+        ):
+            out[ys, xs] = (255, 0, 255)
+    return out
 
 
 def _noise_verdict(a: RenderResult, b: RenderResult, tier_name: str, noise: bool | None) -> NoiseTest | None:

@@ -157,6 +157,13 @@ def test_compare_uses_the_noise_verdict_when_both_results_carry_their_noise():
     assert set(ok.thresholds["rgb"]) == {"noise_tiles_rejected", "noise_global_excess"}
     bad = bf.compare(biased, b, tier="pathtracer")
     assert not bad.passed and any("noise_global_excess" in f for f in bad.failures)
+    # rejected tiles are framed in magenta on the colour heat map
+    mirrored = result(truth[:, ::-1])
+    framed = bf.compare(mirrored, b, tier="pathtracer")
+    assert framed.noise.n_tile_reject > 0 and "magenta" in framed.legends["rgb"]
+    ty, tx = np.argwhere(framed.noise.tile_reject)[0]
+    assert tuple(framed.diff_images["rgb"][ty * 8, tx * 8]) == (255, 0, 255)
+    assert "magenta" not in ok.legends["rgb"]
     # the fixed tolerance (2 %) cannot tell a 2 % bias from noise; the noise verdict can
     assert bf.compare(biased, b, tier="pathtracer", noise=False).noise is None
     # raster tiers keep their fixed thresholds; noise=True without rgb_var is an error
