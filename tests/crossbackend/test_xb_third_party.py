@@ -28,13 +28,12 @@ KNOWN_THIRD_PARTY: dict[str, str] = {
     "may break)",
     "pyrender_example": "colour +3 % over the whole image from the spot light (spot_size 60 deg, blend 0.625): "
     "without it the pair passes; the engines' spot blend falloff differs (lights issue)",
-    "threejs_lights_physical": "Principled metal / rough dielectric: tiles beyond the material tier's 8 % "
-    "margin (the engines' BSDFs, material issue)",
-    "kubric_helloworld": "Principled colour -7 % (material issue); depth q99 2e-3 on the half-sunk sphere",
-    "blendify_nurbs_primitives": "normals flipped on 22 % of the pixels (the one-sided circle / curve, geometry "
-    "issue); Principled colour -14 % in green",
-    "blendify_readme_cube": "Principled specular on a pure green cube: tiles beyond the material margin",
-    "blender_default_scene": "Principled colour -6 % (material issue)",
+    "kubric_helloworld": "depth q99 2.1e-3 (> 1e-3) on the unit ball sunk half into the floor slab (presumably the "
+    "NURBS sphere's tessellation against Mitsuba's analytic sphere where it meets the floor; not investigated)",
+    "blendify_nurbs_primitives": "normals flipped on 22 % of the pixels (the one-sided circle and the curve, "
+    "geometry issue), depth q99 4e-3, and the colour there",
+    "blendify_readme_cube": "2 of 64 tiles beyond the material margin on a pure green Principled cube under a "
+    "strong point light (specular highlight; material issue)",
 }
 
 #: public .blend files kept only in the local cache (licence unknown or file too large to commit)
