@@ -159,9 +159,11 @@ def _limited_by_ir(results: Mapping[str, RenderResult], pairs: Mapping[tuple[str
 #: settings crosscheck fixes so that the backends' images are comparable
 FIXED_SETTINGS: dict[str, Any] = {
     "pixel_filter": "box",
+    "pixel_filter_width": 1.0,
     "denoise": False,
     "clamp_direct": 0.0,
     "clamp_indirect": 0.0,
+    "filter_glossy": 0.0,
     "adaptive": False,
 }
 
@@ -183,7 +185,8 @@ def _checked_arguments(
     forbidden = set(FIXED_SETTINGS) & set(settings)
     if forbidden:
         raise InvalidSceneError(
-            f"crosscheck: {sorted(forbidden)} are fixed by crosscheck (box filter, no denoiser/clamping/adaptive)"
+            f"crosscheck: {sorted(forbidden)} are fixed by crosscheck (1 px box filter, no denoiser, clamping, "
+            "Filter Glossy or adaptive sampling)"
         )
     outs = _outputs(outputs if isinstance(outputs, str) else tuple(outputs))  # bad names: error up front
     if not isinstance(repeats, (int, np.integer)) or repeats < 1:

@@ -255,3 +255,9 @@ def test_use_gpu_reaches_every_backend():
         assert get_backend_class("pyrender")(device="gpu").device == 0
         with pytest.raises(bf.InvalidSceneError, match="platform='osmesa'"):
             get_backend_class("pyrender")(device="cpu")
+
+
+def test_blendify_positional_pose_in_add_mesh_is_explained():
+    v, f = np.eye(3), [[0, 1, 2]]
+    with pytest.raises(bf.InvalidSceneError, match="blendify 2.1's add_mesh took rotation_mode there"):
+        bf.Scene().renderables.add_mesh(v, f, bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1)), None, "quaternionWXYZ")

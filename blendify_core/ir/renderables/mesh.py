@@ -93,7 +93,12 @@ class Mesh(Renderable):
         self._faces, self._face_polygon, self._face_corner = frozen(tris), frozen(poly), frozen(corner)
         self.n_polygons, self.polygon_size = n_poly, k
         if uv_map is not None and not isinstance(uv_map, UVMap):
-            raise InvalidSceneError(f"uv_map: expected a VertexUV or FacesUV, got {_describe(uv_map)}")
+            hint = (
+                " (blendify 2.1's add_mesh took rotation_mode there: pass the pose by keyword, rotation_mode=...)"
+                if isinstance(uv_map, str)
+                else ""
+            )
+            raise InvalidSceneError(f"uv_map: expected a VertexUV or FacesUV, got {_describe(uv_map)}{hint}")
         self._uv_map = uv_map
         self._faces_material_poly: AnyArray | None = None
         self._smooth = as_bool("smooth", smooth)
