@@ -142,12 +142,22 @@ _TWO_SIDED_PATCH = _TWO_SIDED_ANCHOR + "\n    if (!gl_FrontFacing) { n = -n; }"
 #: t = (cos - cos_outer) / (cos_inner - cos_outer), the blend band of blendify_core.ir.physics.spot_cone
 _SPOT_ANCHOR = "attenuation = attenuation * attenuation * spot_lights[i].intensity;"
 _SPOT_PATCH = "attenuation = attenuation * attenuation * (3.0 - 2.0 * attenuation) * spot_lights[i].intensity;"
+#: area lights: the integration over the emitter (shaders/blendify_area.glsl) before main(), and the spot
+#: loop's colour of an area light taken from it
+_MAIN_ANCHOR = "void main()"
+_AREA_ANCHOR = """        vec3 res = compute_brdf(n, v, l, roughness, metallic,
+                                f0, c_diff, base_color.rgb, radiance);
+#ifdef SPOT_LIGHT_SHADOWS"""
+_AREA_PATCH = """        vec3 res = bf_area_u[i].w > 0.5
+            ? bf_area_light(i, n, v, roughness, metallic, f0, c_diff, base_color.rgb)
+            : compute_brdf(n, v, l, roughness, metallic, f0, c_diff, base_color.rgb, radiance);
+#ifdef SPOT_LIGHT_SHADOWS"""
 _patched_dir: str | None = None
 
 
 def _shader_dir() -> str:
-    """A per-process folder holding pyrender's shaders (mesh.frag patched for two-sided shading and
-    Blender's spot cone) and ours."""
+    """A per-process folder holding pyrender's shaders (mesh.frag patched for two-sided shading, Blender's
+    spot cone and area lights) and ours."""
     global _patched_dir
     if _patched_dir is not None and os.path.isdir(_patched_dir):
         return _patched_dir
@@ -158,13 +168,15 @@ def _shader_dir() -> str:
             shutil.copyfile(f, os.path.join(dst, f.name))
     mesh_frag = Path(dst) / "mesh.frag"
     text = mesh_frag.read_text()
-    for anchor in (_TWO_SIDED_ANCHOR, _SPOT_ANCHOR):
-        if anchor not in text:
+    for anchor in (_TWO_SIDED_ANCHOR, _SPOT_ANCHOR, _MAIN_ANCHOR, _AREA_ANCHOR):
+        if text.count(anchor) != 1:
             raise RenderError(
-                f"pyrender {pyrender.__version__}: mesh.frag changed (no {anchor!r}); this backend "
+                f"pyrender {pyrender.__version__}: mesh.frag changed (no single {anchor!r}); this backend "
                 "supports pyrender 0.1.45"
             )
+    area = (_SHADER_DIR / "blendify_area.glsl").read_text()
     text = text.replace(_TWO_SIDED_ANCHOR, _TWO_SIDED_PATCH, 1).replace(_SPOT_ANCHOR, _SPOT_PATCH, 1)
+    text = text.replace(_AREA_ANCHOR, _AREA_PATCH, 1).replace(_MAIN_ANCHOR, area + _MAIN_ANCHOR, 1)
     mesh_frag.write_text(text)
     for f in _SHADER_DIR.iterdir():
         if f.suffix in (".vert", ".frag"):
@@ -347,6 +359,40 @@ class FrameRenderer(pyrender.Renderer):
         buf = glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE)
         img = np.frombuffer(buf, dtype=np.uint8).reshape(h, w, 4)
         return img[::-1], None
+
+    # -- lights ----------------------------------------------------------------------------------
+    def _bind_lighting(self, scene: Any, program: Any, node: Any, flags: int) -> None:
+        """pyrender's light uniforms, then the area-light uniforms of every spot light it bound, in the
+        same order (``light.blendify_area`` = (shape, half x, half y) marks an area light)."""
+        super()._bind_lighting(scene, program, node, flags)
+        max_n = self._compute_max_n_lights(flags)
+        nodes = scene.light_nodes
+        if (
+            len(scene.directional_light_nodes) > max_n[0]
+            or len(scene.spot_light_nodes) > max_n[1]
+            or len(scene.point_light_nodes) > max_n[2]
+        ):
+            nodes = self._sorted_nodes_by_distance(scene, scene.light_nodes, node)
+        k = 0
+        for n in nodes:
+            if not isinstance(n.light, pyrender.SpotLight):
+                continue
+            if k == max_n[1]:
+                break
+            u = np.zeros(4, dtype=np.float32)
+            v = np.zeros(4, dtype=np.float32)
+            area = getattr(n.light, "blendify_area", None)
+            if area is not None:
+                shape, half_x, half_y = area
+                pose = scene.get_pose(n)
+                u[:3], u[3] = pose[:3, 0] * half_x, shape
+                v[:3] = pose[:3, 1] * half_y
+            for name, value in ((f"bf_area_u[{k}]", u), (f"bf_area_v[{k}]", v)):
+                try:
+                    program.set_uniform(name, value)
+                except ValueError:  # not used by this program
+                    pass
+            k += 1
 
     # -- shadow control --------------------------------------------------------------------------
     def _shadow_mapping_pass(self, scene: Any, light_node: Any, flags: int) -> None:

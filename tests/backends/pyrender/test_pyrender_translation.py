@@ -144,7 +144,9 @@ def test_lights_units(pyr):
     assert abs(by_tag["spot"].intensity - 200.0 / (4 * np.pi)) < 1e-9
     assert abs(by_tag["spot"].outerConeAngle - np.deg2rad(30)) < 1e-9
     assert abs(by_tag["spot"].innerConeAngle - np.deg2rad(30)) < 1e-9  # blend 0: hard edge
-    assert abs(by_tag["area"].intensity - 100.0 / np.pi) < 1e-9
+    # an area light: its radiance P / (pi A) (integrated over the surface by the shader) and its half sizes
+    assert abs(by_tag["area"].intensity - 100.0 / (np.pi * 0.25)) < 1e-9
+    assert by_tag["area"].blendify_area == (1.0, 0.25, 0.25)
     np.testing.assert_allclose(eng.pscene.ambient_light, 0.5 * 0.96, rtol=1e-9)
     for node, light, _ in eng._light_nodes:
         np.testing.assert_allclose(eng.pscene.get_pose(node), light.matrix_world)
