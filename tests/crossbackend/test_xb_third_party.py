@@ -28,11 +28,9 @@ KNOWN_THIRD_PARTY: dict[str, str] = {
     "may break)",
     "pyrender_example": "colour +3 % over the whole image from the spot light (spot_size 60 deg, blend 0.625): "
     "without it the pair passes; the engines' spot blend falloff differs (lights issue)",
-    "kubric_helloworld": "depth q99 2.1e-3 (> 1e-3) on the unit ball sunk half into the floor slab (presumably the "
-    "NURBS sphere's tessellation against Mitsuba's analytic sphere where it meets the floor; not investigated)",
-    "blendify_nurbs_primitives": "normals flipped on 22 % of the pixels (the one-sided circle and the curve, "
-    "geometry issue), depth q99 4e-3, and the colour there",
-    "blendify_readme_cube": "2 of 64 tiles beyond the material margin on a pure green Principled cube under a "
+    "blendify_nurbs_primitives": "normals 15 deg apart (median) on the NURBS curve only (its tube's shading "
+    "normals differ between the engines: geometry issue); the colour beyond the material margin in 14 of 84 tiles",
+    "blendify_readme_cube": "2-3 of 64 tiles beyond the material margin on a pure green Principled cube under a "
     "strong point light (specular highlight; material issue)",
 }
 
