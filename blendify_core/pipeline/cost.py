@@ -4,10 +4,11 @@ A path tracer's error falls as 1/sqrt(samples) and its time grows as a fixed cos
 sample. The pilot renders exactly the first passes ``final`` renders (``FIRST_PASSES`` independent passes of
 the preset's samples: their spread is the render's own first estimate, with the same sampler at the same
 sample count, so a quasi-Monte-Carlo sampler's faster convergence at higher counts is not extrapolated from
-tiny passes) and one 1-sample pass: the two pass sizes separate the fixed cost from the per-sample cost. The
+tiny passes), one 1-sample pass and one pass of ``LONG_PASS`` times the preset's samples: a line fitted to the
+passes' times separates the fixed cost per pass from the cost per sample. The
 prediction replays the schedule :func:`~blendify_core.pipeline.render.render_to_target` follows from there
 (the same pass sizing), so predicted passes and samples are those the render takes if the error keeps
-falling as 1/sqrt(samples). The pilot costs about as much as the cheapest ``final`` render.
+falling as 1/sqrt(samples). The pilot costs about twice the cheapest ``final`` render.
 """
 
 from __future__ import annotations
@@ -36,6 +37,10 @@ from blendify_core.pipeline.settings import FINAL_TARGET_ERROR, resolve_settings
 from blendify_core.typing import FloatArray
 
 __all__ = ["CostEstimate", "estimate_cost", "predict_schedule"]
+
+#: the pilot's last pass renders this many times the preset's pass samples: it fixes the cost per sample,
+#: which 1- and 16-sample passes alone leave to timing noise on hard scenes
+LONG_PASS = 4
 
 
 @strict_api
@@ -127,14 +132,19 @@ def estimate_cost(
                             0.0, 0.0, seconds, "bias", True)  # fmt: skip
     _, t_one, _ = one(1, 1)
     firsts = [one(base, i) for i in range(FIRST_PASSES)]  # seeds as render_to_target's first passes
-    t_base = float(np.median([t for _, t, _ in firsts]))
-    per_sample = max((t_base - t_one) / max(base - 1, 1), 0.0)
-    per_pass = max(t_base - base * per_sample, 0.0)
-    colours = [c for c, _, _ in firsts]
+    long_rgb, t_long, _ = one(LONG_PASS * base, FIRST_PASSES)
+    # time = per_pass + n * per_sample, fitted to every pilot pass (the long one fixes the slope)
+    ns = np.array([1.0] + [float(base)] * FIRST_PASSES + [float(LONG_PASS * base)])
+    ts = np.array([t_one] + [t for _, t, _ in firsts] + [t_long])
+    per_sample, per_pass = (float(v) for v in np.polyfit(ns, ts, 1))
+    if per_sample <= 0.0:  # timing noise larger than the work: all cost is per pass
+        per_sample, per_pass = 0.0, float(np.median(ts))
+    per_pass = max(per_pass, 0.0)
+    colours = [c for c, _, _ in firsts] + [long_rgb]
     if any(c is None for c in colours):
         raise InvalidSceneError("estimate_cost: the error is estimated on colour; the render has no 'rgb' output")
     stack = np.stack(colours)  # type: ignore[arg-type]
-    counts = np.full(FIRST_PASSES, float(base))
+    counts = np.array([float(base)] * FIRST_PASSES + [float(LONG_PASS * base)])
     pilot_error = relative_error_estimate(stack, counts)
     lo_err, hi_err = error_interval(stack, counts)
     pilot_n = int(counts.sum())
