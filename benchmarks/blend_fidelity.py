@@ -15,7 +15,8 @@ Per file:
    Cycles (``cycles_settings=`` too: the file's objects render from the file), Mitsuba and pyrender (the IR
    parse, the file's portable settings).
 
-Metrics against Blender's seed-0 render, over RGBA: ``MRE`` = mean |a - b| / mean b; the noise floor is the
+Metrics against Blender's seed-0 render, over RGB (premultiplied: a transparent background counts 0):
+``MRE`` = mean |a - b| / mean b; the noise floor is the
 MRE of Blender's seed-1 render; ``within noise`` = Cycles' MRE <= the noise floor. pyrender: SSIM of the sRGB
 images (over black). The number of items the IR parse could not carry is the attach warning's count.
 
@@ -59,8 +60,8 @@ def blend_files() -> tuple[list[Path], list[str]]:
 
 
 def mre(a: np.ndarray, b: np.ndarray) -> float:
-    """Mean relative error of ``a`` against ``b`` over RGBA."""
-    return float(np.abs(a - b).mean() / max(float(np.abs(b).mean()), 1e-12))
+    """Mean relative error of ``a`` against ``b`` over RGB (premultiplied: a transparent background is 0)."""
+    return float(np.abs(a[..., :3] - b[..., :3]).mean() / max(float(np.abs(b[..., :3]).mean()), 1e-12))
 
 
 def ssim(a: np.ndarray, b: np.ndarray) -> float:
@@ -121,11 +122,14 @@ def measure(path: Path, work: Path, size: tuple[int, int], samples: int) -> dict
     return row
 
 
-_METHOD = (
-    "2 shared cores, timings under load). Method in the script's docstring. MRE = mean |a - b| / mean b over "
-    "RGBA against Blender's seed-0 render; noise = the MRE of Blender's own seed-1 render; Cycles renders the "
-    "attached objects from the file (`attach_blend(..., render_settings=True)` + `cycles_settings`), Mitsuba "
-    "and pyrender the IR parse; 'IR limits' = the lines of the attach warning (what the parse could not carry)."
+_METHOD = " ".join(
+    [
+        "2 shared cores, timings under load). Method in the script's docstring.",
+        "MRE = mean |a - b| / mean b over RGB (premultiplied) against Blender's seed-0 render;",
+        "noise = the MRE of Blender's own seed-1 render; Cycles renders the attached objects from the file",
+        "(`attach_blend(..., render_settings=True)` + `cycles_settings`), Mitsuba and pyrender the IR parse;",
+        "'IR limits' = the lines of the attach warning (what the parse could not carry).",
+    ]
 )
 
 

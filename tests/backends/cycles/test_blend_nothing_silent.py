@@ -260,7 +260,9 @@ def test_cycles_renders_attached_objects_from_the_file(files, blender_render, tm
     res = render()
     assert res.meta["translation"]["from_file"]["renderables"] == 2
     edited = np.asarray(res.rgba)
-    assert np.abs(edited - ref)[..., :3].mean() > 0.05 * ref[..., :3].mean()  # the checker is gone
+    # the floor from the IR parse: its checker baked to an image (and the box still from the file): close, not equal
+    err = np.abs(edited - ref)[..., :3].mean() / ref[..., :3].mean()
+    assert 0 < err < 0.02
     scene.renderables.remove(scene.renderables["Floor"])
     res = render()
     assert res.meta["translation"]["from_file"]["renderables"] == 2  # the floor is not back from the file
@@ -300,3 +302,31 @@ def test_other_backends_list_what_the_ir_parse_lost_and_crosscheck_says_limited(
     cyc_albedo = bf.render(scene, backend="cycles", samples=4, outputs=("rgb", "albedo"))
     assert cyc_albedo.meta["translation"]["from_file"]["renderables"] == 0
     assert sorted(a for a in cyc_albedo.meta["approximations"] if a.startswith("IR parse of")) == sorted(lost)
+
+
+def test_procedural_colour_is_baked_for_the_ir(files, blender_render, tmp_path):
+    """The floor's Checker texture becomes a baked image texture in the IR (said so); rendered from the IR
+    by Cycles, the floor matches Blender's render of the file; unbaked (bake_resolution=None) it would not."""
+    import blendify_core as bf
+    from blendify_core.ir.colors import TextureColors, UniformColors
+
+    _info, ref = blender_render(files["settings"], tmp_path / "ref.exr")
+    floor_rows = slice(-8, None)
+
+    def floor_error(**kw) -> tuple[float, object, str]:
+        scene, added, msg = _attach(files["settings"], render_settings=True, **kw)
+        floor = scene.renderables["Floor"]
+        floor.material.roughness = float(floor.material.roughness)  # an IR edit: rendered from the IR
+        settings = {**added.render_settings, "outputs": ("rgba",)}
+        img = np.asarray(bf.render(scene, backend="cycles", cycles_settings=added.cycles_settings, **settings).rgba)
+        err = float(np.abs(img - ref)[floor_rows, :, :3].mean() / ref[floor_rows, :, :3].mean())
+        return err, floor.colors, msg
+
+    err, colors, msg = floor_error(bake_resolution=64)
+    assert isinstance(colors, TextureColors) and colors.texture.shape[:2] == (64, 64)
+    np.testing.assert_allclose(np.unique(np.round(colors.texture, 2)), [0.2, 0.8])  # the checker's two colours
+    assert "Color: colour from a ShaderNodeTexChecker node baked to a 64x64 image" in msg
+    assert err < 0.02
+    err_default, colors, msg = floor_error(bake_resolution=None)
+    assert isinstance(colors, UniformColors) and "used its default value" in msg
+    assert err_default > 0.1

@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from blendify_blender import session
+from blendify_blender.blendfile.bake import DEFAULT_BAKE_RESOLUTION, Baker
 from blendify_blender.blendfile.camera import camera_spec
 from blendify_blender.blendfile.common import Notes, matrix_array, saved_tag
 from blendify_blender.blendfile.geometry import MESH_TYPES, mesh_spec, points_spec
@@ -117,6 +118,7 @@ def attach_blend(
     texture_dir: str | os.PathLike[str] | None = None,
     warn: bool = True,
     render_settings: bool = False,
+    bake_resolution: int | None = DEFAULT_BAKE_RESOLUTION,
 ) -> AttachedBlend:
     """Append a .blend's content into the IR ``scene``; returns the added renderables (see module docs).
 
@@ -137,6 +139,9 @@ def attach_blend(
             bounces, caustics, light threshold, film exposure: the Cycles backend's ``cycles_settings``
             option). Off by default: the settings that differ from ``bf.render``'s are then named in the
             warning as not imported.
+        bake_resolution: procedural colours (Checker, Noise, Gradient, Voronoi, ... feeding a colour input)
+            are baked with Cycles' baker into an image of this width and height through the object's UV map
+            (listed as an approximation); None: use their default value (noted).
     """
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core Scene, got {type(scene).__name__}")
@@ -145,6 +150,10 @@ def attach_blend(
     warn = as_bool("warn", warn)
     if scene_name is not None and not isinstance(scene_name, str):
         raise InvalidSceneError(f"scene_name: expected a scene name (str) or None, got {scene_name!r}")
+    if bake_resolution is not None and (
+        isinstance(bake_resolution, bool) or not isinstance(bake_resolution, int) or not 4 <= bake_resolution <= 8192
+    ):
+        raise InvalidSceneError(f"bake_resolution: expected an integer in [4, 8192] or None, got {bake_resolution!r}")
     if not isinstance(render_settings, bool):
         raise InvalidSceneError(f"render_settings: expected True or False, got {render_settings!r}")
     if texture_dir is not None and not isinstance(texture_dir, (str, os.PathLike)):
@@ -153,7 +162,9 @@ def attach_blend(
     bpy = session.bpy_module()
     with session.BPY_LOCK, session.capture_output("attach .blend") as cap:
         with session.engine_errors(f"attach_blend({str(p)!r})", cap):
-            pend = _parse_blend(bpy, scene, p, with_camera, scene_name, with_world, texture_dir, render_settings)
+            pend = _parse_blend(
+                bpy, scene, p, with_camera, scene_name, with_world, texture_dir, render_settings, bake_resolution
+            )
     result = _commit(scene, p, pend, with_camera)
     if warn and pend.notes:
         lines = "\n  - ".join(pend.notes)
@@ -190,11 +201,13 @@ def _parse_blend(
     with_world: bool | None,
     texture_dir: str | os.PathLike[str] | None,
     render_settings: bool,
+    bake_resolution: int | None,
 ) -> _Pending:
     pend = _Pending(notes=Notes())
     notes = pend.notes
     images = ImageReader(bpy, p, texture_dir, notes)
-    materials = MaterialReader(images, notes)
+    baker = Baker(notes, bake_resolution) if bake_resolution is not None else None
+    materials = MaterialReader(images, notes, baker)
     with scripts_auto_execute_disabled(), loaded_blend(p) as (scenes, removed, new_ids):
         notes.extend(removed)
         pend.scene_label, sc = _pick_scene(scenes, scene_name, p, notes)
@@ -220,6 +233,9 @@ def _parse_blend(
             if sc.camera is None:
                 raise InvalidSceneError(f"with_camera: scene {sc.name!r} of {str(p)!r} has no camera")
             pend.camera = camera_spec(sc, sc.camera.evaluated_get(dg), notes)
+        if baker is not None:  # last: baking evaluates the scene again
+            baker.run(bpy, sc, view_layer)
+            baker.apply(pend.meshes)
     pend.texture_dir = images.texture_dir
     return pend
 

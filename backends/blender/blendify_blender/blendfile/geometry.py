@@ -77,6 +77,7 @@ class _MeshReader:
     def __init__(self, materials: MaterialReader, bpy_obj: Any, me: Any, name: str) -> None:
         self.materials = materials
         self.notes: Notes = materials.notes
+        self.baker = materials.baker
         self.obj = bpy_obj
         self.me = me
         self.name = name
@@ -237,6 +238,11 @@ class _MeshReader:
     def _colors(self, col: dict[str, Any], n_out: int, src_corner: np.ndarray | None) -> Any:
         """The IR colour source of one material's colour description (uniform when the source is unusable)."""
         c = None
+        if col["kind"] == "bake" and self.baker is not None and col.get("material") is not None:
+            rgb, _k = rgb01(np.asarray(col["rgba"], dtype=np.float64)[:3])
+            c = UniformColors(tuple(rgb), color_space="linear")  # replaced by the baked texture
+            self.baker.request(self.obj, col["material"], col["node"], col["socket"], c, col["where"])
+            return c
         if col["kind"] == "texture":
             c = self._texture_colors(col)
         elif col["kind"] == "attribute":

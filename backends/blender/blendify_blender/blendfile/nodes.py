@@ -93,9 +93,11 @@ class MaterialReader:
     ``"opaque"`` (the source's alpha is not used) and ``"emission_from_color"`` (the surface emits its
     base colour with this strength)."""
 
-    def __init__(self, images: ImageReader, notes: Notes) -> None:
+    def __init__(self, images: ImageReader, notes: Notes, baker: Any = None) -> None:
         self.images = images
         self.notes = notes
+        #: a blendfile.bake.Baker: procedural colours become "bake" descriptions instead of their default value
+        self.baker = baker
         self._ranges = _param_ranges()
         self._cache: dict[int, tuple[Any, dict[str, Any]]] = {}
 
@@ -103,7 +105,10 @@ class MaterialReader:
         """:meth:`material`, parsed once per Blender material (notes name the first user, ``where``)."""
         key = mat.as_pointer() if mat is not None else 0
         if key not in self._cache:
-            self._cache[key] = self.material(mat, where)
+            parsed = self.material(mat, where)
+            if parsed[1].get("kind") == "bake":
+                parsed[1]["material"] = mat
+            self._cache[key] = parsed
         return self._cache[key]
 
     # -- texture and colour sources --------------------------------------------------------------
@@ -209,6 +214,8 @@ class MaterialReader:
             return {"kind": "attribute", "name": node.attribute_name, "node": node}
         elif node.type == "RGB":
             return {"kind": "uniform", "rgba": tuple(out.default_value)}
+        elif self.baker is not None:  # procedural: baked per object by blendfile.bake (default value until then)
+            return {"kind": "bake", "rgba": default, "node": node, "socket": out, "where": f"{where}: {socket.name}"}
         else:
             self.notes.add(
                 f"{where}: {socket.name} comes from a {node.bl_idname} node (procedural), used its default value"

@@ -45,7 +45,7 @@ if sc.camera is None:
     cam = bpy.data.objects.new("blendify_camera", bpy.data.cameras.new("blendify_camera"))
     cam.data.lens, cam.data.sensor_fit = 35.0, "HORIZONTAL"
     direction = Vector((0.6, -1.0, 0.5)).normalized()
-    cam.location = centre + direction * radius * 2.6
+    cam.location = centre + direction * radius * 2.0
     cam.rotation_euler = (-direction).to_track_quat("-Z", "Y").to_euler()
     sc.collection.objects.link(cam)
     sc.camera = cam
