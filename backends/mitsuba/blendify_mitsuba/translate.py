@@ -243,6 +243,15 @@ def _emission(material: Any) -> np.ndarray | None:
     return material.linear("emission_color")[:3] * float(material.emission_strength)
 
 
+def _size_ratio(ctx: Any, centres: np.ndarray, radii: np.ndarray) -> float:
+    """The smallest radius over the largest distance from the camera to the points' bounding box."""
+    cam = np.asarray(ctx.scene.camera.translation, dtype=np.float64)
+    lo, hi = centres.min(axis=0), centres.max(axis=0)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    far = float(np.linalg.norm(corners - cam, axis=1).max())
+    return float(np.min(radii)) / far if far > 0 else float("inf")
+
+
 def _with_mask(bsdf: dict[str, Any], opacity: Any, needed: bool) -> dict[str, Any]:
     """``bsdf`` wrapped in a ``mask`` of ``opacity`` when ``needed`` (alpha < 1 somewhere)."""
     if not needed:
@@ -877,9 +886,10 @@ class MitsubaTranslator(Translator):
                 ctx.shapes[key] = ShapeInfo(index, np.asarray(c, dtype=np.float64))
             ctx.n_analytic_spheres += n
             return
-        if curves_fit(mat, src.opacity(alpha)[1], strength > 0 or _emission(mat) is not None, matrix) is None:
+        scale = float(np.linalg.svd(np.asarray(matrix)[:3, :3], compute_uv=False)[0])
+        emissive = strength > 0 or _emission(mat) is not None
+        if curves_fit(mat, src.opacity(alpha)[1], emissive, matrix, _size_ratio(ctx, centres, radii * scale)) is None:
             key = f"{prefix}_curves"
-            scale = float(np.linalg.svd(np.asarray(matrix)[:3, :3], compute_uv=False)[0])
             if per_point is not None:
                 tex = mi.load_dict(point_bitmap(per_point))
                 bsdf_d = self.dispatch(mat, ctx, tex)
