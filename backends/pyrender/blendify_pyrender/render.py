@@ -152,6 +152,10 @@ _AREA_PATCH = """        vec3 res = bf_area_u[i].w > 0.5
             ? bf_area_light(i, n, v, roughness, metallic, f0, c_diff, base_color.rgb)
             : compute_brdf(n, v, l, roughness, metallic, f0, c_diff, base_color.rgb, radiance);
 #ifdef SPOT_LIGHT_SHADOWS"""
+#: shadow acne: pyrender's depth bias lets lit planes shadow themselves in sparse pixels under wide spot
+#: cones (area lights: 305 of 2304 plane pixels up to 3 % darker); five times the bias removes it
+_BIAS_ANCHOR = "float bias = max(0.001 * (1.0 - nl), 0.0001) / proj_coords.w;"
+_BIAS_PATCH = "float bias = max(0.005 * (1.0 - nl), 0.0005) / proj_coords.w;"
 _patched_dir: str | None = None
 
 
@@ -168,7 +172,7 @@ def _shader_dir() -> str:
             shutil.copyfile(f, os.path.join(dst, f.name))
     mesh_frag = Path(dst) / "mesh.frag"
     text = mesh_frag.read_text()
-    for anchor in (_TWO_SIDED_ANCHOR, _SPOT_ANCHOR, _MAIN_ANCHOR, _AREA_ANCHOR):
+    for anchor in (_TWO_SIDED_ANCHOR, _SPOT_ANCHOR, _MAIN_ANCHOR, _AREA_ANCHOR, _BIAS_ANCHOR):
         if text.count(anchor) != 1:
             raise RenderError(
                 f"pyrender {pyrender.__version__}: mesh.frag changed (no single {anchor!r}); this backend "
@@ -177,6 +181,7 @@ def _shader_dir() -> str:
     area = (_SHADER_DIR / "blendify_area.glsl").read_text()
     text = text.replace(_TWO_SIDED_ANCHOR, _TWO_SIDED_PATCH, 1).replace(_SPOT_ANCHOR, _SPOT_PATCH, 1)
     text = text.replace(_AREA_ANCHOR, _AREA_PATCH, 1).replace(_MAIN_ANCHOR, area + _MAIN_ANCHOR, 1)
+    text = text.replace(_BIAS_ANCHOR, _BIAS_PATCH, 1)
     mesh_frag.write_text(text)
     for f in _SHADER_DIR.iterdir():
         if f.suffix in (".vert", ".frag"):
