@@ -66,6 +66,13 @@ mp.inputs["Scale"].default_value = (2.0, 3.0, 1.0)
 tc = nt.nodes.new("ShaderNodeTexCoord")
 nt.links.new(tc.outputs["UV"], mp.inputs["Vector"]); nt.links.new(mp.outputs[0], t.inputs["Vector"])
 nt.links.new(t.outputs["Color"], p.inputs["Base Color"])
+nt, out, p = obj("TexGlow", 8)
+e = nt.nodes.new("ShaderNodeEmission")
+t2 = nt.nodes.new("ShaderNodeTexImage"); t2.image = img
+nt.links.new(t2.outputs["Color"], e.inputs["Color"])
+add = nt.nodes.new("ShaderNodeAddShader"); add.name = "Tex Add"
+nt.links.new(e.outputs[0], add.inputs[0]); nt.links.new(p.outputs[0], add.inputs[1])
+nt.links.new(add.outputs[0], out.inputs["Surface"])
 if mode == "render":  # a camera over the tiled plane, a white world, REPEAT (what the IR reads)
     t.extension = "REPEAT"
     t.interpolation = "Closest"
@@ -116,6 +123,13 @@ def test_add_shader_with_emission_is_the_emission(attached, cycles):
     assert "Glow Add" not in msg
 
 
+def test_add_shader_with_a_textured_emission_keeps_the_surface(attached, cycles):
+    scene, msg = attached
+    m = scene.renderables["TexGlow"].material
+    assert m.emission_strength == 0.0 and m.metallic == 0.0  # the Principled surface, not a light
+    assert "Tex Add (Emission + Principled BSDF) approximated by Principled BSDF alone" in msg
+
+
 def test_other_mixes_and_anisotropy_are_named(attached, cycles):
     scene, msg = attached
     m = scene.renderables["Mixed"].material
@@ -150,7 +164,7 @@ def test_mapping_node_renders_like_blender(tmp_path: Path, bpy_script, blender_r
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BlendAttachWarning)
         att = attach_blend(scene, path, with_camera=True, render_settings=True)
-    for tag in ("Glass", "Glowing", "Mixed"):
+    for tag in ("Glass", "Glowing", "Mixed", "TexGlow"):
         scene.renderables.remove(scene.renderables[tag])
     tiled = scene.renderables["Tiled"]
     tiled.material.roughness = float(tiled.material.roughness)  # an IR edit: Cycles renders the IR parse

@@ -380,7 +380,8 @@ class MaterialReader:
                 return m.copy(
                     emission_color=(*(float(x) for x in c), 1.0), emission_strength=k if c.max() > 0 else 0.0
                 ), col
-        for n in nodes:
+        # the surface shader first: an emission alone would replace the surface by a light
+        for n in sorted(nodes, key=lambda x: x.type == "EMISSION"):
             parsed = self._shader(n, where)
             if parsed is not None:
                 names = " + ".join(x.name for x in nodes)
