@@ -129,6 +129,8 @@ _GAMMA = 2.2
 #: dense GL-point clouds are thinned to this many points per covered pixel (never below POINTS_MIN_DRAWN)
 POINTS_PER_PIXEL = 8
 POINTS_MIN_DRAWN = 100_000
+#: clouds of sub-pixel spheres are thinned to spheres of about this diameter (pixels) of the same summed area
+SUBPIXEL_DRAWN_DIAMETER = 0.7
 #: the coverage pass of the "coverage" anti-aliasing is rendered at 3x the resolution (9 samples/pixel)
 COVERAGE_SUPERSAMPLE = 3
 _LIN8 = ((np.arange(256, dtype=np.float64) / 255.0) ** _GAMMA).astype(np.float32)
@@ -156,12 +158,77 @@ _AREA_PATCH = """        vec3 res = bf_area_u[i].w > 0.5
 #: cones (area lights: 305 of 2304 plane pixels up to 3 % darker); five times the bias removes it
 _BIAS_ANCHOR = "float bias = max(0.001 * (1.0 - nl), 0.0001) / proj_coords.w;"
 _BIAS_PATCH = "float bias = max(0.005 * (1.0 - nl), 0.0005) / proj_coords.w;"
+
+# Sphere impostors (point clouds drawn as GL points): pyrender's mesh shaders get a BLENDIFY_SPRITE variant.
+# The vertex shader sizes the point sprite to the sphere's projected diameter (the point's diameter is in
+# texcoord_0.x, world units); the fragment shader keeps the pixel centres inside the projected disc (exact
+# for sub-pixel spheres too: a 1-px sprite keeps its one pixel when the centre falls in the disc), shades
+# with the sphere's normal at that pixel (an orthographic impostor) and writes the sphere's depth.
+_SPRITE_VERT_DECL = """
+#ifdef BLENDIFY_SPRITE
+uniform float sprite_viewport;
+uniform float sprite_diameter_scale;
+flat out float sprite_diam_px;
+flat out float sprite_radius_world;
+#endif
+"""
+_SPRITE_VERT_MAIN = """
+#ifdef BLENDIFY_SPRITE
+    float sprite_d_world = texcoord_0.x * sprite_diameter_scale * length(vec3((M * inst_m)[0]));
+    sprite_radius_world = 0.5 * sprite_d_world;
+    sprite_diam_px = sprite_d_world * P[0][0] * 0.5 * sprite_viewport / gl_Position.w;
+    gl_PointSize = max(sprite_diam_px, 1.0);
+#endif
+"""
+_SPRITE_FRAG_DECL = """
+#ifdef BLENDIFY_SPRITE
+uniform mat4 V;
+uniform mat4 P;
+uniform float sprite_conservative;
+flat in float sprite_diam_px;
+flat in float sprite_radius_world;
+vec3 sprite_centre() { return frag_position; }
+vec3 sprite_pos;
+vec3 sprite_normal;
+#define frag_position sprite_pos
+#endif
+"""
+_SPRITE_FRAG_MAIN = """
+#ifdef BLENDIFY_SPRITE
+    vec2 sprite_q = (gl_PointCoord - 0.5) * max(sprite_diam_px, 1.0);
+    float sprite_r = 0.5 * sprite_diam_px;
+    // the "coverage" anti-aliasing takes alpha from its own pass: its colour pass keeps every sub-pixel
+    // sphere's pixel (conservative), so that pixels it covers in part have a colour
+    if (dot(sprite_q, sprite_q) > sprite_r * sprite_r && !(sprite_conservative > 0.5 && sprite_diam_px < 1.0)) {
+        discard;
+    }
+    vec2 sprite_u = sprite_q / max(sprite_r, 1e-12);
+    sprite_u /= max(length(sprite_u), 1.0);
+    vec3 sprite_nv = vec3(sprite_u.x, -sprite_u.y, sqrt(max(1.0 - dot(sprite_u, sprite_u), 0.0)));
+    sprite_normal = normalize(transpose(mat3(V)) * sprite_nv);
+    sprite_pos = sprite_centre() + sprite_radius_world * sprite_normal;
+    vec4 sprite_clip = P * V * vec4(sprite_pos, 1.0);
+    gl_FragDepth = 0.5 * sprite_clip.z / sprite_clip.w + 0.5;
+#endif
+"""
+#: (file, anchor, replacement) applied to pyrender's shaders after the patches above: sphere impostors
+_PATCHES = (
+    ("mesh.frag", _TWO_SIDED_PATCH, _TWO_SIDED_PATCH + "\n#ifdef BLENDIFY_SPRITE\n    n = sprite_normal;\n#endif"),
+    ("mesh.frag", "in vec3 frag_position;\n", "in vec3 frag_position;\n" + _SPRITE_FRAG_DECL),
+    ("mesh.frag", "void main()\n{\n", "void main()\n{\n" + _SPRITE_FRAG_MAIN),
+    ("mesh.vert", "out vec3 frag_position;\n", "out vec3 frag_position;\n" + _SPRITE_VERT_DECL),
+    (
+        "mesh.vert",
+        "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n",
+        "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n" + _SPRITE_VERT_MAIN,
+    ),
+)
 _patched_dir: str | None = None
 
 
 def _shader_dir() -> str:
     """A per-process folder holding pyrender's shaders (mesh.frag patched for two-sided shading, Blender's
-    spot cone and area lights) and ours."""
+    spot cone, area lights and sphere impostors) and ours."""
     global _patched_dir
     if _patched_dir is not None and os.path.isdir(_patched_dir):
         return _patched_dir
@@ -183,12 +250,39 @@ def _shader_dir() -> str:
     text = text.replace(_AREA_ANCHOR, _AREA_PATCH, 1).replace(_MAIN_ANCHOR, area + _MAIN_ANCHOR, 1)
     text = text.replace(_BIAS_ANCHOR, _BIAS_PATCH, 1)
     mesh_frag.write_text(text)
+    for name, anchor, replacement in _PATCHES:
+        path = Path(dst) / name
+        text = path.read_text()
+        if anchor not in text:
+            raise RenderError(
+                f"pyrender {pyrender.__version__}: {name} changed (no {anchor.strip()!r}); this backend "
+                "supports pyrender 0.1.45"
+            )
+        path.write_text(text.replace(anchor, replacement, 1))
     for f in _SHADER_DIR.iterdir():
         if f.suffix in (".vert", ".frag"):
             shutil.copyfile(f, os.path.join(dst, f.name))
     atexit.register(shutil.rmtree, dst, True)
     _patched_dir = dst
     return dst
+
+
+def is_sprite(primitive: Any) -> bool:
+    """Whether a pyrender primitive is a point cloud drawn as sphere impostors (see translate.pointcloud)."""
+    return getattr(primitive, "point_diameter", None) is not None
+
+
+class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore[misc]
+    """pyrender's program cache adding the BLENDIFY_SPRITE define to mesh.vert/mesh.frag while ``sprite``."""
+
+    sprite = False
+
+    def get_program(
+        self, vertex_shader: str, fragment_shader: str, geometry_shader: Any = None, defines: Any = None
+    ) -> Any:
+        if self.sprite and vertex_shader == "mesh.vert":
+            defines = {**(defines or {}), "BLENDIFY_SPRITE": 1}
+        return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
 
 
 def _blend_func_alpha_over(sfactor: int, dfactor: int) -> None:
@@ -254,7 +348,7 @@ class FrameRenderer(pyrender.Renderer):
 
     def __init__(self) -> None:
         super().__init__(1, 1)
-        self._program_cache = pyrender.shader_program.ShaderProgramCache(shader_dir=_shader_dir())
+        self._program_cache = _ProgramCache(shader_dir=_shader_dir())
         self.max_samples = int(glGetIntegerv(GL_MAX_SAMPLES))
         self.gl_renderer = (glGetString(GL_RENDERER) or b"").decode("ascii", "replace")
         self._targets: dict[tuple[str, int, int, int], dict[str, Any]] = {}
@@ -267,6 +361,8 @@ class FrameRenderer(pyrender.Renderer):
         #: view independent, so while it stays the same they are reused instead of re-rendered (None = always)
         self.shadow_key: Any = None
         self._shadow_done: dict[Any, Any] = {}
+        #: sphere impostors keep every sub-pixel sphere's pixel in the colour pass (the "coverage" scheme)
+        self.sprite_conservative = False
 
     # -- framebuffers ----------------------------------------------------------------------------
     def _framebuffer(self, kind: str, width: int, height: int, samples: int) -> dict[str, Any]:
@@ -398,6 +494,20 @@ class FrameRenderer(pyrender.Renderer):
                 except ValueError:  # not used by this program
                     pass
             k += 1
+    # -- sphere impostors -------------------------------------------------------------------------
+    def _get_primitive_program(self, primitive: Any, flags: int, program_flags: int) -> Any:
+        self._program_cache.sprite = is_sprite(primitive)
+        try:
+            return super()._get_primitive_program(primitive, flags, program_flags)
+        finally:
+            self._program_cache.sprite = False
+
+    def _bind_and_draw_primitive(self, primitive: Any, pose: Any, program: Any, flags: int) -> None:
+        if is_sprite(primitive):
+            program.set_uniform("sprite_viewport", float(self.viewport_width))
+            program.set_uniform("sprite_diameter_scale", float(getattr(primitive, "sprite_scale", 1.0)))
+            program.set_uniform("sprite_conservative", 1.0 if self.sprite_conservative else 0.0)
+        super()._bind_and_draw_primitive(primitive, pose, program, flags)
 
     # -- shadow control --------------------------------------------------------------------------
     def _shadow_mapping_pass(self, scene: Any, light_node: Any, flags: int) -> None:
@@ -445,8 +555,9 @@ class FrameRenderer(pyrender.Renderer):
             _pyrender_renderer.glBlendFunc = original
         return color
 
-    def _draw_nodes(self, scene: Any, ids: dict[Any, int], shader: str, with_material: bool) -> None:
-        """Draw the visible mesh nodes in ``ids`` (node -> instance id) with one of our shader pairs."""
+    def _draw_nodes(self, scene: Any, ids: dict[Any, int], shader: str, with_material: bool, width: int) -> None:
+        """Draw the visible mesh nodes in ``ids`` (node -> instance id) with one of our shader pairs into a
+        viewport ``width`` pixels wide."""
         V, P = self._get_camera_matrices(scene)  # noqa: N806
         cam_pos = scene.get_pose(scene.main_camera_node)[:3, 3]
         program = None
@@ -457,6 +568,9 @@ class FrameRenderer(pyrender.Renderer):
             pose = scene.get_pose(node)
             for prim in node.mesh.primitives:
                 defines = _buffer_defines(prim)
+                sprite = is_sprite(prim)
+                if sprite:
+                    defines["BLENDIFY_SPRITE"] = 1
                 tex = getattr(prim.material, "baseColorTexture", None) if with_material else None
                 if tex is not None and "TEXCOORD_0_LOC" in defines:
                     defines["HAS_BASE_COLOR_TEX"] = 1
@@ -476,10 +590,15 @@ class FrameRenderer(pyrender.Renderer):
                         self._bind_texture(tex, "base_color_texture", program)
                 if with_material:
                     program.set_uniform("cam_pos", cam_pos)
+                if sprite:
+                    program.set_uniform("sprite_viewport", float(width))
+                    program.set_uniform("sprite_diameter_scale", float(getattr(prim, "sprite_scale", 1.0)))
                 prim._bind()
                 n_inst = 1 if prim.poses is None else len(prim.poses)
                 glDisable(GL_PROGRAM_POINT_SIZE)
-                if prim.mode == GLTF.POINTS:
+                if sprite:
+                    glEnable(GL_PROGRAM_POINT_SIZE)
+                elif prim.mode == GLTF.POINTS:
                     glPointSize(self.point_size)
                 if prim.indices is not None:
                     glDrawElementsInstanced(prim.mode, prim.indices.size, GL_UNSIGNED_INT, ctypes.c_void_p(0), n_inst)
@@ -513,7 +632,7 @@ class FrameRenderer(pyrender.Renderer):
         glClear(GL_DEPTH_BUFFER_BIT)
         glDisable(GL_MULTISAMPLE)
         self._begin_pass(width, height)
-        self._draw_nodes(scene, ids, "blendify_gbuffer", True)
+        self._draw_nodes(scene, ids, "blendify_gbuffer", True, width)
         glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["read"])
         out = []
         for att in (GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1):
@@ -533,7 +652,7 @@ class FrameRenderer(pyrender.Renderer):
         glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT)
         glEnable(GL_MULTISAMPLE)
         self._begin_pass(width, height)
-        self._draw_nodes(scene, ids, "blendify_coverage", False)
+        self._draw_nodes(scene, ids, "blendify_coverage", False, width)
         if samples > 0:
             glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["draw"])
             glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb["read"])
@@ -660,10 +779,12 @@ def _shadow_flags(frame: Frame) -> int:
 
 
 def _point_pixels(scene: Any, frame: Frame) -> tuple[float, list[str]]:
-    """Pixel size (at the camera resolution) of clouds drawn as GL points: the projected diameter at the
-    cloud centre's planar depth (the largest over such clouds; 1 if there are none), and the notes. Also
+    """Pixel size (at the camera resolution) of clouds drawn as sphere impostors: the projected diameter at
+    the cloud centre's planar depth (the largest over such clouds; 1 if there are none), and the notes. Also
     chooses how many points of each such cloud are drawn: at most ``POINTS_PER_PIXEL`` points per covered
-    pixel (a prefix of the randomly ordered points), all of them when the cloud is not that dense."""
+    pixel (a prefix of the randomly ordered points), all of them when the cloud is not that dense; a thinned
+    cloud of sub-pixel spheres draws them larger by sqrt(all / drawn) (same summed area, same coverage), and
+    a cloud of spheres under ``SUBPIXEL_DRAWN_DIAMETER`` pixels is thinned to spheres of about that size."""
     cam = frame.camera
     best = 1.0
     notes: list[str] = []
@@ -679,11 +800,23 @@ def _point_pixels(scene: Any, frame: Frame) -> tuple[float, list[str]]:
             best = max(best, px)
             n = len(prim.point_all_indices)
             area = min(np.pi * extent_px**2, float(cam.width * cam.height))
-            m = int(min(n, max(POINTS_MIN_DRAWN, np.ceil(POINTS_PER_PIXEL * area / max(px, 1.0) ** 2))))
+            if px < SUBPIXEL_DRAWN_DIAMETER:
+                # sub-pixel spheres each cost a whole pixel's shading: draw fewer, larger ones
+                m = int(min(n, np.ceil(n * (px / SUBPIXEL_DRAWN_DIAMETER) ** 2)))
+            else:
+                m = int(min(n, max(POINTS_MIN_DRAWN, np.ceil(POINTS_PER_PIXEL * area / max(px, 1.0) ** 2))))
             if not prim._in_context():
                 m = n  # the element buffer is uploaded from the current indices: upload all of them
             prim._indices = prim.point_all_indices[:m]  # the element buffer holds all; draw a prefix
-            if m < n:
+            # a sub-pixel sphere covers a pixel with probability ~ its area: the drawn ones are enlarged so that
+            # the thinned cloud keeps the summed area (and so the coverage) of the whole cloud
+            prim.sprite_scale = float(np.sqrt(n / m)) if px < 1.0 else 1.0
+            if m < n and px < 1.0:
+                notes.append(
+                    f"pointcloud LOD: {m} of {n} points drawn (sub-pixel spheres: a random subset, drawn "
+                    f"{prim.sprite_scale:.2g}x wider so that it covers what the whole cloud does)"
+                )
+            elif m < n:
                 notes.append(
                     f"pointcloud LOD: {m} of {n} points drawn (a random subset: about {POINTS_PER_PIXEL} "
                     "points per covered pixel at this view)"
@@ -697,7 +830,11 @@ def _color(engine: Engine, frame: Frame, w: int, h: int, aa: AntiAliasing, flags
     px, _ = _point_pixels(scene, frame)
     if aa.mode in ("none", "coverage"):
         r.point_size = px
-        rgba = linearise_rgba8(r.render_color(scene, w, h, 0, flags))
+        r.sprite_conservative = aa.mode == "coverage"
+        try:
+            rgba = linearise_rgba8(r.render_color(scene, w, h, 0, flags))
+        finally:
+            r.sprite_conservative = False
         if aa.mode == "coverage":
             ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
             # supersampled, not multisampled: llvmpipe's MSAA is 4x slower even for a trivial shader

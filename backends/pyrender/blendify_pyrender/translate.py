@@ -109,7 +109,7 @@ class LightBuild:
 class CameraBuild:
     """A translated camera: the OpenGL projection (any principal point, fx != fy, orthographic with an
     offset principal point), clip distances, pose and resolution, and ``screen_size(size, at)``: the size
-    in pixels of ``size`` world units at the world point ``at`` (for clouds drawn as GL points)."""
+    in pixels of ``size`` world units at the world point ``at`` (for clouds drawn as sphere impostors)."""
 
     projection: np.ndarray
     znear: float
@@ -256,7 +256,7 @@ class PointLOD:
     """Point-cloud tessellation: the sphere mesh per point and whether it is a level-of-detail fallback."""
 
     name: str
-    subdivisions: int  # icosphere subdivisions, -1 = octahedron, -2 = screen-space squares (GL points)
+    subdivisions: int  # icosphere subdivisions, -1 = octahedron, -2 = sphere impostors (point sprites)
     reduced: bool
 
 
@@ -267,7 +267,8 @@ _LODS = (
     (100_000, PointLOD("octahedron (8 triangles per point)", -1, True)),
 )
 _LOD_LARGE = PointLOD(
-    "screen-space squares of the projected diameter at the cloud's median depth (GL points, shaded facing the camera)",
+    "sphere impostors (point sprites of each sphere's projected diameter, shaded with the sphere's normal, "
+    "writing its depth)",
     -2,
     True,
 )
@@ -394,8 +395,9 @@ class PyrenderTranslator(Translator):
         features={
             "pointcloud": approximate(
                 "spheres tessellated as merged icospheres (subdivision 1, the shared tessellation); larger "
-                "clouds use a level of detail: icosphere-0 up to 50k points, octahedra up to 100k, GL points "
-                "(screen-space squares of the projected diameter) beyond; listed in result.meta['approximations']"
+                "clouds use a level of detail: icosphere-0 up to 50k points, octahedra up to 100k, sphere "
+                "impostors beyond (point sprites of the projected diameter, exact coverage at pixel centres, "
+                "the sphere's normal and depth); listed in result.meta['approximations']"
             ),
             "pointcloud.vertex_colors": approximate("per-point colours multiply the shaded colour (COLOR_0)"),
             "pointcloud.emission": approximate(
@@ -404,7 +406,7 @@ class PyrenderTranslator(Translator):
         },
     )
     def pointcloud(self, pc: PointCloud, ctx: TranslationContext) -> Built:
-        """Merged spheres (level of detail by point count) or, for the largest clouds, GL points."""
+        """Merged spheres (level of detail by point count) or, for the largest clouds, sphere impostors."""
         pyrender = _pyrender()
         pts = pc.vertices
         n = len(pts)
@@ -424,8 +426,11 @@ class PyrenderTranslator(Translator):
             # GL points, in a fixed random order so that any prefix is a uniform subset (drawn per frame when
             # the cloud is so dense on screen that most points would be overdrawn)
             perm = np.random.default_rng(0).permutation(n)
+            diameters = np.zeros((n, 2), dtype=np.float32)
+            diameters[:, 0] = 2.0 * np.broadcast_to(radii, (n,))[perm]
             prim = pyrender.Primitive(
                 positions=local[perm],
+                texcoord_0=diameters,  # the sphere impostors' diameters (world units), read by the shaders
                 color_0=None if surf.vertex_rgba is None else surf.vertex_rgba[perm].astype(np.float32),
                 indices=np.arange(n, dtype=np.uint32),
                 material=pm,
@@ -433,9 +438,13 @@ class PyrenderTranslator(Translator):
             )
             prim._indices = np.arange(n, dtype=np.uint32)  # not pyrender's float32 copy (inexact above 2^24)
             prim.albedo_factor = albedo
-            prim.point_diameter = float(np.mean(radii) * 2.0)  # world units; pixels are set per frame
+            prim.point_diameter = float(np.mean(radii) * 2.0)  # world units (marks the sphere impostors)
+            prim.sprite_scale = 1.0  # diameter factor keeping the coverage of a thinned cloud (set per frame)
             prim.point_all_indices = prim._indices
             prim.point_extent = float(np.max(np.linalg.norm(local, axis=1))) + float(radii.max(initial=0))
+            # the spheres' bounds, not the centres' (pyrender frames the sun's shadow camera with them)
+            r_max = float(radii.max(initial=0))
+            prim._bounds = np.stack([local.min(axis=0) - r_max, local.max(axis=0) + r_max]).astype(np.float64)
             return Built(pyrender.Mesh(primitives=[prim]), centre)
         unit, tris = _unit_sphere(lod)
         nv = len(unit)

@@ -269,7 +269,7 @@ def test_pointcloud_scene_renders(pyr):
     assert any(a.startswith("pointcloud:") for a in res.meta["approximations"])
 
 
-def test_large_point_cloud_uses_gl_points(pyr, monkeypatch):
+def test_large_point_cloud_uses_sphere_impostors(pyr, monkeypatch):
     from blendify_pyrender import translate as tr
 
     monkeypatch.setattr(tr, "point_lod", lambda n: tr._LOD_LARGE)  # the >100k level on a small cloud
@@ -278,11 +278,11 @@ def test_large_point_cloud_uses_gl_points(pyr, monkeypatch):
     hit = res.instance == 0
     assert hit.sum() > 300 and np.isfinite(res.depth[hit]).all()
     np.testing.assert_allclose(np.linalg.norm(res.normal[hit], axis=1), 1.0, atol=1e-4)
-    assert any("GL points" in a for a in res.meta["approximations"])
+    assert any("sphere impostors" in a for a in res.meta["approximations"])
     assert res.rgba[..., 3][hit].mean() > 0.5
 
 
-def test_dense_gl_point_clouds_are_thinned(pyr, monkeypatch):
+def test_dense_impostor_clouds_are_thinned(pyr, monkeypatch):
     from blendify_pyrender import render as rd
     from blendify_pyrender import translate as tr
 

@@ -221,7 +221,7 @@ def test_point_cloud_lod_choice():
     assert not tr.point_lod(1000).reduced and tr.point_lod(1000).subdivisions == 1
     assert tr.point_lod(50_000).reduced and tr.point_lod(50_000).subdivisions == 0
     assert tr.point_lod(100_000).subdivisions == -1
-    assert tr.point_lod(1_000_000).subdivisions == -2  # GL points
+    assert tr.point_lod(1_000_000).subdivisions == -2  # sphere impostors
 
 
 def test_capability_table_declares_every_feature():

@@ -1,0 +1,101 @@
+"""The preview's look against the path tracers: sphere impostors for large point clouds (coverage, depth,
+normals), tiny renders."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from blendify_core import DiffuseMaterial, Scene, UniformColors, render, testing
+from blendify_core.registry import available_backends
+
+
+@pytest.fixture
+def impostors(monkeypatch):
+    """Every point cloud drawn as sphere impostors (the level of the largest clouds) however small."""
+    from blendify_pyrender import translate as tr
+
+    monkeypatch.setattr(tr, "point_lod", lambda n: tr._LOD_LARGE)
+
+
+def _one_point_scene(diameter_px: float, centre=(0.0, 0.0, 0.0)) -> Scene:
+    """One sphere seen by an orthographic camera (64x48, 0.05 world units per pixel) from +Z, 5 units away."""
+    scene = Scene()
+    scene.set_orthographic_camera((64, 48), ortho_scale=3.2, translation=(0, 0, 5.0), near=0.1, far=20)
+    scene.renderables.add_pointcloud(
+        np.array([centre], dtype=float),
+        DiffuseMaterial(),
+        UniformColors((0.8, 0.8, 0.8)),
+        point_size=0.05 * diameter_px,
+        tag="points",
+    )
+    scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(0, 0, 0))
+    return scene
+
+
+@pytest.mark.parametrize("diameter_px", [6.0, 15.0])
+def test_impostor_is_a_sphere_of_the_ir_diameter(pyr, impostors, diameter_px):
+    scene = _one_point_scene(diameter_px)
+    res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "depth", "normal", "instance"))
+    hit = res.instance == 0
+    # pixel centres inside the projected disc (area pi d^2 / 4 within its boundary pixels)
+    area = np.pi * diameter_px**2 / 4
+    assert abs(hit.sum() - area) <= np.pi * diameter_px, (hit.sum(), area)
+    ys, xs = np.nonzero(hit)
+    assert abs(xs.mean() + 0.5 - 32) < 0.6 and abs(ys.mean() + 0.5 - 24) < 0.6  # centred on the point
+    # the sphere's depth and normal at each pixel centre (orthographic: exact)
+    radius = 0.05 * diameter_px / 2
+    px = (xs + 0.5 - 32) * 0.05
+    py = (24 - ys - 0.5) * 0.05
+    nz = np.sqrt(np.clip(1 - (px**2 + py**2) / radius**2, 0, None))
+    inner = nz > 0.3  # away from the silhouette (a pixel centre there may round either way)
+    np.testing.assert_allclose(res.depth[hit][inner], 5.0 - radius * nz[inner], atol=2e-3)
+    expected_n = np.stack([px / radius, py / radius, nz], axis=1)
+    np.testing.assert_allclose(res.normal[hit][inner], expected_n[inner], atol=0.05)
+    # shaded as a sphere lit from the camera's side: the rim is darker than the centre
+    lum = res.rgba[..., :3].mean(axis=-1)[hit]
+    assert lum[nz > 0.9].mean() > 1.5 * lum[(nz < 0.5) & (nz > 0)].mean()
+
+
+def test_impostor_writes_the_sphere_depth(pyr, impostors):
+    """A plane cutting the sphere (radius 0.375) at z = 0.34: the sphere's cap pokes through it near the
+    axis (z = 0.373 at the centre pixel), the plane hides the sphere 0.23 from the axis (z = 0.30 there); a
+    flat sprite at the centre's (or the front's) depth would show one of them everywhere."""
+    scene = _one_point_scene(15.0)
+    scene.renderables.add_plane_mesh(0.5, DiffuseMaterial(), UniformColors((0.1, 0.9, 0.1)), translation=(0, 0, 0.34))
+    res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))
+    assert res.instance[24, 32] == 0  # 0.035 from the axis: the sphere
+    assert res.instance[24, 36] == 1 and res.instance[24, 27] == 1  # 0.23 from the axis: the plane
+    assert res.instance[24, 38] == 0  # beyond the plane's edge (0.25): the sphere again
+
+
+@pytest.mark.parametrize("d_px", [0.4, 0.8])
+def test_sub_pixel_spheres_cover_their_area(pyr, impostors, d_px):
+    """Spheres far below a pixel: each covers the pixel whose centre falls in its disc, so a cloud of them
+    covers 1 - exp(-sum of their projected areas per pixel) of the image, as a path tracer's alpha."""
+    rng = np.random.default_rng(3)
+    n = 4000
+    scene = Scene()
+    scene.set_orthographic_camera((48, 36), ortho_scale=2.4, translation=(0, 0, 5.0), near=0.1, far=20)
+    pts = np.c_[rng.uniform(-1.2, 1.2, n), rng.uniform(-0.9, 0.9, n), rng.uniform(-0.5, 0.5, n)]
+    scene.renderables.add_pointcloud(pts, DiffuseMaterial(), UniformColors((0.8, 0.8, 0.8)), point_size=0.05 * d_px)
+    scene.lights.set_background_light(1.0)
+    res = render(scene, backend=pyr, quality="preview")
+    expected = 1 - np.exp(-n * np.pi * d_px**2 / 4 / (48 * 36))  # 0.25, 0.69
+    assert abs(res.rgba[..., 3].mean() - expected) < 0.05 * expected
+
+
+@pytest.mark.slow
+def test_small_point_cloud_coverage_matches_cycles(pyr, impostors):
+    st = available_backends().get("cycles")
+    if st is None or not st.available:
+        reason = f"Cycles unavailable: {st.reason if st else 'not registered'}"
+        print(reason)
+        pytest.skip(reason)
+    scene = testing.pointcloud_scene(n=20000, resolution=(48, 36), point_size=0.01)
+    preview = render(scene, backend=pyr, quality="preview")
+    final = render(scene, backend="cycles", samples=32, seed=0)
+    a, b = preview.rgba[..., 3].mean(), final.rgba[..., 3].mean()
+    assert 0.05 < b < 0.95
+    print(f"coverage: preview {a:.4f}, Cycles {b:.4f}")
+    assert abs(a - b) <= 0.05 * b, (a, b)
