@@ -494,6 +494,7 @@ class FrameRenderer(pyrender.Renderer):
                 except ValueError:  # not used by this program
                     pass
             k += 1
+
     # -- sphere impostors -------------------------------------------------------------------------
     def _get_primitive_program(self, primitive: Any, flags: int, program_flags: int) -> Any:
         self._program_cache.sprite = is_sprite(primitive)
