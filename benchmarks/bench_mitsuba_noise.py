@@ -15,7 +15,8 @@ the time to reach Cycles' noise at this spp if the error falls as 1/sqrt(spp) (c
 stratified ``multijitter``, whose error falls faster).
 
 Run: ``uv run --no-sync python benchmarks/bench_mitsuba_noise.py [--spp 16 --seeds 6 --res 96]``; writes
-``benchmarks/results/mitsuba_noise.{md,json,png}``.
+``benchmarks/results/mitsuba_noise.{md,json,png}`` (``--tag _256 --res 256 --only bunny``:
+``mitsuba_noise_256.*``, the larger images where the per-render overheads matter less).
 """
 
 from __future__ import annotations
@@ -108,6 +109,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=6)
     ap.add_argument("--res", type=int, default=96)
     ap.add_argument("--only", default=None, help="a substring of the scene names to run")
+    ap.add_argument("--tag", default="", help="suffix of the result files (mitsuba_noise<tag>.md)")
     args = ap.parse_args()
     from blendify_mitsuba import MitsubaBackend
     from blendify_mitsuba import translate as mtr
@@ -140,7 +142,8 @@ def main() -> None:
 
 def write(rows: list[dict[str, Any]], args: Any, variants: list[str], load: tuple[float, float]) -> None:
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "mitsuba_noise.json").write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1))
+    name = f"mitsuba_noise{args.tag}"
+    (RESULTS / f"{name}.json").write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1))
     by = {(r["scene"], r["config"]): r for r in rows}
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
     cfgs = list(dict.fromkeys(r["config"] for r in rows))
@@ -174,12 +177,12 @@ def write(rows: list[dict[str, Any]], args: Any, variants: list[str], load: tupl
                 eq = r["time"] * ratio**2
                 cells.append(f"{r['noise']:.4f}: {ratio:.2f}x Cycles, eq-err time {eq:.2f} s")
         lines.append(f"| {s} | " + " | ".join(cells) + " |")
-    lines += ["", "Plot: `mitsuba_noise.png` (noise relative to Cycles per scene and configuration; log scale)."]
-    (RESULTS / "mitsuba_noise.md").write_text("\n".join(lines) + "\n")
-    plot(by, scenes, cfgs)
+    lines += ["", f"Plot: `{name}.png` (noise relative to Cycles per scene and configuration; log scale)."]
+    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
+    plot(by, scenes, cfgs, name)
 
 
-def plot(by: dict[tuple[str, str], dict[str, Any]], scenes: list[str], cfgs: list[str]) -> None:
+def plot(by: dict[tuple[str, str], dict[str, Any]], scenes: list[str], cfgs: list[str], name: str) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -203,7 +206,7 @@ def plot(by: dict[tuple[str, str], dict[str, Any]], scenes: list[str], cfgs: lis
     ax.set_ylabel("per-pixel noise / Cycles' (equal spp)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(RESULTS / "mitsuba_noise.png", dpi=110)
+    fig.savefig(RESULTS / f"{name}.png", dpi=110)
 
 
 if __name__ == "__main__":
