@@ -113,6 +113,8 @@ def render_native(
         meta["effects"] = native.effects.to_dict()
     if native.ignored:
         meta["ignored"] = sorted(set(native.ignored))
+    if native.approximations:
+        meta["approximations"] = sorted(set(native.approximations))
     if settings.denoise:
         meta.setdefault("notes", []).append("denoise requested: Mitsuba's CPU build has no denoiser (not applied)")
     if settings.adaptive or settings.time_limit or settings.target_error:

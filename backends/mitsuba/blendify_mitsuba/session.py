@@ -67,6 +67,7 @@ class MitsubaNative:
     effects: Any = None
     n_analytic_spheres: int = 0
     ignored: list[str] = field(default_factory=list)  # IR objects the translation ignored, and why
+    approximations: list[str] = field(default_factory=list)  # beyond the capability table (meta)
     parallel_rays: bool = False  # the camera's rays are parallel (orthographic): planar depth = ray length
     translate_cached: bool = False  # reused from the previous render (nothing changed)
 
@@ -209,6 +210,7 @@ class MitsubaSession:
             effects=tr.effects,
             n_analytic_spheres=tr.n_analytic_spheres,
             ignored=tr.ignored,
+            approximations=tr.approximations,
             parallel_rays=tr.parallel_rays,
         )
 

@@ -544,3 +544,19 @@ def test_unsupported_features_are_clear_errors(scalar_backend, feature, build):
     # and the translator itself refuses too (when called without the core's capability check)
     with pytest.raises(bf.UnsupportedFeatureError):
         scalar_backend.translate(scene, bf.pipeline.settings.resolve_settings(samples=1))
+
+
+@pytest.mark.parametrize("height,listed", [(0.0, True), (0.05, False)])
+def test_area_light_in_the_plane_of_an_emitter_is_listed(scalar_backend, height, listed):
+    """An area light lying in the plane of an emissive quad (as some .blend files have it) is a difference by
+    design (coincident emitters); it is listed in meta["approximations"], a light above the quad is not."""
+    scene = testing.plane_scene("point", resolution=(16, 16))
+    for light in list(scene.lights):
+        scene.lights.remove(light.tag)
+    v = np.array([[-0.3, -0.3, 1], [0.3, -0.3, 1], [0.3, 0.3, 1], [-0.3, 0.3, 1]], float)
+    glow = PrincipledBSDFMaterial(emission_color=(1, 1, 1), emission_strength=2.0)
+    scene.renderables.add_mesh(v, [[0, 1, 2, 3]], glow, UniformColors((1, 1, 1)), tag="panel")
+    scene.lights.add_area("square", 0.4, strength=10.0, translation=(0.1, 0, 1 + height), tag="lamp")
+    r = _render(scalar_backend, scene, samples=1)
+    found = [a for a in r.meta["approximations"] if "'lamp'" in a and "'panel'" in a]
+    assert bool(found) == listed, r.meta["approximations"]
