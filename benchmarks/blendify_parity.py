@@ -116,6 +116,64 @@ def build(name: str) -> bf.Scene:
         )
         lights.add_point(strength=300, translation=(2, -2, 2))
         lights.add_point(strength=300, translation=(-2, -1, 3))
+    elif name == "ex01_cornell_box":  # examples/01_cornell_box.py, ported by the migration table
+        path, _, res = P.ASSET_SCENES[name]
+        s.attach_blend(str(P.asset_path(path)))
+        s.set_perspective_camera(
+            res, fov_x=np.deg2rad(39.1), rotation=(-0.707, -0.707, 0.0, 0.0), translation=[-0.278, -0.800, 0.273]
+        )
+        lights.add_area(
+            shape="square", size=5, strength=40, use_shadow=False, rotation=(-0.707, -0.707, 0.0, 0.0),
+            translation=[-0.278, -1, 0.273],
+        )  # fmt: skip
+        m1 = bf.PrincipledBSDFMaterial(
+            specular_ior=0.5, sheen_weight=0.0, sheen_roughness=0.4, ior=1.46, transmission_weight=1.0, alpha=0.7,
+            coat_ior=1.0, coat_roughness=0.0,
+        )  # fmt: skip
+        r.add_sphere_nurbs(0.08, m1, _lin((1.0, 153 / 255, 102 / 255)), translation=[-0.22, 0.05, 0.08])
+        m2 = bf.PrincipledBSDFMaterial(
+            metallic=1.0, specular_ior=0.5, roughness=0.07, sheen_roughness=0.4, coat_ior=0.2, coat_roughness=0.4
+        )
+        r.add_sphere_nurbs(0.08, m2, _lin((1.0, 1.0, 1.0)), translation=[-0.12, 0.25, 0.08])
+        r.add_cylinder_mesh(
+            0.08, 0.3, bf.GlossyBSDFMaterial(roughness=0.5), _lin((102 / 255, 102 / 255, 1.0)),
+            translation=[-0.32, 0.25, 0.15],
+        )  # fmt: skip
+        m3 = bf.PrincipledBSDFMaterial(
+            metallic=1.0, specular_ior=0.5, roughness=0.05, sheen_roughness=0.8, coat_ior=0.8, coat_roughness=0.1
+        )
+        r.add_circle_mesh(
+            0.17, m3, _lin((1.0, 1.0, 1.0)), rotation=[0.720, 0.262, 0.604, -0.220], translation=[-0.43, 0.32, 0.18]
+        )
+    elif name == "ex07_materials":  # examples/07_materials_and_shadow_catcher.py, ported by the migration table
+        import trimesh
+
+        path, _, res = P.ASSET_SCENES[name]
+        mesh = trimesh.load(str(P.asset_path(path)), process=False)
+        v, f = np.array(mesh.vertices), np.array(mesh.faces)
+        plastic = r.add_mesh(v, f, material=bf.PlasticMaterial(), colors=_lin((0.64, 0.8, 0.96)))
+        plastic.set_smooth(True)
+        plastic.translation = plastic.translation + np.array([2.0, 0, 0])
+        metal = r.add_mesh(v, f, material=bf.MetalMaterial(), colors=_lin((0.94, 0.62, 0.46)))
+        metal.set_smooth(True)
+        wire = r.add_mesh(
+            v, f, material=bf.PlasticWireframeMaterial(wireframe_thickness=0.0035), colors=_lin((0.2, 1.0, 0.47))
+        )
+        wire.set_smooth(True)
+        wire.translation = wire.translation + np.array([-2.0, 0, 0])
+        plane = r.add_plane_mesh(
+            25.0, shadow_catcher=True, material=bf.PrincipledBSDFMaterial(), colors=_lin((0.5, 0.5, 0.5))
+        )
+        plane.translation = np.array([0, -4, v[:, 2].min() - 0.01])
+        s.set_perspective_camera(
+            res, fov_x=np.deg2rad(30), translation=(0.6, 13.5, 4.5), rotation_mode="look_at", rotation=metal
+        )
+        lights.set_background_light(0.03)
+        lights.add_point(strength=600, shadow_soft_size=1.0, translation=(4, 6, 5), use_shadow=False)
+        lights.add_spot(
+            strength=250, spot_size=np.deg2rad(47.6), spot_blend=0.458, translation=(-1.5, 4.15, 5),
+            rotation=(0.930, -0.321, -0.152, -0.093),
+        )  # fmt: skip
     else:
         raise KeyError(name)
     return s
@@ -160,19 +218,27 @@ def main() -> int:
         print(f"no reference renders in {REFS}: run blendify_parity_reference.py in a blendify 2.1 environment first")
         return 1
     ref_info = json.loads(ref_info_path.read_text())
-    rows, tiles, labels = [], [], []
-    for name, what in P.SCENES.items():
+    rows, tiles, labels, skipped = [], [], [], []
+    scenes = dict(P.SCENES)
+    for name, (asset, what, _res) in P.ASSET_SCENES.items():
+        if P.asset_path(asset) is None or not (REFS / f"ref_{name}.png").is_file():
+            skipped.append(f"{name}: {asset} is not in $BLENDIFY_THIRD_PARTY_DIR (or its reference is missing)")
+            continue
+        scenes[name] = what
+    for name, what in scenes.items():
         ref = np.asarray(Image.open(REFS / f"ref_{name}.png").convert("RGBA"))
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore", bf.BlenderClampWarning)  # blendify's coat_ior=0 presets, on purpose
+            warnings.simplefilter("ignore", bf.BlenderClampWarning)  # blendify's coat_ior < 1, on purpose
             scene = build(name)
+        # example 01 renders denoised, as blendify's example does (use_denoiser=True -> denoise=True)
+        denoise = name == "ex01_cornell_box"
         t0 = time.perf_counter()
-        result = bf.render(scene, "cycles", quality="blendify", samples=P.SAMPLES, seed=0)
+        result = bf.render(scene, "cycles", quality="blendify", samples=P.SAMPLES, seed=0, denoise=denoise)
         seconds = time.perf_counter() - t0
         ours = result.to_srgb8()
         m = compare(ref, ours)
         # the noise ceiling: the same port rendered again with another seed
-        again = bf.render(scene, "cycles", quality="blendify", samples=P.SAMPLES, seed=1).to_srgb8()
+        again = bf.render(scene, "cycles", quality="blendify", samples=P.SAMPLES, seed=1, denoise=denoise).to_srgb8()
         m["ssim_seed"] = compare(ours, again)["ssim"]
         rows.append((name, what, m, seconds, ref_info["seconds"].get(name)))
         diff = np.abs(_over_white(ref) - _over_white(ours)).mean(axis=-1)
@@ -193,7 +259,10 @@ def main() -> int:
         f"(blendify {ref_info['blendify']}, bpy {ref_info['bpy']}, `{ref_info['call']}`) and ported to "
         "blendify-core following the README's migration table, rendered with Cycles "
         f'(bpy {bf.get_backend_class("cycles").engine_version()}) and `quality="blendify"`, '
-        f"{P.RESOLUTION[0]}x{P.RESOLUTION[1]}, {P.SAMPLES} spp. Metrics over white, sRGB 8-bit; goal SSIM >= {GOAL}.",
+        f"{P.RESOLUTION[0]}x{P.RESOLUTION[1]} (ex01 160x160, ex07 240x135), {P.SAMPLES} spp. Metrics over "
+        f"white, sRGB 8-bit; goal SSIM >= {GOAL}. The `ex*` rows are blendify 2.1's own examples on its assets, read "
+        "from $BLENDIFY_THIRD_PARTY_DIR (not committed: tests/third_party/SOURCES.md); ex01 is denoised in both, as "
+        "blendify's example renders it.",
         "",
         "SSIM (blurred): both images blurred by a 1 px Gaussian first (removes most Monte-Carlo noise). Noise "
         "ceiling: SSIM of the blendify-core port against itself rendered with another seed; an SSIM near it "
@@ -210,6 +279,8 @@ def main() -> int:
             f"{m['mean_abs_levels']:.2f} | {m['alpha_mismatch']:.4f} | {sec:.1f} | "
             f"{ref_sec if ref_sec is not None else '-'} |"
         )
+    if skipped:
+        lines += ["", "Skipped: " + "; ".join(skipped) + "."]
     lines += [
         "",
         f"Times on a shared 2-core machine (load average {load:.1f} at the end of this run; the reference times "

@@ -111,6 +111,68 @@ def build(name: str) -> None:
         )
         lights.add_point(strength=300, translation=(2, -2, 2))
         lights.add_point(strength=300, translation=(-2, -1, 3))
+    elif name == "ex01_cornell_box":  # examples/01_cornell_box.py at a smaller size
+        path, _, res = P.ASSET_SCENES[name]
+        scene.attach_blend(str(P.asset_path(path)))
+        scene.set_perspective_camera(
+            res, fov_x=np.deg2rad(39.1), rotation=(-0.707, -0.707, 0.0, 0.0), translation=[-0.278, -0.800, 0.273]
+        )
+        lights.add_area(
+            shape="square", size=5, strength=40, use_shadow=False, rotation=(-0.707, -0.707, 0.0, 0.0),
+            translation=[-0.278, -1, 0.273],
+        )  # fmt: skip
+        m1 = M.PrincipledBSDFMaterial(
+            specular_ior=0.5, sheen_weight=0.0, sheen_roughness=0.4, ior=1.46, transmission_weight=1.0, alpha=0.7,
+            coat_ior=1.0, coat_roughness=0.0,
+        )  # fmt: skip
+        r.add_sphere_nurbs(0.08, m1, UniformColors((1.0, 153 / 255, 102 / 255)), translation=[-0.22, 0.05, 0.08])
+        m2 = M.PrincipledBSDFMaterial(
+            metallic=1.0, specular_ior=0.5, roughness=0.07, sheen_roughness=0.4, coat_ior=0.2, coat_roughness=0.4
+        )
+        r.add_sphere_nurbs(0.08, m2, UniformColors((1.0, 1.0, 1.0)), translation=[-0.12, 0.25, 0.08])
+        r.add_cylinder_mesh(
+            0.08, 0.3, M.GlossyBSDFMaterial(roughness=0.5), UniformColors((102 / 255, 102 / 255, 1.0)),
+            translation=[-0.32, 0.25, 0.15],
+        )  # fmt: skip
+        m3 = M.PrincipledBSDFMaterial(
+            metallic=1.0, specular_ior=0.5, roughness=0.05, sheen_roughness=0.8, coat_ior=0.8, coat_roughness=0.1
+        )
+        r.add_circle_mesh(
+            0.17, m3, UniformColors((1.0, 1.0, 1.0)), rotation=[0.720, 0.262, 0.604, -0.220],
+            translation=[-0.43, 0.32, 0.18],
+        )  # fmt: skip
+    elif name == "ex07_materials":  # examples/07_materials_and_shadow_catcher.py at a smaller size
+        import trimesh
+
+        path, _, res = P.ASSET_SCENES[name]
+        mesh = trimesh.load(str(P.asset_path(path)), process=False)
+        v, f = np.array(mesh.vertices), np.array(mesh.faces)
+        plastic = r.add_mesh(v, f, material=M.PlasticMaterial(), colors=UniformColors((0.64, 0.8, 0.96)))
+        plastic.set_smooth(True)
+        plastic.translation = plastic.translation + np.array([2.0, 0, 0])
+        metal = r.add_mesh(v, f, material=M.MetalMaterial(), colors=UniformColors((0.94, 0.62, 0.46)))
+        metal.set_smooth(True)
+        wire = r.add_mesh(
+            v,
+            f,
+            material=M.PlasticWireframeMaterial(wireframe_thickness=0.0035),
+            colors=UniformColors((0.2, 1.0, 0.47)),
+        )
+        wire.set_smooth(True)
+        wire.translation = wire.translation + np.array([-2.0, 0, 0])
+        plane = r.add_plane_mesh(
+            25.0, shadow_catcher=True, material=M.PrincipledBSDFMaterial(), colors=UniformColors((0.5, 0.5, 0.5))
+        )
+        plane.translation = np.array([0, -4, v[:, 2].min() - 0.01])
+        scene.set_perspective_camera(
+            res, fov_x=np.deg2rad(30), translation=(0.6, 13.5, 4.5), rotation_mode="look_at", rotation=metal
+        )
+        lights.set_background_light(0.03)
+        lights.add_point(strength=600, shadow_soft_size=1.0, translation=(4, 6, 5), use_shadow=False)
+        lights.add_spot(
+            strength=250, spot_size=np.deg2rad(47.6), spot_blend=0.458, translation=(-1.5, 4.15, 5),
+            rotation=(0.930, -0.321, -0.152, -0.093),
+        )  # fmt: skip
     else:
         raise SystemExit(f"unknown scene {name!r}")
 
@@ -127,16 +189,25 @@ def main(out_dir: str) -> int:
         "bpy": metadata.version("bpy"),
         "resolution": list(P.RESOLUTION),
         "samples": P.SAMPLES,
-        "call": "scene.render(filepath, use_gpu=False, samples=SAMPLES) (aa_filter_width 1.5, no denoiser)",
+        "call": "scene.render(filepath, use_gpu=False, samples=SAMPLES) (aa_filter_width 1.5; use_denoiser only for "
+        "ex01, as blendify's example 01)",
         "seconds": {},
     }
-    for name in P.SCENES:
+    names = [n for n in sys.argv[2:]] or list(P.SCENES) + list(P.ASSET_SCENES)
+    for name in names:
+        if name in P.ASSET_SCENES and P.asset_path(P.ASSET_SCENES[name][0]) is None:
+            print(f"{name}: skipped, {P.ASSET_SCENES[name][0]} is not in $BLENDIFY_THIRD_PARTY_DIR", flush=True)
+            continue
         scene.clear()
         build(name)
         t0 = time.perf_counter()
-        scene.render(filepath=str(out / f"ref_{name}.png"), use_gpu=False, samples=P.SAMPLES)
+        # example 01 renders denoised, as blendify's example does
+        denoise = name == "ex01_cornell_box"
+        scene.render(filepath=str(out / f"ref_{name}.png"), use_gpu=False, samples=P.SAMPLES, use_denoiser=denoise)
         info["seconds"][name] = round(time.perf_counter() - t0, 2)  # type: ignore[index]
         print(name, info["seconds"][name], "s", flush=True)  # type: ignore[index]
+    old = json.loads((out / "reference.json").read_text()) if (out / "reference.json").is_file() else {}
+    info["seconds"] = {**old.get("seconds", {}), **info["seconds"]}  # type: ignore[dict-item]
     (out / "reference.json").write_text(json.dumps(info, indent=2) + "\n")
     sys.stdout.flush()
     os._exit(0)  # blendify's own atexit hook exits with 0 anyway; the files are written

@@ -12,6 +12,9 @@ This module imports numpy only (it is read by both environments).
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 
 #: image size and samples of every parity render (blendify 2.1's render default is 128 spp)
@@ -100,3 +103,30 @@ SCENES = {
     "textured_sheet": "example 03: mesh with VertexUV + TextureColors (uint8), sun",
     "pointcloud": "example 04: point cloud with VertexColors, point lights",
 }
+
+
+#: blendify 2.1's own examples, run on its assets: read from the project's third-party cache folder
+#: ($BLENDIFY_THIRD_PARTY_DIR, tests/third_party/SOURCES.md), skipped with the reason when absent.
+#: name -> (asset path relative to the cache, what, resolution)
+ASSET_SCENES = {
+    "ex01_cornell_box": (
+        "scenes/blendify/cornell_box.blend",
+        "example 01 itself: attach_blend of its Cornell box, glass / metal spheres (coat_ior 0.2, 0.8), Glossy "
+        "cylinder, metal circle, area light, denoised",
+        (160, 160),
+    ),
+    "ex07_materials": (
+        "scenes/blendify/lucy.ply",
+        "example 07 itself: Lucy x3 (Plastic, Metal, Plastic wireframe), shadow catcher, point + spot + "
+        "background light, camera look_at a mesh",
+        (240, 135),
+    ),
+}
+
+
+def asset_path(relative: str) -> Path | None:
+    """The cached asset, or None when $BLENDIFY_THIRD_PARTY_DIR is unset or lacks it."""
+    cache = os.environ.get("BLENDIFY_THIRD_PARTY_DIR")
+    if not cache or not (Path(cache) / relative).is_file():
+        return None
+    return Path(cache) / relative
