@@ -148,6 +148,7 @@ def as_float(
     unless ``finite=False``. ``unit`` is named in a range error ("rad": with the conversion from degrees)."""
     if isinstance(value, (bool, np.bool_, np.datetime64, np.timedelta64) + _NOT_NUMBERS) or value is None:
         raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}")
+    value = _unmasked(name, value)  # a masked scalar would become NaN with a numpy warning
     if isinstance(value, np.ndarray):  # float() of a 1-element array is deprecated in numpy
         if value.size != 1 or value.dtype.kind not in "iuf":
             raise InvalidSceneError(f"{name}: expected a real number, got {_describe(value)}")

@@ -342,6 +342,12 @@ KINDS: list[Case] = [
         lambda t: scene().lights.add_point(translation=np.ma.masked_array([0.0, 1.0, 2.0], mask=[0, 1, 0])),
         ("translation", "mask"),
     ),
+    Case(
+        "roughness_masked_scalar",
+        "kind",
+        lambda t: bf.PrincipledBSDFMaterial(roughness=np.ma.masked),
+        ("roughness", "mask"),
+    ),
     Case("uniform_color_str", "kind", lambda t: bf.UniformColors("red"), ("uniform_color",)),
     Case("resolution_str", "kind", lambda t: scene().set_perspective_camera("16x12", fov_x=0.7), ("resolution",)),
     Case("samples_str", "kind", _render_kw(samples="16"), ("samples",)),
