@@ -979,18 +979,18 @@ class MitsubaTranslator(Translator):
             "material.principled": approximate(
                 "uniform colours, isotropic: Cycles' layer model (docs/conventions.md) as a sum of Mitsuba's "
                 "built-in lobes (blendify_mitsuba/principled.py): each GGX lobe a roughconductor with a complex "
-                "IOR fitted to Cycles' Fresnel and scaled to Cycles' albedo (MULTI_GGX compensation included), "
-                "the Lambertian diffuse attenuated by the layers above; Cycles' view-dependent attenuations "
-                "become their cosine-weighted means (sphere means match, grazing pixels differ). Material sweep "
-                "(benchmarks/results/material_sweep.md): dielectrics within about 1 % of Cycles' sphere mean. "
-                "Colour textures, vertex colours, roughness/metallic maps, anisotropy: Mitsuba 'principled' "
-                "(Disney diffuse, Schlick Fresnel; 3-13 % off on dielectrics)"
+                "IOR fitted to the albedo curve of Cycles' lobe and scaled to its albedo (MULTI_GGX compensation "
+                "included), the Lambertian diffuse attenuated by the layers above; Cycles' view-dependent "
+                "attenuations become their cosine-weighted means (sphere means match, grazing pixels differ). "
+                "Material sweep (benchmarks/results/material_sweep.md): dielectrics, coat and Plastic within "
+                "1.5 % of Cycles' sphere mean. Colour textures, vertex colours, roughness/metallic maps, "
+                "anisotropy: Mitsuba 'principled' (Disney diffuse, Schlick Fresnel; 3-13 % off on dielectrics)"
             ),
             "material.diffuse_only": _exact("Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
             "material.metallic": approximate(
                 "roughconductor whose complex IOR is fitted to the albedo curve of Cycles' F82-tint metal, scaled "
-                "to its mean; a dark specular tint's dip at grazing angles has no conductor equivalent (up to "
-                "~10 % off on a sphere; white tint within about 2 %)"
+                "to its albedo; white specular tint within 2 % of Cycles' sphere mean, a dark tint 2-4 % (its dip "
+                "at grazing angles has no conductor equivalent)"
             ),
             "material.transmission": approximate(
                 "roughdielectric (a solid, one-sided, relative IOR 'ior'), transmittance sqrt(base colour) per "
