@@ -23,7 +23,7 @@ from blendify_core.pipeline.changes import ChangeTracker
 from blendify_core.pipeline.translator import TranslationContext
 
 from ._platform import GLContext
-from .translate import DIFFUSE_COMPENSATION, Built, CameraBuild, PyrenderTranslator
+from .translate import DIFFUSE_COMPENSATION, Built, CameraBuild, PyrenderTranslator, emitter_lights
 
 __all__ = ["Engine", "Frame", "Entry"]
 
@@ -83,6 +83,8 @@ class Engine:
         self._ambient = np.zeros(3)
         self._camera_node: Any = None
         self._shadow_generation = 0  # bumped whenever shadow maps may change (geometry, poses, lights)
+        self._emitter_uids: set[int] = set()  # the emissive renderables the current lights stand in for
+        self._emitter_notes: list[str] = []
         self.msaa_supported = self.renderer.max_samples >= 2
         ref = weakref.ref(self)
 
@@ -139,8 +141,14 @@ class Engine:
         if changes.first or rebuild or moved or changes.removed or changes.lights:
             self._shadow_generation += 1
         ctx = TranslationContext()
-        if changes.first or changes.lights:
-            self._sync_lights(scene.lights, ctx)
+        emitters = [r for r in scene.renderables if any(getattr(m, "is_emissive", False) for m in r.materials)]
+        uids = {r.uid for r in emitters}
+        emitters_changed = uids != self._emitter_uids or bool(uids & (rebuild | moved))
+        if emitters_changed and not (changes.first or rebuild or moved or changes.removed or changes.lights):
+            self._shadow_generation += 1
+        if changes.first or changes.lights or emitters_changed:
+            self._sync_lights(scene.lights, ctx, emitters)
+            self._emitter_uids = uids
         if changes.first or changes.world:
             self._sync_world(scene.lights, ctx)
         camera = self._sync_camera(scene.camera, ctx)
@@ -152,7 +160,7 @@ class Engine:
             camera=camera,
             light_nodes=list(self._light_nodes),
             ambient=self._ambient,
-            notes=sorted(set(notes + ctx.approximations)),
+            notes=sorted(set(notes + ctx.approximations + self._emitter_notes)),
             ignored=list(ctx.ignored),
             sync_seconds=time.perf_counter() - t0,
             rebuilt=rebuilt,
@@ -175,11 +183,19 @@ class Engine:
         t[:3, 3] = offset
         return r.matrix_world @ t
 
-    def _sync_lights(self, lights: Any, ctx: TranslationContext) -> None:
+    def _sync_lights(self, lights: Any, ctx: TranslationContext, emitters: list[Any]) -> None:
+        """The scene's lights, then the lights standing in for the emissive renderables (emitter_lights)."""
         for node, _, _ in self._light_nodes:
             self.pscene.remove_node(node)
         self._light_nodes = []
-        for light in lights:
+        extra = [light for r in emitters for light in emitter_lights(r)]
+        self._emitter_notes = []
+        if extra:
+            self._emitter_notes.append(
+                f"emissive surfaces light the scene as {len(extra)} lights of their power (pi x radiance x area "
+                "per side): planar emitters as back-to-back rectangle area lights, others as point lights"
+            )
+        for light in [*lights, *extra]:
             built = self.translator.dispatch(light, ctx)
             if built is None:  # strength 0
                 continue

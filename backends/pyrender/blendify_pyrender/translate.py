@@ -62,6 +62,7 @@ __all__ = [
     "PointLOD",
     "point_lod",
     "environment_mean",
+    "emitter_lights",
     "DIFFUSE_COMPENSATION",
     "AREA_INNER_CONE",
     "AREA_OUTER_CONE",
@@ -301,6 +302,89 @@ def environment_mean(env: EnvironmentMap) -> np.ndarray:
     w = np.cos(lat)[:, None, None]
     mean = (img * w).sum(axis=(0, 1)) / (w.sum() * img.shape[1])
     return mean * float(env.strength)
+
+
+# ---------------------------------------------------------------------------------------------------
+# emissive surfaces as lights
+# ---------------------------------------------------------------------------------------------------
+
+#: a face set whose normals all lie within this angle of their mean is treated as planar (one area light)
+EMITTER_PLANAR_DEG = 10.0
+
+
+def emitter_lights(r: Any) -> list[Any]:
+    """IR lights approximating the light an emissive renderable sends into the scene (empty if it emits
+    nothing). Emitted power of a Lambertian emitter of radiance L over an area A: pi x L x A per side; Cycles'
+    mesh emission is two-sided. Per emissive material slot: a planar face set becomes two back-to-back
+    rectangle area lights of the faces' extent in their plane (each pi L A); any other a point light of power
+    2 pi L A at the area centroid (isotropic; exact in the far field of a sphere). Point clouds are left out."""
+    if isinstance(r, PointCloud):
+        return []
+    mats = list(r.materials)
+    if not any(getattr(m, "is_emissive", False) for m in mats):
+        return []
+    tm = r.to_mesh()
+    faces = np.asarray(tm.faces, dtype=np.int64)
+    if len(faces) == 0:
+        return []
+    m4 = np.asarray(r.matrix_world, dtype=np.float64)
+    v = np.asarray(tm.vertices, dtype=np.float64) @ m4[:3, :3].T + m4[:3, 3]
+    fm = getattr(r, "faces_material", None)
+    slots = np.zeros(len(faces), dtype=np.int64) if fm is None else np.asarray(fm, dtype=np.int64)
+    lights: list[Any] = []
+    for k, mat in enumerate(mats):
+        if not getattr(mat, "is_emissive", False):
+            continue
+        f = faces[slots == k]
+        if len(f) == 0:
+            continue
+        a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+        cross = np.cross(b - a, c - a)
+        areas = 0.5 * np.linalg.norm(cross, axis=1)
+        total = float(areas.sum())
+        if total <= 0:
+            continue
+        centre = (((a + b + c) / 3.0) * areas[:, None]).sum(axis=0) / total
+        color = np.clip(mat.linear("emission_color")[:3], 0.0, None)
+        power = float(np.pi * total * float(mat.emission_strength))  # per side
+        n_mean = cross.sum(axis=0)
+        n_len = float(np.linalg.norm(n_mean))
+        unit = cross / np.maximum(2.0 * areas, 1e-300)[:, None]
+        planar = n_len > 0 and bool(
+            np.all(unit[areas > 0] @ (n_mean / n_len) >= np.cos(np.deg2rad(EMITTER_PLANAR_DEG)))
+        )
+        if not planar:
+            lights.append(PointLight(strength=2.0 * power, color=tuple(color), translation=tuple(centre)))
+            continue
+        n = n_mean / n_len
+        pts = np.concatenate([a, b, c]) - centre
+        pts -= np.outer(pts @ n, n)
+        _, _, axes = np.linalg.svd(pts, full_matrices=False)
+        u = axes[0] - n * float(axes[0] @ n)
+        u /= np.linalg.norm(u)
+        w = np.cross(n, u)
+        size = (float(np.ptp(pts @ u)), float(np.ptp(pts @ w)))
+        size = (max(size[0], 1e-6), max(size[1], 1e-6))
+        # an equal-area rectangle of the faces' extent ratio (a disk's power spread over its bounding box
+        # would be dimmer per area but the same in total: the power is what is kept)
+        scale = float(np.sqrt(total / (size[0] * size[1])))
+        size = (size[0] * scale, size[1] * scale)
+        offset = 1e-4 * max(size)
+        for side in (1.0, -1.0):
+            # an area light emits along its local -Z: columns (x, y, z) = (u, -side x w, -side x n), a rotation
+            rot = np.stack([u, -side * w, -side * n], axis=1)
+            lights.append(
+                AreaLight(
+                    "rectangle",
+                    size,
+                    strength=power,
+                    color=tuple(color),
+                    rotation_mode="rotmat",
+                    rotation=rot,
+                    translation=tuple(centre + side * offset * n),
+                )
+            )
+    return lights
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -578,7 +662,9 @@ class PyrenderTranslator(Translator):
             "material.sheen": approximate("sheen ignored"),
             "material.subsurface": approximate("subsurface ignored (base colour shaded as diffuse)"),
             "material.emission": approximate(
-                "emission added to the shaded colour (clipped at 1 by the 8-bit pass); it lights nothing else"
+                "emission added to the shaded colour (clipped at 1 by the 8-bit pass); emissive surfaces light "
+                "the scene as lights of the same power (pi x radiance x area per side): a planar emitter as two "
+                "back-to-back rectangle area lights, any other as a point light at its area centroid"
             ),
             "material.alpha": approximate("alpha blending, objects sorted by distance; shadows stay opaque"),
             "material.roughness_map": exact("8-bit texture through the mesh UVs"),

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from blendify_core import DiffuseMaterial, Scene, UniformColors, render, testing
+from blendify_core import DiffuseMaterial, PrincipledBSDFMaterial, Scene, UniformColors, render, testing
 from blendify_core.registry import available_backends
 
 
@@ -99,3 +99,70 @@ def test_small_point_cloud_coverage_matches_cycles(pyr, impostors):
     assert 0.05 < b < 0.95
     print(f"coverage: preview {a:.4f}, Cycles {b:.4f}")
     assert abs(a - b) <= 0.05 * b, (a, b)
+
+
+# -- emissive surfaces light the scene -------------------------------------------------------------------
+def _panel_scene(emission: float = 5.0, with_area_light: bool = False) -> Scene:
+    """testing.plane_scene's Lambertian plane (albedo 0.5, orthographic camera from above) under a 0.6 x 0.4
+    panel 1.5 above it that emits downwards (and upwards: Cycles' mesh emission is two-sided), or under the
+    area light of the same power (pi x radiance x area) instead."""
+    scene = testing.plane_scene("sun", resolution=(32, 32))
+    for light in list(scene.lights):
+        scene.lights.remove(light)
+    if with_area_light:
+        scene.lights.add_area("rectangle", (0.6, 0.4), strength=np.pi * 0.24 * emission, translation=(0, 0, 1.5))
+        return scene
+    panel = np.array([[-0.3, -0.2, 1.5], [0.3, -0.2, 1.5], [0.3, 0.2, 1.5], [-0.3, 0.2, 1.5]])
+    scene.renderables.add_mesh(
+        panel,
+        [[0, 1, 2, 3]],
+        PrincipledBSDFMaterial(emission_color=(1.0, 1.0, 1.0), emission_strength=emission),
+        UniformColors((0.0, 0.0, 0.0)),
+        tag="panel",
+    )
+    return scene
+
+
+def test_emitter_lights_have_the_emitted_power():
+    from blendify_pyrender.translate import emitter_lights
+
+    scene = _panel_scene(emission=5.0)
+    lights = emitter_lights(scene.renderables["panel"])
+    assert len(lights) == 2 and all(type(lt).__name__ == "AreaLight" for lt in lights)
+    for lt in lights:
+        assert lt.strength == pytest.approx(np.pi * 0.24 * 5.0)  # pi x radiance x area, per side
+        assert lt.area == pytest.approx(0.24)
+        np.testing.assert_allclose(lt.matrix_world[:3, 3], [0, 0, 1.5], atol=1e-3)
+        np.testing.assert_allclose(np.linalg.det(lt.matrix_world[:3, :3]), 1.0, atol=1e-9)
+    directions = sorted(float(-lt.matrix_world[2, 2]) for lt in lights)  # each emits along its local -Z
+    np.testing.assert_allclose(directions, [-1.0, 1.0], atol=1e-9)
+    sphere = Scene().renderables.add_sphere_nurbs(
+        0.5, PrincipledBSDFMaterial(emission_color=(1.0, 0.5, 0.25), emission_strength=2.0), UniformColors((1, 1, 1))
+    )
+    (point,) = emitter_lights(sphere)
+    area = float(sum(0.5 * np.linalg.norm(np.cross(*np.diff(t, axis=0)), axis=-1) for t in _triangles(sphere)))
+    assert type(point).__name__ == "PointLight"
+    assert point.strength == pytest.approx(2 * np.pi * area * 2.0)
+    assert emitter_lights(Scene().renderables.add_sphere_nurbs(0.5, DiffuseMaterial(), UniformColors((1, 1, 1)))) == []
+
+
+def _triangles(r):
+    tm = r.to_mesh()
+    return np.asarray(tm.vertices)[np.asarray(tm.faces)]
+
+
+def test_emissive_panel_lights_the_plane_as_its_area_light(pyr):
+    lit = render(_panel_scene(), backend=pyr, quality="preview", outputs=("rgb", "instance"))
+    ref = render(_panel_scene(with_area_light=True), backend=pyr, quality="preview", outputs=("rgb",))
+    plane = lit.instance == 0  # the panel hides part of the plane from the camera
+    assert plane.sum() > 500
+    a, b = lit.rgba[..., :3][plane].mean(), ref.rgba[..., :3][plane].mean()
+    assert b > 0.05 and abs(a - b) < 0.03 * b, (a, b)
+    assert any("emissive surfaces light the scene" in n for n in lit.meta["approximations"])
+    # the lights follow the emitter when it moves (the session rebuilds them)
+    scene = _panel_scene()
+    render(scene, backend=pyr, quality="preview")
+    scene.renderables["panel"].set_position(translation=(0.5, 0, 0))
+    moved = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))
+    lum = moved.rgba[..., :3].mean(axis=-1)
+    assert lum[:, 24:].mean() > 1.2 * lum[:, :8].mean()  # brighter towards +x (right)
