@@ -170,3 +170,27 @@ def test_rough_glass_keeps_its_energy_in_a_white_furnace(scalar_backend, roughne
     shows about 1; so must Mitsuba's calibrated roughdielectric (uncalibrated it shows about 0.75-0.85)."""
     m = PrincipledBSDFMaterial(roughness=roughness, transmission_weight=1.0, specular_tint=WHITE)
     assert _furnace(scalar_backend, m, 64) == pytest.approx(1.0, abs=0.04)
+
+
+@pytest.mark.parametrize(
+    "material",
+    [
+        PrincipledBSDFMaterial(roughness=0.0, metallic=1.0),
+        PrincipledBSDFMaterial(roughness=0.0, specular_ior=0.5, specular_tint=WHITE),
+        PrincipledBSDFMaterial(coat_weight=1.0, coat_ior=1.0),
+        PrincipledBSDFMaterial(sheen_weight=1.0, sheen_roughness=0.0),
+        PrincipledBSDFMaterial(transmission_weight=0.5, coat_weight=0.5, sheen_weight=0.5, metallic=0.2),
+        PrincipledBSDFMaterial(transmission_weight=1.0, roughness=0.0, ior=1.0),
+        PrincipledBSDFMaterial(anisotropic=0.5, metallic=1.0),
+        PrincipledBSDFMaterial(alpha=0.5, coat_weight=1.0, coat_tint=(0.2, 0.5, 1.0)),
+        PrincipledBSDFMaterial(emission_strength=2.0, emission_color=(1, 0, 0), metallic=1.0),
+        PrincipledBSDFMaterial(roughness=1.0, metallic=1.0, distribution="GGX", specular_tint=(0.5, 0.1, 0.0)),
+        GlossyBSDFMaterial(roughness=0.0),
+        GlossyBSDFMaterial(roughness=0.5, distribution="BECKMANN"),
+    ],
+    ids=lambda m: repr(m)[:60],
+)
+def test_edge_materials_render_finite_images(scalar_backend, material):
+    scene = testing.material_sphere_scene(material, (12, 9))
+    img = bf.render(scene, scalar_backend, samples=4, outputs=("rgb",)).rgba
+    assert np.all(np.isfinite(img)) and float(img[..., :3].max()) > 0
