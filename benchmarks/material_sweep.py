@@ -297,14 +297,15 @@ NOTES = (
     "sum of Mitsuba's built-in lobes (`blendify_mitsuba/principled.py`). Both columns come from the same Cycles "
     "renders.",
     "",
-    "Cost of the mapping: nothing per ray in any variant (built-in plugins only; no Python BSDF, which scalar_rgb "
-    "would call once per ray); at translation 0.1-0.2 s per new material parameter set (albedo tables and the "
-    "conductor fit, cached per parameter set; 0.6 ms when cached) and 0.4 s once per process (the fit tables), "
-    "measured under load. A sum of n lobes samples each with probability 1/n (noise, not bias). This machine's "
-    "libLLVM (14) is refused by Dr.Jit, so only scalar_rgb was measured; llvm variants run the same plugins. "
-    "Render times of this scene (64x48, 64 spp, scalar_rgb, best of 3, load average 13 on 2 cores), before -> "
-    "after: Lambertian (unchanged path: the load's noise) 0.82 -> 0.56 s, dielectric r0.4 0.81 -> 0.63 s, metal "
-    "r0.4 0.84 -> 0.74 s, coat + sheen + metallic 0.5 (five lobes) 0.81 -> 0.96 s, glass r0.3 1.17 -> 1.08 s.",
+    "Cost of the mapping: built-in plugins only (no Python BSDF, which scalar_rgb would call once per ray); at "
+    "translation 0.1-0.2 s per new material parameter set (albedo tables and the conductor fit, cached per "
+    "parameter set; 0.6 ms when cached) and 0.4 s once per process (the fit tables). Render times of this "
+    "scene (64x48, 64 spp, best of 3, same code tree, previous mapping -> this one; load average 13 on 2 cores, "
+    "so +-10 %): scalar_rgb Lambertian 0.64 -> 0.64 s, dielectric r0.4 0.73 -> 0.76 s, metal r0.4 0.88 -> "
+    "0.69 s, coat + sheen + metallic 0.5 (five lobes) 0.77 -> 0.96 s, glass r0.3 1.23 -> 1.12 s; llvm_ad_rgb "
+    "0.23 -> 0.28, 0.23 -> 0.24, 0.21 -> 0.23, 0.31 -> 0.45, 0.44 -> 0.46 s (plus the first render's JIT: "
+    "5-11 s for a new lobe structure). A sum of n lobes samples each with probability 1/n (noise, not bias). "
+    "The sweep itself ran in scalar_rgb (llvm_ad_rgb became usable on this machine only afterwards).",
     "",
     "Not met: metals with a dark specular tint (Cycles' F82 dip to 0 near 82 degrees has no conductor "
     "equivalent; fitted with near-normal views first), the coated metal, sheen (a broad conductor following "
