@@ -38,6 +38,8 @@ class Simulated(TypedDict, total=False):
     effects: str | list[str]
     #: one sentence saying why
     why: str
+    #: what the pilot of ``target_error`` found unnecessary and left out, with the numbers (e.g. indirect light)
+    dropped: dict[str, str]
 
 
 class AntiAliasingMeta(TypedDict):
@@ -112,6 +114,10 @@ class RenderMeta(TypedDict, total=False):
     #: (core, ``target_error`` only) why the passes stopped: "target reached", "time_limit", "pass cap",
     #: "sample cap"
     stopped: str
+    #: (core, ``target_error`` with ``effects=True``) the pilot deciding whether direct light alone reaches the
+    #: target sooner: ``dropped``, ``why``, ``indirect_error`` (relative RMS of the indirect light, 90 % upper
+    #: bound), the samples each choice needs
+    indirect_pilot: dict[str, Any]
     #: (``bf.crosscheck`` with ``repeats``) renders averaged into the colour image
     repeats: int
 

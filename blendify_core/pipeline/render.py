@@ -357,7 +357,7 @@ def _record_meta(
     meta.setdefault("engine_version", inst.engine_version())
     meta["settings"] = settings.to_dict()
     meta.setdefault("effects", pre.effects.to_dict())
-    meta["simulated"] = _simulated(settings, pre.effects)
+    meta["simulated"] = _simulated(settings, pre.effects, meta.get("indirect_pilot"))
     meta.setdefault("bias", settings_bias(settings) if inst.path_tracer else [])
     meta["approximations"] = sorted(set(pre.approximations) | set(meta.get("approximations", [])))
     if pre.fallback_notes:
@@ -376,14 +376,22 @@ def _record_meta(
     _error_meta(meta, settings, meta["path_tracer"])
 
 
-def _simulated(settings: RenderSettings, effects: Effects) -> Simulated:
+def _simulated(settings: RenderSettings, effects: Effects, pilot: dict[str, Any] | None = None) -> Simulated:
     """What light transport was simulated and why (``meta["simulated"]``)."""
     if "rgb" not in settings.outputs:
         return {"lighting": False, "why": "only geometric outputs requested: no lighting needed"}
     if not settings.effects:
         return {"lighting": True, "effects": "full", "why": "effects=False: full settings requested"}
     on = [f for f, v in effects.to_dict().items() if f != "reasons" and v]
-    return {"lighting": True, "effects": on, "why": "effects=True: only what analyse_effects found is simulated"}
+    sim: Simulated = {
+        "lighting": True,
+        "effects": on,
+        "why": "effects=True: only what analyse_effects found is simulated",
+    }
+    if pilot is not None and pilot.get("dropped"):
+        sim["effects"] = [f for f in on if f not in ("indirect_diffuse", "caustics")]
+        sim["dropped"] = {"indirect light": str(pilot["why"])}
+    return sim
 
 
 def _error_meta(meta: RenderMeta, settings: RenderSettings, path_tracer: bool) -> None:
@@ -577,6 +585,101 @@ def _add_timings(total: dict[str, float], more: dict[str, float]) -> None:
             total[key] = total.get(key, 0.0) + float(value)
 
 
+#: the pilot of the indirect light renders this many direct-light passes (same seeds as the first full ones)
+PILOT_PASSES = 2
+#: ... and only when the full passes still need this many times the pilot's samples (its cost stays small)
+PILOT_MIN_GAIN = 4.0
+#: direct light may need this many times the full settings' samples (its noise is estimated from 2 passes and its
+#: samples are cheaper: no bounces)
+DIRECT_SAMPLES_SLACK = 1.25
+#: indirect light may be left out when its estimated relative RMS (90 % upper bound) is <= this x target
+INDIRECT_SHARE = 0.5
+
+
+def _indirect_pilot(
+    inst: Backend,
+    scene: Scene,
+    settings: RenderSettings,
+    pass_settings: RenderSettings,
+    colours: list[FloatArray],
+    counts: list[int],
+    estimate: float,
+) -> dict[str, Any]:
+    """Decide from pixels whether direct light alone reaches ``settings.target_error`` in fewer samples.
+
+    Renders ``PILOT_PASSES`` passes without bounces (``max_bounces=0``) with the seeds of the first full passes,
+    estimates the relative RMS of the indirect light (full - direct; its squared mean less its noise, 90 %
+    upper bound over pixel-channels) and the samples direct light needs for the rest of the error budget.
+    Direct light is chosen when the indirect light is <= ``INDIRECT_SHARE`` x target and it needs at most
+    ``DIRECT_SAMPLES_SLACK`` x the full settings' samples (a direct sample never costs more than a full one). Stopping
+    depends only on pixels, so a seed still gives the same picture. Returns the decision and its numbers
+    (``meta["indirect_pilot"]``); with ``dropped`` also the direct passes to continue from."""
+    target = float(settings.target_error or 0.0)
+    base = settings.samples
+    total = sum(counts)
+    need_full = total * (estimate / target) ** 2 * 1.1 - total
+    out: dict[str, Any] = {"dropped": False}
+    if not settings.effects or settings.max_bounces == 0:
+        out["why"] = "not tried: effects=False or no bounces anyway"
+        return out
+    eff = analyse_effects(scene)
+    if not (eff.indirect_diffuse or eff.glossy or eff.caustics) or eff.transmission:
+        out["why"] = (
+            "not tried: light passes through a transmissive material (needs bounces)"
+            if eff.transmission
+            else "not tried: the effect analysis already renders direct light only"
+        )
+        return out
+    if need_full < PILOT_MIN_GAIN * PILOT_PASSES * base:
+        out["why"] = f"not tried: the full passes need only {need_full:.0f} more samples"
+        return out
+    direct_settings = pass_settings.replace(max_bounces=0)
+    direct: list[FloatArray] = []
+    alphas: list[FloatArray] = []
+    timings: dict[str, float] = {}
+    for i in range(PILOT_PASSES):
+        r = inst.render_scene(scene, direct_settings.replace(seed=pass_seed(settings.seed, i)))
+        if r.rgba is None:
+            raise RenderError(f"backend {inst.name!r} returned no 'rgb' output for the indirect-light pilot")
+        direct.append(r.rgba[..., :3].astype(np.float64))
+        alphas.append(r.rgba[..., 3:4].astype(np.float64))
+        _add_timings(timings, r.meta.get("timings", {}))
+    k = PILOT_PASSES
+    diff = np.stack(colours[:k]) - np.stack(direct)
+    dbar = diff.mean(axis=0)
+    var_mean = ((diff - dbar) ** 2).sum(axis=0) / (k - 1) / k
+    ref = np.stack(colours).mean(axis=0)
+    term = (dbar * dbar - var_mean) / (ref * ref + 1e-2)
+    b2 = float(term.mean()) + 1.645 * float(term.std()) / np.sqrt(term.size)
+    bias = float(np.sqrt(max(b2, 0.0)))
+    counts_d = [base] * k
+    est_d = relative_error_estimate(np.stack(direct), np.array(counts_d, dtype=np.float64))
+    out.update(indirect_error=bias, full_samples_needed=int(total + need_full), timings=timings)
+    if bias > INDIRECT_SHARE * target:
+        out["why"] = f"kept: indirect light {bias:.3g} relative RMS > {INDIRECT_SHARE:g} x target {target:g}"
+        return out
+    noise_target = float(np.sqrt(target**2 - bias**2))
+    need_direct = k * base * (est_d / noise_target) ** 2 * 1.1
+    out["direct_samples_needed"] = int(need_direct)
+    if need_direct > DIRECT_SAMPLES_SLACK * (total + need_full):
+        out["why"] = (
+            f"kept: direct light alone needs {need_direct:.0f} samples, the full passes {total + need_full:.0f}"
+        )
+        return out
+    out.update(
+        dropped=True,
+        why=(
+            f"indirect light dropped (max_bounces=0): estimated at {bias:.3g} relative RMS (90 % upper bound) "
+            f"<= {INDIRECT_SHARE:g} x target {target:g}; direct light needs ~{need_direct:.0f} samples, "
+            f"the full settings ~{total + need_full:.0f}"
+        ),
+        colours=direct,
+        alphas=alphas,
+        counts=counts_d,
+    )
+    return out
+
+
 def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> RenderResult:
     """Render independent passes (different seeds) until the estimated relative RMS error of their
     sample-weighted mean is <= ``settings.target_error``, the ``time_limit`` is reached, or the pass or
@@ -600,10 +703,22 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     counts = [base]
     estimate = float("inf")
     stopped = "pass cap"
+    noise_target, pilot, bias = target, None, 0.0
     while True:
         if len(colours) >= FIRST_PASSES:
             estimate = relative_error_estimate(np.stack(colours), np.array(counts))
-            if estimate <= target:
+            if pilot is None and estimate > noise_target:
+                pilot = _indirect_pilot(inst, scene, settings, pass_settings, colours, counts, estimate)
+                if pilot.get("dropped"):
+                    _add_timings(first.meta.setdefault("timings", {}), pilot.pop("timings"))
+                    colours, alphas, counts = pilot.pop("colours"), pilot.pop("alphas"), pilot.pop("counts")
+                    pass_settings = pass_settings.replace(max_bounces=0)
+                    bias = float(pilot["indirect_error"])
+                    noise_target = float(np.sqrt(target**2 - bias**2))
+                    estimate = relative_error_estimate(np.stack(colours), np.array(counts))
+                elif "timings" in pilot:
+                    _add_timings(first.meta.setdefault("timings", {}), pilot.pop("timings"))
+            if estimate <= noise_target:
                 stopped = "target reached"
                 break
         if len(colours) >= MAX_PASSES or sum(counts) >= MAX_SAMPLES:
@@ -612,7 +727,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
         if settings.time_limit is not None and time.perf_counter() - t0 >= settings.time_limit:
             stopped = "time_limit"
             break
-        n = base if len(colours) < FIRST_PASSES else _next_pass_samples(sum(counts), estimate, target, base)
+        n = base if len(colours) < FIRST_PASSES else _next_pass_samples(sum(counts), estimate, noise_target, base)
         r = inst.render_scene(
             scene, pass_settings.replace(seed=pass_seed(settings.seed, len(colours)), samples=max(1, n))
         )
@@ -626,7 +741,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     w = (n_arr / n_arr.sum()).reshape(-1, 1, 1, 1)
     stack = np.stack(colours)
     if len(colours) >= 2:
-        estimate = relative_error_estimate(stack, n_arr)
+        estimate = float(np.hypot(relative_error_estimate(stack, n_arr), bias))
     rgb = (stack * w).sum(axis=0)
     alpha = (np.stack(alphas) * w).sum(axis=0)
     first.rgba = np.concatenate([rgb, alpha], axis=-1).astype(np.float32)
@@ -640,9 +755,16 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     meta["estimated_error_kind"] = (
         "relative RMS error (its square is the relative MSE), from the variance between independent passes"
     )
-    meta["estimated_error_interval"] = list(error_interval(stack, n_arr))
+    low, high = error_interval(stack, n_arr)
+    meta["estimated_error_interval"] = [float(np.hypot(low, bias)), float(np.hypot(high, bias))]
     meta["target_reached"] = bool(estimate <= target)
     meta["stopped"] = stopped
+    if pilot is not None:
+        meta["indirect_pilot"] = pilot
+        if pilot.get("dropped"):
+            meta["estimated_error_kind"] += (
+                "; plus the indirect light left out (estimated from the pilot, added in quadrature)"
+            )
     if not meta["target_reached"]:
         meta.setdefault("warnings", []).append(
             f"target_error: stopped at the {stopped} with an estimated error of {estimate:.3g} "

@@ -1,0 +1,45 @@
+"""Effects that pay (issue 20): under ``target_error`` a pilot renders direct light alone and leaves the indirect
+light out only when it is estimated below half the target and direct light needs fewer samples. The picture then
+equals the full one within the target (a Z test on the relative RMS difference, both renders' estimated errors
+as its noise), and meta says what was dropped and why; where the indirect light matters it is kept."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import blendify_core as bf
+from blendify_core.testing import look_at_camera
+
+RES = (48, 36)
+
+
+def ball_on_floor() -> bf.Scene:
+    """A diffuse ball on a white floor: the floor lights the ball from below (indirect light matters)."""
+    s = bf.Scene()
+    s.renderables.add_sphere_nurbs(
+        0.3, bf.DiffuseMaterial(), bf.UniformColors((0.8, 0.8, 0.8)), translation=(0, 0, 0.3), tag="ball"
+    )
+    s.renderables.add_plane_mesh(4.0, bf.DiffuseMaterial(), bf.UniformColors((0.9, 0.9, 0.9)), tag="floor")
+    look_at_camera(s, RES, (1.2, -1.2, 0.9), (0, 0, 0.25), fov_x=np.deg2rad(40))
+    s.lights.add_area(
+        "square", 0.3, strength=20.0, rotation_mode="look_at", rotation=(0, 0, 0), translation=(0.5, -0.5, 1.2)
+    )
+    return s
+
+
+def _rel_rms(a: np.ndarray, b: np.ndarray) -> float:
+    x, y = a[..., :3].astype(np.float64), b[..., :3].astype(np.float64)
+    return float(np.sqrt(np.mean((x - y) ** 2 / (y * y + 1e-2))))
+
+
+@pytest.mark.parametrize("backend", ["cycles", "mitsuba"])
+def test_indirect_light_kept_where_it_matters(request, backend):
+    request.getfixturevalue(backend)
+    eff = bf.render(ball_on_floor(), backend=backend, quality="final", effects=True, threads=2, seed=3)
+    pilot = eff.meta.get("indirect_pilot", {})
+    print(f"\n{backend}: {pilot}")
+    assert not pilot.get("dropped", False), pilot
+    assert "dropped" not in eff.meta["simulated"]
+    if "indirect_error" in pilot:  # the pilot ran: it saw the floor's light
+        assert pilot["indirect_error"] > 0.5 * bf.FINAL_TARGET_ERROR
