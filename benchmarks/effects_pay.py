@@ -87,6 +87,21 @@ def floating_scene(res: int) -> bf.Scene:
     return s
 
 
+def dark_floor_scene(res: int) -> bf.Scene:
+    """A diffuse ball on a near-black floor (5 %) under a large area light: every bounce hits something, but the
+    indirect light is far below the target (the ``target_error`` pilot measures it and drops it)."""
+    s = bf.Scene()
+    s.renderables.add_sphere_nurbs(
+        0.3, bf.DiffuseMaterial(), bf.UniformColors((0.8, 0.5, 0.3)), translation=(0, 0, 0.3), tag="ball"
+    )
+    s.renderables.add_plane_mesh(4.0, bf.DiffuseMaterial(), bf.UniformColors((0.05, 0.05, 0.05)), tag="floor")
+    _camera(s, res)
+    s.lights.add_area(
+        "square", 3.0, strength=100.0, rotation_mode="look_at", rotation=(0, 0, 0.3), translation=(0.3, -0.6, 1.2)
+    )
+    return s
+
+
 def floating_bunny_scene(res: int) -> bf.Scene:
     """The bunny (glossy principled, concave) floating in the dark under an area light: it lights itself a
     little (indirect), no floor, no sky."""
@@ -99,6 +114,7 @@ SCENES: dict[str, tuple[Callable[[int], bf.Scene], tuple[str, ...]]] = {
     "no_shadow": (no_shadow_scene, ("rgb",)),
     "floating": (floating_scene, ("rgb",)),
     "floating_bunny": (floating_bunny_scene, ("rgb",)),
+    "dark_floor": (dark_floor_scene, ("rgb",)),
     "glass": (glass_scene, ("rgb",)),
     "depth_normal": (lambert_scene, ("depth", "normal")),
 }
@@ -120,6 +136,7 @@ def _one(scene: bf.Scene, backend: str, effects: bool, seed: int, outputs: tuple
         "engine_settings": {k: v for k, v in (meta.get("engine_settings") or {}).items() if not isinstance(v, dict)},
         "integrator": meta.get("integrator"),
         "max_depth": meta.get("max_depth"),
+        "indirect_pilot": meta.get("indirect_pilot"),
         "rgba": None if res.rgba is None else res.rgba,
     }
 

@@ -14,6 +14,21 @@ from blendify_core.testing import look_at_camera
 RES = (48, 36)
 
 
+def dark_floor(res: tuple[int, int] = RES) -> bf.Scene:
+    """A diffuse ball on a near-black floor (5 %) under a large area light: every bounce hits the floor or the
+    ball, but the indirect light is far below the target (the pilot measures how far)."""
+    s = bf.Scene()
+    s.renderables.add_sphere_nurbs(
+        0.3, bf.DiffuseMaterial(), bf.UniformColors((0.8, 0.5, 0.3)), translation=(0, 0, 0.3), tag="ball"
+    )
+    s.renderables.add_plane_mesh(4.0, bf.DiffuseMaterial(), bf.UniformColors((0.05, 0.05, 0.05)), tag="floor")
+    look_at_camera(s, res, (1.2, -1.2, 0.9), (0, 0, 0.25), fov_x=np.deg2rad(40))
+    s.lights.add_area(
+        "square", 3.0, strength=100.0, rotation_mode="look_at", rotation=(0, 0, 0.3), translation=(0.3, -0.6, 1.2)
+    )
+    return s
+
+
 def ball_on_floor() -> bf.Scene:
     """A diffuse ball on a white floor: the floor lights the ball from below (indirect light matters)."""
     s = bf.Scene()
@@ -31,6 +46,26 @@ def ball_on_floor() -> bf.Scene:
 def _rel_rms(a: np.ndarray, b: np.ndarray) -> float:
     x, y = a[..., :3].astype(np.float64), b[..., :3].astype(np.float64)
     return float(np.sqrt(np.mean((x - y) ** 2 / (y * y + 1e-2))))
+
+
+@pytest.mark.parametrize("backend", ["cycles", "mitsuba"])
+def test_indirect_light_dropped_only_when_below_target(request, backend):
+    request.getfixturevalue(backend)
+    scene = dark_floor()
+    eff = bf.render(scene, backend=backend, quality="final", effects=True, threads=2, seed=3)
+    full = bf.render(scene, backend=backend, quality="final", effects=False, threads=2, seed=11)
+    pilot = eff.meta["indirect_pilot"]
+    print(f"\n{backend}: {pilot}; samples {eff.meta['samples']} vs {full.meta['samples']}")
+    assert pilot["dropped"], pilot
+    assert pilot["indirect_error"] <= 0.5 * bf.FINAL_TARGET_ERROR
+    assert "indirect light" in eff.meta["simulated"]["dropped"]
+    assert "indirect_diffuse" not in eff.meta["simulated"]["effects"]
+    assert eff.meta["estimated_error"] <= bf.FINAL_TARGET_ERROR
+    assert "indirect_pilot" not in full.meta or not full.meta["indirect_pilot"]["dropped"]
+    # equal within noise: the difference of two renders with errors e1, e2 (bias included) has RMS ~ hypot
+    noise = float(np.hypot(eff.meta["estimated_error"], full.meta["estimated_error"]))
+    diff = _rel_rms(eff.rgba, full.rgba)
+    assert diff <= 1.5 * noise, f"{backend}: effect-aware differs from full by {diff:.4f} (noise {noise:.4f})"
 
 
 @pytest.mark.parametrize("backend", ["cycles", "mitsuba"])
