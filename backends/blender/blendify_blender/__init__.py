@@ -199,7 +199,10 @@ class CyclesBackend(Backend):
     @classmethod
     def info_details(cls) -> list[str]:
         """Lines for ``blendify info``: the devices Cycles finds here."""
-        return [f"devices: {', '.join(_choose_device('gpu').found)}"]
+        found = _choose_device("gpu").found
+        if len(found) > 1:
+            return [f"devices: {', '.join(found)}"]
+        return [f"devices: CPU; GPU: none (Cycles looked for {', '.join(GPU_TYPES)})"]
 
     def device_choice(self) -> DeviceChoice | None:
         """What this backend renders on: the CPU for ``device="cpu"``; otherwise the GPU devices Cycles finds

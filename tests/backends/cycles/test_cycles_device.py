@@ -97,3 +97,10 @@ def test_blendify_look_reaches_cycles():
     final = bf.render(testing.plane_scene("sun", resolution=(8, 8)), backend="cycles", quality="final", samples=2)
     assert final.meta["bias"] == [] and final.meta["engine_settings"]["blur_glossy"] == 0.0
     assert final.meta["engine_settings"]["pixel_filter"] == ("BOX", 1.0)
+
+
+def test_info_says_when_there_is_no_gpu(monkeypatch):
+    monkeypatch.setattr(cycles_session, "list_gpu_devices", lambda: [])
+    assert CyclesBackend.info_details() == [
+        "devices: CPU; GPU: none (Cycles looked for OPTIX, CUDA, HIP, METAL, ONEAPI)"
+    ]
