@@ -14,19 +14,31 @@ from blendify_core.testing import look_at_camera
 RES = (48, 36)
 
 
+def _ball_on(
+    floor: float, ball: tuple[float, float, float], light_size: float, strength: float, res: tuple[int, int] = RES
+) -> bf.Scene:
+    """A diffuse ball on a diffuse floor of albedo ``floor`` under a square area light."""
+    s = bf.Scene()
+    s.renderables.add_sphere_nurbs(
+        0.3, bf.DiffuseMaterial(), bf.UniformColors(ball), translation=(0, 0, 0.3), tag="ball"
+    )
+    s.renderables.add_plane_mesh(4.0, bf.DiffuseMaterial(), bf.UniformColors((floor,) * 3), tag="floor")
+    look_at_camera(s, res, (1.2, -1.2, 0.9), (0, 0, 0.25), fov_x=np.deg2rad(40))
+    s.lights.add_area(
+        "square",
+        light_size,
+        strength=strength,
+        rotation_mode="look_at",
+        rotation=(0, 0, 0.3),
+        translation=(0.3, -0.6, 1.2),
+    )
+    return s
+
+
 def dark_floor(res: tuple[int, int] = RES) -> bf.Scene:
     """A diffuse ball on a near-black floor (5 %) under a large area light: every bounce hits the floor or the
     ball, but the indirect light is far below the target (the pilot measures how far)."""
-    s = bf.Scene()
-    s.renderables.add_sphere_nurbs(
-        0.3, bf.DiffuseMaterial(), bf.UniformColors((0.8, 0.5, 0.3)), translation=(0, 0, 0.3), tag="ball"
-    )
-    s.renderables.add_plane_mesh(4.0, bf.DiffuseMaterial(), bf.UniformColors((0.05, 0.05, 0.05)), tag="floor")
-    look_at_camera(s, res, (1.2, -1.2, 0.9), (0, 0, 0.25), fov_x=np.deg2rad(40))
-    s.lights.add_area(
-        "square", 3.0, strength=100.0, rotation_mode="look_at", rotation=(0, 0, 0.3), translation=(0.3, -0.6, 1.2)
-    )
-    return s
+    return _ball_on(0.05, (0.8, 0.5, 0.3), light_size=3.0, strength=100.0, res=res)
 
 
 def ball_on_floor() -> bf.Scene:
