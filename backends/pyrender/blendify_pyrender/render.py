@@ -211,8 +211,14 @@ _SPRITE_FRAG_MAIN = """
     gl_FragDepth = 0.5 * sprite_clip.z / sprite_clip.w + 0.5;
 #endif
 """
-#: (file, anchor, replacement) applied to pyrender's shaders after the patches above: sphere impostors
+#: (file, anchor, replacement) applied to pyrender's shaders after the patches above: the world's light from
+#: spherical harmonics (diffuse and glossy, shaders/blendify_env.glsl), sphere impostors
 _PATCHES = (
+    (
+        "mesh.frag",
+        "    color.xyz += base_color.xyz * ambient_light;\n",
+        "    color.xyz += bf_environment(n, normalize(cam_pos - frag_position), roughness, metallic, f0, c_diff);\n",
+    ),
     ("mesh.frag", _TWO_SIDED_PATCH, _TWO_SIDED_PATCH + "\n#ifdef BLENDIFY_SPRITE\n    n = sprite_normal;\n#endif"),
     ("mesh.frag", "in vec3 frag_position;\n", "in vec3 frag_position;\n" + _SPRITE_FRAG_DECL),
     ("mesh.frag", "void main()\n{\n", "void main()\n{\n" + _SPRITE_FRAG_MAIN),
@@ -249,6 +255,9 @@ def _shader_dir() -> str:
     text = text.replace(_TWO_SIDED_ANCHOR, _TWO_SIDED_PATCH, 1).replace(_SPOT_ANCHOR, _SPOT_PATCH, 1)
     text = text.replace(_AREA_ANCHOR, _AREA_PATCH, 1).replace(_MAIN_ANCHOR, area + _MAIN_ANCHOR, 1)
     text = text.replace(_BIAS_ANCHOR, _BIAS_PATCH, 1)
+    # the world's light: spherical harmonics (shaders/blendify_env.glsl) instead of the uniform ambient term
+    env = (_SHADER_DIR / "blendify_env.glsl").read_text()
+    text = text.replace(_MAIN_ANCHOR, env + _MAIN_ANCHOR, 1)
     mesh_frag.write_text(text)
     for name, anchor, replacement in _PATCHES:
         path = Path(dst) / name
@@ -363,6 +372,8 @@ class FrameRenderer(pyrender.Renderer):
         self._shadow_done: dict[Any, Any] = {}
         #: sphere impostors keep every sub-pixel sphere's pixel in the colour pass (the "coverage" scheme)
         self.sprite_conservative = False
+        #: the world's light as 9 SH coefficients (A_l / pi) L_lm, linear RGB (translate.environment_sh)
+        self.env_sh = np.zeros((9, 3), dtype=np.float32)
 
     # -- framebuffers ----------------------------------------------------------------------------
     def _framebuffer(self, kind: str, width: int, height: int, samples: int) -> dict[str, Any]:
@@ -494,6 +505,8 @@ class FrameRenderer(pyrender.Renderer):
                 except ValueError:  # not used by this program
                     pass
             k += 1
+        for i in range(9):  # the world's light (shaders/blendify_env.glsl)
+            program.set_uniform(f"bf_env_sh[{i}]", self.env_sh[i])
 
     # -- sphere impostors -------------------------------------------------------------------------
     def _get_primitive_program(self, primitive: Any, flags: int, program_flags: int) -> Any:
@@ -897,6 +910,8 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
                 timings["shadow_catcher"] = time.perf_counter() - t0
             if not settings.transparent_background:
                 bg = np.clip(frame.ambient, 0, None).astype(np.float32)
+                if frame.background is not None:  # an environment map, seen through each pixel
+                    bg = frame.background()
                 rgba[..., :3] += (1.0 - rgba[..., 3:4]) * bg
                 rgba[..., 3] = 1.0
             result.rgba = rgba

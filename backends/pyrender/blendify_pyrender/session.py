@@ -14,16 +14,28 @@ from __future__ import annotations
 import atexit
 import time
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from blendify_core.ir.lights import EnvironmentMap
 from blendify_core.pipeline.changes import ChangeTracker
 from blendify_core.pipeline.translator import TranslationContext
 
 from ._platform import GLContext
-from .translate import DIFFUSE_COMPENSATION, Built, CameraBuild, PyrenderTranslator, emitter_lights
+from .translate import (
+    DIFFUSE_COMPENSATION,
+    Built,
+    CameraBuild,
+    PyrenderTranslator,
+    emitter_lights,
+    environment_background,
+    environment_light,
+    environment_sun,
+    uniform_sh,
+)
 
 __all__ = ["Engine", "Frame", "Entry"]
 
@@ -51,6 +63,8 @@ class Frame:
     camera: CameraBuild
     light_nodes: list[tuple[Any, Any, bool]]
     ambient: np.ndarray
+    #: the film's background on an opaque film (computed on demand): the environment map through each pixel
+    background: Callable[[], np.ndarray] | None = None
     notes: list[str] = field(default_factory=list)
     ignored: list[str] = field(default_factory=list)
     sync_seconds: float = 0.0
@@ -85,6 +99,8 @@ class Engine:
         self._shadow_generation = 0  # bumped whenever shadow maps may change (geometry, poses, lights)
         self._emitter_uids: set[int] = set()  # the emissive renderables the current lights stand in for
         self._emitter_notes: list[str] = []
+        self._world_light_nodes: list[tuple[Any, Any, bool]] = []  # the environment map's sun
+        self._world_notes: list[str] = []
         self.msaa_supported = self.renderer.max_samples >= 2
         ref = weakref.ref(self)
 
@@ -138,7 +154,7 @@ class Engine:
                 self.pscene.set_pose(entry.node, self._pose(r, entry.offset))
             entries.append(entry)
             notes += entry.notes
-        if changes.first or rebuild or moved or changes.removed or changes.lights:
+        if changes.first or rebuild or moved or changes.removed or changes.lights or changes.world:
             self._shadow_generation += 1
         ctx = TranslationContext()
         emitters = [r for r in scene.renderables if any(getattr(m, "is_emissive", False) for m in r.materials)]
@@ -158,9 +174,10 @@ class Engine:
             entries=entries,
             tags=[r.tag for r in scene.renderables],
             camera=camera,
-            light_nodes=list(self._light_nodes),
+            light_nodes=self._light_nodes + self._world_light_nodes,
             ambient=self._ambient,
-            notes=sorted(set(notes + ctx.approximations + self._emitter_notes)),
+            background=self._background(scene),
+            notes=sorted(set(notes + ctx.approximations + self._emitter_notes + self._world_notes)),
             ignored=list(ctx.ignored),
             sync_seconds=time.perf_counter() - t0,
             rebuilt=rebuilt,
@@ -173,9 +190,10 @@ class Engine:
             if entry.node is not None:
                 self.pscene.remove_node(entry.node)
         self.entries = {}
-        for node, _, _ in self._light_nodes:
+        for node, _, _ in self._light_nodes + self._world_light_nodes:
             self.pscene.remove_node(node)
         self._light_nodes = []
+        self._world_light_nodes = []
 
     @staticmethod
     def _pose(r: Any, offset: np.ndarray) -> np.ndarray:
@@ -203,14 +221,45 @@ class Engine:
             self._light_nodes.append((node, light, built.casts))
 
     def _sync_world(self, lights: Any, ctx: TranslationContext) -> None:
-        """The background light plus the mean of the environment map: a uniform ambient radiance."""
+        """The world's light as 9 SH coefficients (background: uniform; environment map: its directional
+        distribution) for the shaders, and the uniform mean radiance (the film's background colour)."""
         total = np.zeros(3)
+        sh = np.zeros((9, 3))
+        for node, _, _ in self._world_light_nodes:
+            self.pscene.remove_node(node)
+        self._world_light_nodes = []
+        self._world_notes = []
         for world in (lights.background, lights.environment):
             if world is not None:
-                total += self.translator.dispatch(world, ctx)
+                mean = self.translator.dispatch(world, ctx)
+                total += mean
+                if isinstance(world, EnvironmentMap) and world.strength > 0:
+                    env = environment_light(world)
+                    sh += env.sh
+                    sun = environment_sun(env)
+                    if sun is not None:  # the map's sun as a shadowing directional light
+                        built = self.translator.dispatch(sun, ctx)
+                        node = self.pscene.add(built.light, pose=built.pose)
+                        self._world_light_nodes.append((node, sun, built.casts))
+                        self._world_notes.append(
+                            "environment map: its sun (the pixels above 10 % of its peak) drawn as a "
+                            "directional light of the same irradiance, with shadow-mapped shadows"
+                        )
+                else:
+                    sh += uniform_sh(mean)
+        self.renderer.env_sh = sh.astype(np.float32)
         self._ambient = total
         # pyrender's ambient term has no 0.96 factor: scale it so base/0.96 x ambient = albedo x radiance
         self.pscene.ambient_light = total * DIFFUSE_COMPENSATION
+
+    def _background(self, scene: Any) -> Callable[[], np.ndarray] | None:
+        env = scene.lights.environment
+        if env is None or env.strength <= 0:
+            return None
+        bg = scene.lights.background
+        uniform = bg.radiance if bg is not None and bg.strength > 0 else np.zeros(3)
+        camera = scene.camera
+        return lambda: environment_background(env, camera, uniform)
 
     def _sync_camera(self, cam: Any, ctx: TranslationContext) -> CameraBuild:
         built: CameraBuild = self.translator.dispatch(cam, ctx)

@@ -63,6 +63,12 @@ __all__ = [
     "point_lod",
     "environment_mean",
     "emitter_lights",
+    "environment_light",
+    "environment_sun",
+    "environment_background",
+    "EnvironmentLight",
+    "uniform_sh",
+    "sh_basis",
     "DIFFUSE_COMPENSATION",
     "AREA_INNER_CONE",
     "AREA_OUTER_CONE",
@@ -304,12 +310,129 @@ def environment_mean(env: EnvironmentMap) -> np.ndarray:
     return mean * float(env.strength)
 
 
+#: real spherical-harmonic basis up to band 2 and the cosine lobe's band factors A_l / pi (Ramamoorthi and
+#: Hanrahan 2001): irradiance / pi at n = sum_k (A_l / pi) L_k Y_k(n)
+_SH_BAND_FACTOR = np.array([1.0, 2 / 3, 2 / 3, 2 / 3, 0.25, 0.25, 0.25, 0.25, 0.25])
+
+
+def sh_basis(d: np.ndarray) -> np.ndarray:
+    """(N, 9) real SH basis of unit directions (N, 3), the order of shaders/blendify_env.glsl."""
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    return np.stack(
+        [
+            np.full_like(x, 0.282095),
+            0.488603 * y,
+            0.488603 * z,
+            0.488603 * x,
+            1.092548 * x * y,
+            1.092548 * y * z,
+            0.315392 * (3 * z * z - 1),
+            1.092548 * x * z,
+            0.546274 * (x * x - y * y),
+        ],
+        axis=1,
+    )
+
+
+def uniform_sh(radiance: np.ndarray) -> np.ndarray:
+    """(9, 3) coefficients (A_l / pi) L_lm of a uniform radiance (linear RGB) from every direction."""
+    out = np.zeros((9, 3))
+    out[0] = np.asarray(radiance, dtype=np.float64) * 4.0 * np.pi * 0.282095
+    return out
+
+
+#: a map's "sun": the pixels above this fraction of its peak luminance, when they hold at least
+#: SUN_MIN_SHARE of the map's power within SUN_MAX_SOLID_ANGLE steradians
+SUN_PEAK_FRACTION = 0.1
+SUN_MIN_SHARE = 0.2
+SUN_MAX_SOLID_ANGLE = 0.1
+
+
+@dataclass
+class EnvironmentLight:
+    """An environment map as the preview shades it: 9 SH coefficients (A_l / pi) L_lm of the map without its
+    sun (linear RGB) and the sun as a directional light (``sun_irradiance`` RGB W/m^2 toward
+    ``sun_direction``, world, pointing at the sun; None when the map has no dominant peak)."""
+
+    sh: np.ndarray
+    sun_direction: np.ndarray | None = None
+    sun_irradiance: np.ndarray | None = None
+
+
+def environment_light(env: EnvironmentMap, max_rows: int = 64) -> EnvironmentLight:
+    """The map (times its strength, rotated) as SH coefficients plus its sun (see :class:`EnvironmentLight`),
+    from a copy at most ``max_rows`` rows high (box-averaged)."""
+    from blendify_core.ir.transforms import quaternion_to_matrix
+
+    img = env.linear_rgb_image().astype(np.float64) * float(env.strength)
+    k = max(1, int(np.ceil(img.shape[0] / max_rows)))
+    h, w = img.shape[0] // k, img.shape[1] // k
+    img = img[: h * k, : w * k].reshape(h, k, w, k, 3).mean(axis=(1, 3)).reshape(-1, 3)
+    lat = np.pi * (0.5 - (np.arange(h) + 0.5) / h)  # row 0 = top (v = 1)
+    lon = 2.0 * np.pi * (0.5 - (np.arange(w) + 0.5) / w)  # u = 0.5 - atan2(y, x) / (2 pi)
+    lat, lon = np.meshgrid(lat, lon, indexing="ij")
+    d = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=-1).reshape(-1, 3)
+    d = d @ quaternion_to_matrix(env.quaternion).T
+    d_omega = (2.0 * np.pi / w) * (np.pi / h) * np.cos(lat).reshape(-1)
+    lum = img @ np.array([0.2126, 0.7152, 0.0722])
+    out = EnvironmentLight(np.zeros((9, 3)))
+    power = lum * d_omega
+    if lum.max(initial=0.0) > 0:
+        peak = lum > SUN_PEAK_FRACTION * lum.max()
+        if d_omega[peak].sum() <= SUN_MAX_SOLID_ANGLE and power[peak].sum() >= SUN_MIN_SHARE * power.sum():
+            e = (img[peak] * d_omega[peak, None]).sum(axis=0)  # irradiance facing the sun
+            direction = (d[peak] * power[peak, None]).sum(axis=0)
+            out.sun_direction = direction / np.linalg.norm(direction)
+            out.sun_irradiance = e
+            img = img.copy()
+            img[peak] = 0.0
+    out.sh = (sh_basis(d) * d_omega[:, None]).T @ img * _SH_BAND_FACTOR[:, None]
+    return out
+
+
+def environment_background(env: EnvironmentMap, camera: Any, uniform: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float32 film background: the map seen through each pixel centre of ``camera`` (nearest
+    texel, times its strength) plus a ``uniform`` radiance (the background light)."""
+    from blendify_core.ir.lights import equirect_uv
+
+    _, dirs = camera.pixel_rays()
+    uv = equirect_uv(dirs @ env.rotation_matrix)  # the map's frame: R^-1 d
+    img = env.linear_rgb_image()
+    h, w = img.shape[:2]
+    rows = np.clip(((1.0 - uv[:, 1]) * h).astype(np.int64), 0, h - 1)
+    cols = np.clip((uv[:, 0] * w).astype(np.int64), 0, w - 1)
+    bg = img[rows, cols].astype(np.float64) * float(env.strength) + np.asarray(uniform, dtype=np.float64)
+    return bg.reshape(camera.height, camera.width, 3).astype(np.float32)
+
+
+def environment_sun(light: EnvironmentLight) -> SunLight | None:
+    """An IR sun light for the map's sun (None without one): irradiance = the sun pixels' integral."""
+    if light.sun_direction is None or light.sun_irradiance is None:
+        return None
+    z = light.sun_direction  # a sun light shines along its local -Z: +Z points at the sun
+    helper = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    e = np.asarray(light.sun_irradiance, dtype=np.float64)
+    strength = min(float(e.max()), _MAX_POWER)
+    return SunLight(
+        strength=strength,
+        color=tuple(e / float(e.max())),
+        color_space="linear",
+        rotation_mode="rotmat",
+        rotation=np.stack([x, y, z], axis=1),
+    )
+
+
 # ---------------------------------------------------------------------------------------------------
 # emissive surfaces as lights
 # ---------------------------------------------------------------------------------------------------
 
 #: a face set whose normals all lie within this angle of their mean is treated as planar (one area light)
 EMITTER_PLANAR_DEG = 10.0
+#: the IR's largest light power (float32 engines): stronger emitters are lit by lights of this power
+_MAX_POWER = 1e30
 
 
 def emitter_lights(r: Any) -> list[Any]:
@@ -345,8 +468,8 @@ def emitter_lights(r: Any) -> list[Any]:
         if total <= 0:
             continue
         centre = (((a + b + c) / 3.0) * areas[:, None]).sum(axis=0) / total
-        color = np.clip(mat.linear("emission_color")[:3], 0.0, None)
-        power = float(np.pi * total * float(mat.emission_strength))  # per side
+        color = np.clip(mat.linear("emission_color")[:3], 0.0, 1.0)
+        power = min(float(np.pi * total * float(mat.emission_strength)), _MAX_POWER / 2.0)  # per side
         n_mean = cross.sum(axis=0)
         n_len = float(np.linalg.norm(n_mean))
         unit = cross / np.maximum(2.0 * areas, 1e-300)[:, None]
@@ -354,7 +477,9 @@ def emitter_lights(r: Any) -> list[Any]:
             np.all(unit[areas > 0] @ (n_mean / n_len) >= np.cos(np.deg2rad(EMITTER_PLANAR_DEG)))
         )
         if not planar:
-            lights.append(PointLight(strength=2.0 * power, color=tuple(color), translation=tuple(centre)))
+            lights.append(
+                PointLight(strength=2.0 * power, color=tuple(color), color_space="linear", translation=tuple(centre))
+            )
             continue
         n = n_mean / n_len
         pts = np.concatenate([a, b, c]) - centre
@@ -379,6 +504,7 @@ def emitter_lights(r: Any) -> list[Any]:
                     size,
                     strength=power,
                     color=tuple(color),
+                    color_space="linear",
                     rotation_mode="rotmat",
                     rotation=rot,
                     translation=tuple(centre + side * offset * n),
@@ -857,7 +983,8 @@ class PyrenderTranslator(Translator):
         BackgroundLight,
         features={
             "light.background": approximate(
-                "unshadowed ambient term (albedo x radiance), no occlusion; not visible (transparent film)"
+                "unshadowed uniform light: diffuse albedo x radiance, glossy and metal surfaces reflect it "
+                "(split-sum environment BRDF), no occlusion; not visible (transparent film)"
             )
         },
     )
@@ -868,7 +995,11 @@ class PyrenderTranslator(Translator):
         EnvironmentMap,
         features={
             "light.environment": approximate(
-                "uniform ambient light at the map's solid-angle-weighted mean radiance; map not visible"
+                "unshadowed image-based light from the map's 9 spherical-harmonic coefficients: diffuse "
+                "irradiance, and a glossy term (the SH radiance in the mirror direction, blurred toward the "
+                "irradiance with roughness; split-sum environment BRDF) and its sun (pixels above 10 % of the "
+                "peak) as a shadowing directional light; no other occlusion; seen behind the objects on an "
+                "opaque film (nearest texel)"
             )
         },
     )

@@ -166,3 +166,61 @@ def test_emissive_panel_lights_the_plane_as_its_area_light(pyr):
     moved = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))
     lum = moved.rgba[..., :3].mean(axis=-1)
     assert lum[:, 24:].mean() > 1.2 * lum[:, :8].mean()  # brighter towards +x (right)
+
+
+# -- environment maps light the scene with their directional distribution ----------------------------------
+def _two_tone_map(top: float, bottom: float, sun: float = 0.0) -> np.ndarray:
+    """(16, 32) HDR map: radiance ``top`` above the horizon, ``bottom`` below; a 2 x 2 texel sun of radiance
+    ``sun`` near the zenith when given."""
+    img = np.full((16, 32, 3), bottom, dtype=np.float32)
+    img[:8] = top
+    if sun:
+        img[:2, 15:17] = sun
+    return img
+
+
+def test_environment_sh_and_sun():
+    from blendify_pyrender.translate import environment_light, environment_sun, sh_basis, uniform_sh
+
+    from blendify_core.ir.lights import EnvironmentMap
+
+    flat = environment_light(EnvironmentMap(np.full((16, 32, 3), 0.5, np.float32), strength=2.0))
+    assert flat.sun_direction is None
+    np.testing.assert_allclose(flat.sh, uniform_sh([1.0, 1.0, 1.0]), atol=0.01)
+    # irradiance / pi of a two-tone sky: 1 facing up, 0 facing down, 0.5 sideways (exact for band <= 2)
+    sky = environment_light(EnvironmentMap(_two_tone_map(1.0, 0.0)))
+    up, down, side = sh_basis(np.array([[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, 0]])) @ sky.sh[:, 0]
+    assert up == pytest.approx(1.0, abs=0.08) and down == pytest.approx(0.0, abs=0.08)
+    assert side == pytest.approx(0.5, abs=0.02)
+    lit = environment_light(EnvironmentMap(_two_tone_map(0.2, 0.1, sun=500.0)))
+    assert lit.sun_direction is not None and lit.sun_direction[2] > 0.95  # near the zenith
+    texel = (2 * np.pi / 32) * (np.pi / 16) * np.cos(np.pi * (0.5 - np.array([0.5, 1.5]) / 16))
+    np.testing.assert_allclose(lit.sun_irradiance, 500.0 * 2 * texel.sum(), rtol=1e-6)
+    sun = environment_sun(lit)
+    np.testing.assert_allclose(sun.linear_color * sun.strength, lit.sun_irradiance, rtol=1e-6)
+    np.testing.assert_allclose(sun.direction, -lit.sun_direction, atol=1e-9)  # shines from the sun
+
+
+def test_environment_lights_by_direction_and_is_seen_behind(pyr):
+    """The plane facing up is lit by the upper hemisphere: bright sky and dark ground light it 1 x albedo
+    (irradiance pi), the reverse 0 (the old uniform ambient gave both the mean, 0.5); on an opaque film the
+    map shows where nothing is hit."""
+    means = {}
+    for name, img in (("sky", _two_tone_map(1.0, 0.0)), ("ground", _two_tone_map(0.0, 1.0))):
+        scene = testing.plane_scene("background", resolution=(32, 32), albedo=0.5)
+        scene.lights.set_environment_map(img)
+        scene.lights.set_background_light(0.0)
+        res = render(scene, backend=pyr, quality="preview", outputs=("rgb",))
+        means[name] = float(res.rgba[8:24, 8:24, :3].mean())
+        assert any("light.environment" in a for a in res.meta["approximations"])
+    assert means["sky"] == pytest.approx(0.5, rel=0.1) and means["ground"] < 0.05
+    scene = testing.plane_scene("background", resolution=(32, 32))
+    scene.lights.set_environment_map(_two_tone_map(1.0, 0.25))
+    scene.lights.set_background_light(0.0)
+    scene.set_perspective_camera(
+        (32, 32), fov_x=np.deg2rad(60), rotation_mode="look_at", rotation=(0, 10, 0.5), translation=(0, -1, 0.5)
+    )
+    res = render(scene, backend=pyr, quality="preview", transparent_background=False)
+    miss = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance")).instance < 0
+    assert miss[:8].all()  # the sky above the plane's horizon
+    np.testing.assert_allclose(res.rgba[:8, :, :3], 1.0, atol=1e-5)
