@@ -61,7 +61,7 @@ import importlib.util
 import logging
 from typing import Any
 
-from blendify_core.errors import BackendUnavailableError, InvalidSceneError
+from blendify_core.errors import BackendUnavailableError, InvalidSceneError, warn_at_caller
 from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.backend import Backend, DeviceChoice, parse_device
 from blendify_core.pipeline.capabilities import Capability
@@ -269,7 +269,14 @@ class CyclesBackend(Backend):
                 self._worker = WorkerClient(
                     max_renders=self.worker_max_renders, verbose=self.verbose, device=self.device
                 )
-            return self._worker.render(native.scene, settings)
+            result = self._worker.render(native.scene, settings)
+            fallback = result.meta.pop("device_fallback", None)  # type: ignore[misc]
+            if fallback:  # the worker chose the device (strict=True already refused there)
+                used = result.meta.get("device")
+                note = f"cycles: device={self.device!r} is unavailable here ({fallback}); rendering on {used}"
+                warn_at_caller(note)
+                result.meta.setdefault("warnings", []).append(note)
+            return result
         if not isinstance(native, TranslatedScene):
             raise InvalidSceneError(
                 f"native: expected what CyclesBackend.translate returned, got {type(native).__name__}"

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from blendify_blender.blendfile.origins import export_origins, import_origins
-from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
+from blendify_core.errors import BackendUnavailableError, BlendifyError, InvalidSceneError, RenderError
 from blendify_core.ir.attachments import Attachment
 from blendify_core.pipeline.result import RenderResult, _jsonable
 from blendify_core.pipeline.settings import RenderSettings
@@ -32,7 +32,11 @@ from blendify_core.pipeline.settings import RenderSettings
 __all__ = ["IsolatedScene", "WorkerClient", "main"]
 
 _ARRAYS = ("rgba", "depth", "normal", "albedo", "instance")
-_ERRORS = {"RenderError": RenderError, "InvalidSceneError": InvalidSceneError}
+_ERRORS = {
+    "RenderError": RenderError,
+    "InvalidSceneError": InvalidSceneError,
+    "BackendUnavailableError": BackendUnavailableError,
+}
 
 
 def _settings_from_dict(d: dict[str, Any]) -> RenderSettings:
@@ -231,7 +235,19 @@ def main(argv: list[str] | None = None) -> int:
             scene = Scene.load(req["scene"], allow_outside=True)
             scene.attachments = [Attachment("blend", p) for p in req.get("attached_blends", [])]
             import_origins(scene, req.get("origins", {}))
-            result = backend.render_scene(scene, _settings_from_dict(req["settings"]))
+            settings = _settings_from_dict(req["settings"])
+            # device=: decided here, where bpy runs (the parent of an isolated backend never imports it)
+            choice = backend.device_choice()
+            if choice is not None and choice.fallback and settings.strict:
+                raise BackendUnavailableError(
+                    f"cycles: device={choice.requested!r} is unavailable here ({choice.fallback}); "
+                    f"strict=True refuses to render on {choice.used} instead"
+                )
+            result = backend.render_scene(scene, settings)
+            if choice is not None:
+                result.meta["device"] = choice.used
+                if choice.fallback:
+                    result.meta["device_fallback"] = choice.fallback  # type: ignore[typeddict-unknown-key]
             _save_result(result, req["out"])
             reply = {"ok": True}
         except BlendifyError as exc:

@@ -104,3 +104,18 @@ def test_info_says_when_there_is_no_gpu(monkeypatch):
     assert CyclesBackend.info_details() == [
         "devices: CPU; GPU: none (Cycles looked for OPTIX, CUDA, HIP, METAL, ONEAPI)"
     ]
+
+
+def test_isolated_backend_decides_the_device_in_its_worker():
+    """isolate=True: bpy runs only in the worker, which chooses the device; strict=True is refused there,
+    otherwise the parent warns and meta["device"] says what ran (this machine has no GPU)."""
+    if cycles_session.list_gpu_devices():
+        pytest.skip("this machine has a GPU: no fallback to check")
+    scene = testing.plane_scene("sun", resolution=(8, 8))
+    with CyclesBackend(device="gpu", isolate=True) as b:
+        assert b.device_choice() is None
+        with pytest.raises(bf.BackendUnavailableError, match="strict=True refuses"):
+            bf.render(scene, backend=b, samples=1, strict=True)
+        with pytest.warns(UserWarning, match="device='gpu' is unavailable here"):
+            r = bf.render(scene, backend=b, samples=1)
+    assert r.meta["device"] == "CPU" and "device_fallback" not in r.meta
