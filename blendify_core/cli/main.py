@@ -67,7 +67,9 @@ def _render(args: argparse.Namespace) -> int:
     if not target.absolute().parent.is_dir():
         raise InvalidSceneError(f"--output: the folder {str(target.absolute().parent)!r} does not exist")
     scene = Scene.load(args.scene, allow_outside=args.allow_outside)
-    overrides = {} if args.target_error is None else {"target_error": args.target_error}
+    overrides: dict[str, Any] = {} if args.target_error is None else {"target_error": args.target_error}
+    if args.device is not None:
+        overrides["device"] = args.device
     if args.estimate:
         if args.samples is not None:
             raise InvalidSceneError("--estimate: the pilot chooses the samples; drop --samples")
@@ -81,6 +83,7 @@ def _render(args: argparse.Namespace) -> int:
         samples=args.samples,
         seed=args.seed,
         outputs=_outputs(args.outputs),
+        strict=args.strict,
         **overrides,
     )
     # the same files as a batch job: OUT = rgb (or the first output), OUT.<name>.<ext> for the others
@@ -173,6 +176,17 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--estimate", action="store_true", help="print the predicted samples and time from a short pilot; no render"
+    )
+    p.add_argument(
+        "--device",
+        default=None,
+        help="cpu, gpu, or the engine's own device (cycles: OPTIX, CUDA, HIP, METAL, ONEAPI; mitsuba: cuda, llvm, "
+        "scalar); default: the backend's",
+    )
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="refuse approximations and a missing device (exit 1 / 3) instead of warning",
     )
     p.set_defaults(func=_render)
 

@@ -127,3 +127,22 @@ def test_every_package_logger_has_a_null_handler(package):
     importlib.import_module(package)
     handlers = logging.getLogger(package).handlers
     assert any(isinstance(h, logging.NullHandler) for h in handlers), f"{package}: {handlers}"
+
+
+def test_render_device_strict_without_gpu_exits_3(tmp_path, capsys, monkeypatch):
+    if not bf.available_backends()["cycles"].available:
+        pytest.skip("cycles unavailable")
+    from blendify_blender import session as cycles_session
+
+    from blendify_core import testing
+
+    monkeypatch.setattr(cycles_session, "list_gpu_devices", lambda: [])
+    testing.plane_scene("sun", resolution=(8, 8)).save(tmp_path / "s.npz")
+    argv = ["render", str(tmp_path / "s.npz"), "-b", "cycles", "-s", "1", "-o", str(tmp_path / "o.png")]
+    assert main([*argv, "--device", "gpu", "--strict"]) == 3
+    err = capsys.readouterr().err
+    assert err.startswith("blendify render: error: cycles: device='gpu' is unavailable here")
+    assert not (tmp_path / "o.png").exists()
+    with pytest.warns(UserWarning, match="device='gpu' is unavailable"):
+        assert main([*argv, "--device", "gpu"]) == 0
+    assert (tmp_path / "o.png").is_file()
