@@ -14,7 +14,29 @@ from blendify_blender.blendfile import BlendAttachWarning, attach_blend
 
 from blendify_core.ir.scene import Scene
 
-WRITE = """
+#: shared by the scripts: Cycles, a square image, fixed samples, box filter, Standard view
+SETTINGS = """
+def settings(sc, size, spp):
+    r, cy = sc.render, sc.cycles
+    r.engine = "CYCLES"; r.resolution_x = r.resolution_y = size; r.resolution_percentage = 100
+    cy.samples = spp; cy.use_denoising = False; cy.use_adaptive_sampling = False
+    cy.pixel_filter_type = "BOX"; cy.filter_width = 1.0
+    sc.view_settings.view_transform = "Standard"
+
+def top_view(sc, x, grey):
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 1.0
+    cam.location = (x, 0, 3)
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    w = bpy.data.worlds.new("World")
+    w.node_tree.nodes["Background"].inputs["Color"].default_value = (grey, grey, grey, 1)
+    sc.world = w
+"""
+
+WRITE = (
+    SETTINGS
+    + """
 import bpy, sys, json, math
 dest, mode = sys.argv[1], sys.argv[2]
 bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -76,22 +98,12 @@ nt.links.new(add.outputs[0], out.inputs["Surface"])
 if mode == "render":  # a camera over the tiled plane, a white world, REPEAT (what the IR reads)
     t.extension = "REPEAT"
     t.interpolation = "Closest"
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    cam.data.type, cam.data.ortho_scale = "ORTHO", 1.0
-    cam.location = (6, 0, 3)
-    sc.collection.objects.link(cam)
-    sc.camera = cam
-    w = bpy.data.worlds.new("World")
-    w.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
-    sc.world = w
-    r, cy = sc.render, sc.cycles
-    r.engine = "CYCLES"; r.resolution_x = r.resolution_y = 40; r.resolution_percentage = 100
-    cy.samples = 16; cy.use_denoising = False; cy.use_adaptive_sampling = False
-    cy.pixel_filter_type = "BOX"; cy.filter_width = 1.0
-    sc.view_settings.view_transform = "Standard"
+    top_view(sc, 6, 1.0)
+    settings(sc, 40, 16)
 bpy.ops.wm.save_as_mainfile(filepath=dest)
 print(json.dumps({"ok": True}))
 """
+)
 
 
 @pytest.fixture(scope="module")
@@ -194,3 +206,65 @@ def test_mapping_node_renders_like_blender(tmp_path: Path, bpy_script, blender_r
     unmapped = render()
     assert plain.uv_map is not None
     assert np.abs(unmapped - ref)[..., :3].mean() / ref[..., :3].mean() > 5 * err + 0.05
+
+
+BUMP_WRITE = (
+    SETTINGS
+    + """
+import bpy, sys, json, math
+dest = sys.argv[1]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+sc = bpy.context.scene
+bpy.ops.mesh.primitive_plane_add(size=1)
+ob = bpy.context.active_object
+ob.name = "Bumpy"
+m = bpy.data.materials.new("Bumpy mat")
+ob.data.materials.append(m)
+nt = m.node_tree
+p = next(n for n in nt.nodes if n.type == "BSDF_PRINCIPLED")
+p.inputs["Roughness"].default_value = 0.6
+wave = nt.nodes.new("ShaderNodeTexWave")
+wave.inputs["Scale"].default_value = 3.0
+bump = nt.nodes.new("ShaderNodeBump"); bump.name = "Ridges"
+bump.inputs["Strength"].default_value = 1.0
+nt.links.new(wave.outputs["Fac"], bump.inputs["Height"])
+nt.links.new(bump.outputs["Normal"], p.inputs["Normal"])
+sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+sun.data.energy = 3.0
+sun.rotation_euler = (math.radians(60), 0, math.radians(90))
+sc.collection.objects.link(sun)
+top_view(sc, 0, 0.05)
+settings(sc, 48, 32)
+bpy.ops.wm.save_as_mainfile(filepath=dest)
+print(json.dumps({"ok": True}))
+"""
+)
+
+
+def test_bump_is_baked_into_a_normal_map(tmp_path: Path, bpy_script, blender_render, cycles):
+    """A Bump node driven by a procedural texture becomes a baked tangent-space normal map in the IR (said
+    so): rendered from the IR, the ridges light like Blender's render of the file; without it, flat."""
+    import blendify_core as bf
+
+    path = tmp_path / "bumpy.blend"
+    bpy_script(BUMP_WRITE, str(path))
+    _info, ref = blender_render(path, tmp_path / "ref.exr")
+
+    def ir_render(**kw) -> tuple[float, object, str]:
+        scene = Scene()
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            att = attach_blend(scene, path, with_camera=True, render_settings=True, **kw)
+        msg = " ".join(str(w.message) for w in rec if issubclass(w.category, BlendAttachWarning))
+        bumpy = scene.renderables["Bumpy"]
+        bumpy.material.roughness = float(bumpy.material.roughness)  # an IR edit: rendered from the IR
+        settings = {**att.render_settings, "outputs": ("rgba",)}
+        img = np.asarray(bf.render(scene, backend="cycles", cycles_settings=att.cycles_settings, **settings).rgba)
+        return float(np.abs(img - ref)[..., :3].mean() / ref[..., :3].mean()), bumpy.material, msg
+
+    err, material, msg = ir_render(bake_resolution=128)
+    assert material.normal_map is not None
+    assert "normal (tangent-space normal map) from a ShaderNodeBump node baked to a 128x128 image" in msg
+    err_flat, material, msg = ir_render(bake_resolution=None)
+    assert material.normal_map is None and "Normal input from a ShaderNodeBump node not parsed" in msg
+    assert err < 0.5 * err_flat, (err, err_flat)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from blendify_blender.blendfile.common import Notes
-from blendify_core.ir.colors import TextureColors
+from blendify_core.ir.colors import NormalMap, TextureColors
 
 __all__ = ["DEFAULT_BAKE_RESOLUTION", "Baker"]
 
@@ -36,8 +36,22 @@ class _Request:
     node_name: str
     node_type: str  # bl_idname
     socket_id: str  # identifier of the output feeding the colour
-    placeholder: Any  # the IR colour source to replace
+    placeholder: Any  # the IR colour source (or, for a normal, the IR material) to replace
     where: str
+    kind: str = "color"  # or "normal": the object's shading normal as a tangent-space normal map
+
+
+def _route_to_emission(tree: Any, socket: Any) -> list[tuple[Any, Any]]:
+    """``socket`` -> an Emission shader -> a new active Material Output of ``tree``; returns the new nodes."""
+    emit = tree.nodes.new("ShaderNodeEmission")
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.target = "ALL"
+    tree.links.new(socket, emit.inputs["Color"])
+    tree.links.new(emit.outputs[0], out.inputs["Surface"])
+    for node in tree.nodes:
+        if node.type == "OUTPUT_MATERIAL":
+            node.is_active_output = node == out
+    return [(tree, emit), (tree, out)]
 
 
 @dataclass
@@ -59,6 +73,12 @@ class Baker:
             )
         )
 
+    def request_normal(self, obj: Any, placeholder: Any, node_type: str, where: str) -> None:
+        """Bake ``obj``'s shading normal (bump, procedural normal map) into a tangent-space normal map for
+        the IR material ``placeholder`` (a copy used by this object only)."""
+        orig_obj = getattr(obj, "original", None) or obj
+        self.requests.append(_Request(orig_obj, None, "", node_type, "", placeholder, where, kind="normal"))
+
     def run(self, bpy: Any, sc: Any, view_layer: Any) -> None:
         """Bake every request (each (object, material, socket) once)."""
         if not self.requests:
@@ -71,7 +91,8 @@ class Baker:
         r.bake.margin = 4
         r.bake.use_clear = True
         for req in self.requests:
-            key = (req.obj.as_pointer(), req.material.as_pointer(), hash((req.node_name, req.socket_id)))
+            mat_key = req.material.as_pointer() if req.material is not None else 0
+            key = (req.obj.as_pointer(), mat_key, hash((req.kind, req.node_name, req.socket_id)))
             if key not in done:
                 done[key] = self._bake(bpy, sc, view_layer, req)
             pixels = done[key]
@@ -79,46 +100,43 @@ class Baker:
                 self.baked[id(req.placeholder)] = None
                 continue
             self.baked[id(req.placeholder)] = pixels
+            what = "colour" if req.kind == "color" else "normal (tangent-space normal map)"
             self.notes.add(
-                f"{req.where}: colour from a {req.node_type} node baked to a {self.resolution}x{self.resolution} "
+                f"{req.where}: {what} from a {req.node_type} node baked to a {self.resolution}x{self.resolution} "
                 "image with Cycles' baker through the render UV map (an approximation: resolution-limited)"
             )
 
     def _bake(self, bpy: Any, sc: Any, view_layer: Any, req: _Request) -> np.ndarray | None:
-        obj, mat = req.obj, req.material
-        node = mat.node_tree.nodes.get(req.node_name) if mat.node_tree is not None else None
-        outputs = list(node.outputs) if node is not None else []
-        socket = next((o for o in outputs if o.identifier == req.socket_id), None)
-        if socket is None:
-            self.notes.add(f"{req.where}: {req.node_type} colour not baked (node not found)")
+        """(n, n, 3) float pixels (row 0 at the top, as the IR's images) of one request, or None (noted)."""
+        what = "colour" if req.kind == "color" else "normal"
+        obj = req.obj
+        if getattr(obj.data, "uv_layers", None) is None or not len(obj.data.uv_layers):
+            self.notes.add(f"{req.where}: {req.node_type} {what} not baked: the object has no UV map")
             return None
-        me = obj.data
-        if getattr(me, "uv_layers", None) is None or not len(me.uv_layers):
-            self.notes.add(f"{req.where}: {req.node_type} colour not baked: the object has no UV map")
-            return None
+        socket = None
+        if req.kind == "color":
+            tree = req.material.node_tree
+            node = tree.nodes.get(req.node_name) if tree is not None else None
+            socket = next(
+                (o for o in (node.outputs if node is not None else ()) if o.identifier == req.socket_id), None
+            )
+            if socket is None:
+                self.notes.add(f"{req.where}: {req.node_type} colour not baked (node not found)")
+                return None
         n = self.resolution
-        img = bpy.data.images.new("bf_bake", n, n, float_buffer=True, alpha=True)
-        img.colorspace_settings.name = "Linear Rec.709"
+        img = bpy.data.images.new("bf_bake", n, n, float_buffer=True, alpha=False)
+        img.colorspace_settings.name = "Linear Rec.709" if req.kind == "color" else "Non-Color"
         added: list[tuple[Any, Any]] = []
         try:
             for slot in obj.material_slots:  # Cycles bakes every slot into its active image node
                 m = slot.material
-                if m is None or m.node_tree is None:
-                    continue
-                tex = m.node_tree.nodes.new("ShaderNodeTexImage")
-                tex.image = img
-                m.node_tree.nodes.active = tex
-                added.append((m.node_tree, tex))
-            nt = mat.node_tree
-            emit = nt.nodes.new("ShaderNodeEmission")
-            out = nt.nodes.new("ShaderNodeOutputMaterial")
-            out.target = "ALL"
-            nt.links.new(socket, emit.inputs["Color"])
-            nt.links.new(emit.outputs[0], out.inputs["Surface"])
-            for node in nt.nodes:
-                if node.type == "OUTPUT_MATERIAL":
-                    node.is_active_output = node == out
-            added += [(nt, emit), (nt, out)]
+                if m is not None and m.node_tree is not None:
+                    tex = m.node_tree.nodes.new("ShaderNodeTexImage")
+                    tex.image = img
+                    m.node_tree.nodes.active = tex
+                    added.append((m.node_tree, tex))
+            if socket is not None:
+                added += _route_to_emission(req.material.node_tree, socket)
             obj.hide_viewport = False
             obj.hide_set(False, view_layer=view_layer)
             obj.select_set(True, view_layer=view_layer)
@@ -131,12 +149,15 @@ class Baker:
                 "selected_editable_objects": [obj],
             }
             with bpy.context.temp_override(**override):
-                bpy.ops.object.bake(type="EMIT", margin=4, use_clear=True, target="IMAGE_TEXTURES")
+                if req.kind == "color":
+                    bpy.ops.object.bake(type="EMIT", margin=4, use_clear=True, target="IMAGE_TEXTURES")
+                else:
+                    bpy.ops.object.bake(type="NORMAL", normal_space="TANGENT", margin=4, use_clear=True)
             px = np.empty(n * n * 4, dtype=np.float32)
             img.pixels.foreach_get(px)
-            return px.reshape(n, n, 4)[::-1, :, :3].copy()  # row 0 at the top, as the IR's images
+            return px.reshape(n, n, 4)[::-1, :, :3].copy()
         except RuntimeError as exc:
-            self.notes.add(f"{req.where}: {req.node_type} colour not baked ({exc}); its default value used")
+            self.notes.add(f"{req.where}: {req.node_type} {what} not baked ({exc}); left as parsed")
             return None
         finally:
             for tree, node in added:
@@ -147,8 +168,15 @@ class Baker:
             bpy.data.images.remove(img)
 
     def apply(self, specs: list[tuple[str, dict[str, Any]]]) -> None:
-        """Replace the placeholders in the pending mesh specs by the baked textures on the mesh's UVs."""
+        """Replace the placeholders in the pending mesh specs by the baked textures on the mesh's UVs (and
+        the materials waiting for a normal map by copies with it)."""
         for _name, spec in specs:
+            mats = spec["material"] if isinstance(spec["material"], list) else [spec["material"]]
+            for i, m in enumerate(mats):
+                pixels = self.baked.get(id(m))
+                if pixels is not None:
+                    mats[i] = m.copy(normal_map=NormalMap(np.clip(pixels, 0.0, 1.0)))
+            spec["material"] = mats if isinstance(spec["material"], list) else mats[0]
             cols = spec["colors"] if isinstance(spec["colors"], list) else [spec["colors"]]
             changed = False
             for i, c in enumerate(cols):

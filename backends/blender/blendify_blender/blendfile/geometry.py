@@ -95,6 +95,11 @@ class _MeshReader:
         keys += self._color_keys(mats)
         faces, verts, src_corner = self._split_vertices(keys)
         colors = [self._colors(col, len(verts), src_corner) for _m, col in mats]
+        if self.baker is not None:  # bumped / procedural normals: this object's normal map, baked
+            for i, (m, col) in enumerate(mats):
+                if col.get("bake_normal"):
+                    mats[i] = (m.copy(), col)
+                    self.baker.request_normal(self.obj, mats[i][0], col["bake_normal"], self.where)
         return self._posed(matrix, verts, faces, [m for m, _c in mats], colors, faces_material, smooth)
 
     def _read_triangles(self) -> _Triangles | None:

@@ -60,6 +60,8 @@ _COLOR_INPUTS = {
 }
 #: Principled BSDF inputs the IR has no parameter for (noted when driven by nodes)
 _IGNORED_INPUTS = ("Weight", "Tangent", "Coat Normal", "Subsurface IOR")
+#: _normal_map's answer for a normal the baker makes into a normal map per object
+_BAKE_NORMAL = object()
 #: the colour description of a material without a usable colour source
 _DEFAULT_GREY = {"kind": "uniform", "rgba": (0.8, 0.8, 0.8, 1.0)}
 
@@ -478,13 +480,17 @@ class MaterialReader:
         else:  # pragma: no cover - Blender 5 offers only these two
             self.notes.add(f"{where}: Principled distribution {node.distribution} read as MULTI_GGX")
         nm = self._normal_map(inputs.get("Normal"), where)
-        if nm is not None:
+        bake_normal = nm is _BAKE_NORMAL
+        if nm is not None and not bake_normal:
             params["normal_map"] = nm
         for name in _IGNORED_INPUTS:
             s = inputs.get(name)
             if s is not None and s.enabled and s.is_linked:
                 self.notes.add(f"{where}: Principled input {name!r} not parsed")
         colors = self._color_source(inputs["Base Color"], where)
+        if bake_normal:
+            src = link_from(inputs["Normal"])
+            colors["bake_normal"] = src[0].bl_idname if src is not None else "node"
         if emission_from_color > 0:
             colors["emission_from_color"] = emission_from_color
         if colors["kind"] in ("texture", "attribute") and self._alpha_value(node) is None:
@@ -549,11 +555,16 @@ class MaterialReader:
             if nnode.space != "TANGENT":
                 self.notes.add(f"{where}: {nnode.space.lower()}-space normal map not supported")
                 return None
+            csrc = link_from(nnode.inputs["Color"])
+            if self.baker is not None and csrc is not None and csrc[0].type != "TEX_IMAGE":
+                return _BAKE_NORMAL  # a procedural normal map: baked per object (blendfile.bake)
             tex = self.texture_input(nnode.inputs["Color"], where, "Normal Map color")
             if tex is None:
                 return None
             strength = float(nnode.inputs["Strength"].default_value)
             return self._texture_map(tex, NormalMap, where=where, strength=strength)
+        if src is not None and self.baker is not None:
+            return _BAKE_NORMAL  # a Bump node (or other): the shading normal baked per object
         if src is not None:
             self.notes.add(f"{where}: Normal input from a {src[0].bl_idname} node not parsed")
         return None
