@@ -311,8 +311,9 @@ NOTES = (
     "equivalent; fitted with near-normal views first), the coated metal, sheen (a broad conductor following "
     "Cycles' measured sheen albedo, not the microfiber lobe), GGX metal at roughness 1, the roughest glass "
     "(channel-dependent: red -15 %, blue +6 %; the white furnace matches Cycles within 1 %), and the wireframe "
-    "presets (Mitsuba draws square tubes along the edges, which cover and shadow far more of the sphere than "
-    "Cycles' Wireframe shader; a geometry approximation, not the material model). pyrender's preview is 60-85 % "
+    "presets, 6-8 % darker (the wire is geometry: flat bands on each triangle where Cycles' Wireframe shader "
+    "marks the surface; it was 84 % with square tubes, which cover and shadow far more). pyrender's preview is "
+    "60-85 % "
     "darker everywhere (its area light is a spot light, its materials glTF PBR): reported, no goal.",
     "",
     "`pixel` 0.0 % means the per-pixel difference is below the two engines' noise at this sample count.",

@@ -91,9 +91,9 @@ FROZEN: dict[str, tuple[str, str]] = {
     "material.alpha": ("exact", "mask BSDF with the material x colour alpha"),
     "material.wireframe": (
         "approximate",
-        "triangle edges as square tubes of side wireframe_thickness (world units) with the surface's BSDF"
-        " in the wireframe colour: geometry instead of Blender's Wireframe shader (protrudes by half the "
-        "thickness, casts shadows, also draws the diagonals of triangulated quads)",
+        "the points Blender's Wireframe shader marks (within wireframe_thickness / 2 of a triangle edge, "
+        "world units) as flat bands on each triangle, lifted by 2 % of the thickness, with the surface's BSDF"
+        " in the wireframe colour (material sweep: sphere mean within about 6 % of Cycles)",
     ),
     "material.roughness_map": (
         "approximate",

@@ -440,7 +440,7 @@ def test_primitives_and_pointclouds_render(scalar_backend):
     assert np.mean(r1.instance != r2.instance) < 0.05
 
 
-def test_wireframe_tubes_along_the_edges(scalar_backend):
+def test_wireframe_bands_along_the_edges(scalar_backend):
     from blendify_core.ir.materials import PrincipledBSDFWireframeMaterial
 
     scene = bf.Scene()
