@@ -97,7 +97,7 @@ def dark_floor_scene(res: int) -> bf.Scene:
     s.renderables.add_plane_mesh(4.0, bf.DiffuseMaterial(), bf.UniformColors((0.05, 0.05, 0.05)), tag="floor")
     _camera(s, res)
     s.lights.add_area(
-        "square", 3.0, strength=100.0, rotation_mode="look_at", rotation=(0, 0, 0.3), translation=(0.3, -0.6, 1.2)
+        "square", 3.0, strength=300.0, rotation_mode="look_at", rotation=(0, 0, 0.3), translation=(0.3, -0.6, 1.2)
     )
     return s
 
@@ -118,6 +118,91 @@ SCENES: dict[str, tuple[Callable[[int], bf.Scene], tuple[str, ...]]] = {
     "glass": (glass_scene, ("rgb",)),
     "depth_normal": (lambert_scene, ("depth", "normal")),
 }
+
+
+#: why the effect-aware settings save what they save (or nothing) on each scene
+WHY = {
+    "lambert": "drops glossy/transmission/transparent bounces and caustics, but no material has those lobes, so the "
+    "full settings never take those bounces either; the indirect diffuse light is needed (the floor lights them)",
+    "no_shadow": "the lights' use_shadow=False is the scene's own and applies in both settings (Cycles' light "
+    "use_shadow, Mitsuba's no-shadow integrator); the indirect light is needed",
+    "floating": "direct light only in both: every bounce ray off one convex object escapes into the black world at "
+    "once, so the bounce limits (Cycles' per-type bounces, Mitsuba's max_depth 2 vs 14) have nothing to cut",
+    "floating_bunny": "the pilot measures the bunny's light on itself (concave, glossy) above half the target: kept",
+    "dark_floor": "the pilot measures the indirect light below half the target and renders direct light only; "
+    "bounces off a 5 % floor are few anyway (Russian roulette ends most of them), which bounds the saving",
+    "glass": "calls for every effect (refraction, caustics on the floor): nothing to drop; the pilot is not tried",
+    "depth_normal": "geometric outputs are rendered without lighting in both settings (Cycles: 1 sample, no "
+    "bounces; Mitsuba: ray casts): nothing left to drop",
+}
+
+
+def _dropped(row: dict[str, Any]) -> str:
+    """What the effect-aware render left out, from its meta."""
+    e, f = row["effect_aware"], row["full"]
+    out = []
+    pilot = e.get("indirect_pilot") or {}
+    if pilot.get("dropped"):
+        out.append(f"indirect light (pilot: {pilot['indirect_error']:.2g} rel. RMS)")
+    es, fs = e.get("engine_settings") or {}, f.get("engine_settings") or {}
+    out += [k.replace("_bounces", "").replace("max_", "") for k in es if es.get(k) != fs.get(k) and k != "effects_used"]
+    if e.get("max_depth") != f.get("max_depth"):
+        out.append(f"max_depth {f.get('max_depth')} -> {e.get('max_depth')}")
+    return ", ".join(out) or "nothing"
+
+
+def write_report(data: dict[str, Any], out: Path) -> None:
+    """effects_pay.md (table) and effects_pay.png (ratio per scene and engine) from the measured json."""
+    info, rows = data["info"], data["rows"]
+    lines = [
+        "# Effects that pay: equal-error time, effect-aware vs full settings",
+        "",
+        f"`final` (target relative RMS error {bf.FINAL_TARGET_ERROR}), {info['res']}x{info['res']} px, "
+        f"{info['reps']} paired repetitions per row (effect-aware and full back to back, order alternating, same "
+        f"seed); ratio = full time / effect-aware time within each pair: median (min-max). {THREADS} threads, "
+        f"load average {info['load'][0]:.1f} -> {info['load'][1]:.1f} on {info['cpus']} cores (a shared, loaded "
+        "machine: the absolute times are slow and noisy; ratios within 0.7-1.4 are noise at this load).",
+        "",
+        "Run: `wtpy benchmarks/effects_pay.py` (``--quick`` for 64 px, 3 repetitions).",
+        "",
+        "| scene | engine | effect-aware drops | spp eff / full | time eff / full (s, median) | ratio full/eff | why |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        spp_e = int(np.median([p["spp_eff"] or 0 for p in r["pairs"]]))
+        spp_f = int(np.median([p["spp_full"] or 0 for p in r["pairs"]]))
+        lines.append(
+            f"| {r['scene']} | {r['backend']} | {_dropped(r)} | {spp_e} / {spp_f} | "
+            f"{r['t_eff_median']:.2f} / {r['t_full_median']:.2f} | "
+            f"{r['ratio_median']:.2f} ({r['ratio_min']:.2f}-{r['ratio_max']:.2f}) | {WHY.get(r['scene'], '')}"
+            + (f" ({r['res']} px, {r['reps']} pairs)" if r.get("res", info["res"]) != info["res"] else "")
+            + " |"
+        )
+    out.with_suffix(".md").write_text("\n".join(lines) + "\n")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    backends = list(dict.fromkeys(r["backend"] for r in rows))
+    fig, ax = plt.subplots(figsize=(9, 4))
+    width = 0.8 / len(backends)
+    for bi, b in enumerate(backends):
+        for si, sc in enumerate(scenes):
+            r = next((x for x in rows if x["backend"] == b and x["scene"] == sc), None)
+            if r is None:
+                continue
+            x = si + bi * width
+            ax.bar(x, r["ratio_median"], width, color=f"C{bi}", label=b if si == 0 else None)
+            ax.plot([x, x], [r["ratio_min"], r["ratio_max"]], color="k", lw=1)
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.axhline(1.5, color="r", lw=0.8, ls="--", label="issue target 1.5x")
+    ax.set_xticks([i + 0.4 - width / 2 for i in range(len(scenes))], scenes, rotation=20)
+    ax.set_ylabel("equal-error time: full / effect-aware")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out.with_suffix(".png"), dpi=100)
 
 
 # -- measurement -------------------------------------------------------------------------------------
@@ -200,7 +285,16 @@ def main() -> None:
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--backends", default="cycles,mitsuba")
     ap.add_argument("--out", default=str(RESULTS / "effects_pay"))
+    ap.add_argument("--report", help="only write the .md/.png from these json files (comma-separated)")
     args = ap.parse_args()
+    if args.report:  # several runs (e.g. a smaller image for the slow glass scene) merge into one table
+        runs = [json.loads(Path(f).read_text()) for f in args.report.split(",")]
+        for run in runs:
+            for row in run["rows"]:
+                row["res"], row["reps"], row["load"] = run["info"]["res"], run["info"]["reps"], run["info"]["load"]
+        merged = {"info": runs[0]["info"], "rows": [row for run in runs for row in run["rows"]]}
+        write_report(merged, Path(args.out))
+        return
     res = 64 if args.quick else args.res
     reps = 3 if args.quick else args.reps
     rows = []
@@ -211,7 +305,9 @@ def main() -> None:
     load1 = os.getloadavg()[0]
     out = Path(args.out)
     info = {"res": res, "reps": reps, "load": [load0, load1], "machine": platform.platform(), "cpus": os.cpu_count()}
-    out.with_suffix(".json").write_text(json.dumps({"info": info, "rows": rows}, indent=1, default=str))
+    data = {"info": info, "rows": rows}
+    out.with_suffix(".json").write_text(json.dumps(data, indent=1, default=str))
+    write_report(data, out)
     print(json.dumps([(r["backend"], r["scene"], round(r["ratio_median"], 2)) for r in rows]))
 
 

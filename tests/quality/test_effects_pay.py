@@ -38,7 +38,7 @@ def _ball_on(
 def dark_floor(res: tuple[int, int] = RES) -> bf.Scene:
     """A diffuse ball on a near-black floor (5 %) under a large area light: every bounce hits the floor or the
     ball, but the indirect light is far below the target (the pilot measures how far)."""
-    return _ball_on(0.05, (0.8, 0.5, 0.3), light_size=3.0, strength=100.0, res=res)
+    return _ball_on(0.05, (0.8, 0.5, 0.3), light_size=3.0, strength=300.0, res=res)
 
 
 def ball_on_floor() -> bf.Scene:
