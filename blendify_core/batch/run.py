@@ -122,6 +122,8 @@ def render_many(
     kind, address = _executor_kind(executor)
     if kind in ("local", "ray"):
         check_backends_importable(jobs)
+    if manifest is not None and not isinstance(manifest, (str, os.PathLike)):
+        manifest = None if as_bool("manifest", manifest) else False  # True: the default place, as None
     man = None if manifest is False or not jobs else Manifest(_manifest_path(manifest, jobs).resolve())
     bar: ProgressBar | None = None
     if as_bool("progress", progress):

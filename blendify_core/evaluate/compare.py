@@ -38,7 +38,7 @@ from blendify_core.evaluate.noise import NoiseTest, noise_test
 from blendify_core.evaluate.report import CompareReport, _fmt
 from blendify_core.evaluate.tiers import NOISE_MARGINS, _resolve_tier
 from blendify_core.ir.scene import Scene
-from blendify_core.ir.validate import strict_arguments
+from blendify_core.ir.validate import as_bool, strict_arguments
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.typing import AnyArray, BoolArray
 
@@ -144,7 +144,7 @@ def _frame_tiles(image: AnyArray, nt: NoiseTest) -> AnyArray:
 def _noise_verdict(a: RenderResult, b: RenderResult, tier_name: str, noise: bool | None) -> NoiseTest | None:
     """The noise-aware colour test, when asked for (``noise``) or possible (both results carry ``rgb_var``
     and the tier is a path-tracer tier)."""
-    if noise is False:
+    if noise is not None and not as_bool("noise", noise):
         return None
     have = a.rgb_var is not None and b.rgb_var is not None and a.rgba is not None and b.rgba is not None
     if noise is None and not (have and tier_name in NOISE_MARGINS):

@@ -18,7 +18,7 @@ from blendify_core.errors import BackendUnavailableError, InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.io.output import AtomicOutput, atomic_write, ensure_folder, output_error
 from blendify_core.ir.scene import Scene
-from blendify_core.ir.validate import as_float, strict_api, strict_arguments
+from blendify_core.ir.validate import as_bool, as_float, strict_api, strict_arguments
 from blendify_core.pipeline.backend import Backend
 from blendify_core.pipeline.render import choose_backend
 from blendify_core.pipeline.render import render as bf_render
@@ -298,6 +298,8 @@ def render_frames(
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {_describe(scene)}")
     fps = as_float("fps", fps, min_value=0.0, exclusive_min=True)
     poses, callback, count = _checked_plan(trajectory_or_callback, fps, n_frames, interpolation, smoothness)
+    resume, progress = as_bool("resume", resume), as_bool("progress", progress)
+    keep_results, restore_camera = as_bool("keep_results", keep_results), as_bool("restore_camera", restore_camera)
     if on_frame is not None and not callable(on_frame):
         raise InvalidSceneError(
             f"on_frame: expected a callable on_frame(scene, frame_index), got {_describe(on_frame)}"

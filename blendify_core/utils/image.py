@@ -160,6 +160,7 @@ def crop_to_content(
     without alpha, pixels that differ from the top-left pixel's colour by more than ``threshold``.
     An image without content is returned whole. ``return_box=True`` also returns the box
     ``(top, bottom, left, right)`` (slice bounds, bottom/right exclusive)."""
+    return_box = as_bool("return_box", return_box)
     img = _as_image("rgba", rgba)
     m = int(margin) if np.isscalar(margin) and float(margin) == int(margin) else -1
     if m < 0:

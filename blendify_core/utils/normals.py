@@ -15,7 +15,7 @@ from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.geometry import face_normals
 from blendify_core.ir.renderables import Renderable
-from blendify_core.ir.validate import as_array, strict_arguments
+from blendify_core.ir.validate import as_array, as_bool, strict_arguments
 from blendify_core.typing import Float64Array
 
 __all__ = ["estimate_normals", "normals_from_mesh", "orient_normals"]
@@ -249,6 +249,7 @@ def estimate_normals(
     from scipy.spatial import cKDTree
 
     p = _points("points", points)
+    return_variation = as_bool("return_variation", return_variation)
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
         raise InvalidSceneError(f"k: expected a positive integer number of neighbours, got {k!r}")
     if orient not in ("propagate", "viewpoint", None):

@@ -292,6 +292,46 @@ BOOLS += [
     ),
 ]
 
+
+def _frames(**kw: Any) -> Callable[[Path], Any]:
+    def run(tmp: Path) -> Any:
+        from blendify_core.utils import Trajectory
+
+        traj = Trajectory()
+        traj.add_keypoint((0, 0, 4), rotation=(0, 0, 0), time=0.0, rotation_mode="look_at")
+        traj.add_keypoint((0, 1, 4), rotation=(0, 0, 0), time=1.0, rotation_mode="look_at")
+        return bf.render_frames(scene(), traj, "pyrender", frames_dir=tmp / "frames", **kw)
+
+    return run
+
+
+def _utils() -> Any:
+    import blendify_core.utils as utils
+
+    return utils
+
+
+BOOLS += [
+    Case("render_frames_resume_str", "bool", _frames(resume="no"), ("resume",)),
+    Case("render_frames_progress_str", "bool", _frames(progress="no"), ("progress",)),
+    Case("render_frames_keep_results_str", "bool", _frames(keep_results="no"), ("keep_results",)),
+    Case("render_frames_restore_camera_str", "bool", _frames(restore_camera="no"), ("restore_camera",)),
+    Case("compare_noise_str", "bool", lambda t: bf.compare(result(), result(), noise="no"), ("noise",)),
+    Case(
+        "estimate_normals_return_variation_str",
+        "bool",
+        lambda t: _utils().estimate_normals(np.random.default_rng(0).random((20, 3)), return_variation="no"),
+        ("return_variation",),
+    ),
+    Case(
+        "crop_to_content_return_box_str",
+        "bool",
+        lambda t: _utils().crop_to_content(np.zeros((4, 4, 4), np.float32), return_box="no"),
+        ("return_box",),
+    ),
+    Case("render_many_manifest_2", "bool", lambda t: bf.render_many([], manifest=2, progress=False), ("manifest",)),
+]
+
 KINDS: list[Case] = [
     Case("roughness_str", "kind", lambda t: bf.PrincipledBSDFMaterial(roughness="0.5"), ("roughness",)),
     Case("point_strength_bytes", "kind", lambda t: scene().lights.add_point(strength=b"100"), ("strength",)),
