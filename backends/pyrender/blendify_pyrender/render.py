@@ -211,9 +211,30 @@ _SPRITE_FRAG_MAIN = """
     gl_FragDepth = 0.5 * sprite_clip.z / sprite_clip.w + 0.5;
 #endif
 """
+_GLASS_DIFFUSE = "    vec3 c_diff = mix(vec3(0.0), base_color.rgb * (1 - min_roughness), 1.0 - metallic);\n"
+_GLASS_ALPHA = "    frag_color = clamp(vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a), 0.0, 1.0);\n"
+#: glass (bf_glass = (transmission weight w, F0)): no diffuse for the transmitted share T = w (1 - F), F Schlick's
+#: Fresnel at the viewing angle. What is behind should show through as T x tint x behind (the base colour
+#: tints it); alpha blending gives alpha C + (1 - alpha) behind, so 1 - alpha = T x max(tint) and the other
+#: channels' tint is added with the world's radiance straight behind (the SH) standing in for "behind"
+_GLASS_OPACITY = """    if (bf_glass.x > 0.0) {
+        vec3 bf_v = normalize(cam_pos - frag_position);
+        float bf_nv = clamp(dot(n, bf_v), 0.0, 1.0);
+        float bf_t = bf_glass.x * (1.0 - (bf_glass.y + (1.0 - bf_glass.y) * pow(1.0 - bf_nv, 5.0)));
+        vec3 bf_tint = clamp(base_color.rgb * (1.0 - min_roughness), 0.0, 1.0);
+        float bf_m = max(max(bf_tint.r, bf_tint.g), bf_tint.b);
+        float bf_opacity = max(1.0 - bf_t * bf_m, 1e-3);
+        vec3 bf_behind = bf_sh(-bf_v, vec3(1.0, 1.5, 4.0));
+        color.xyz = max(color.xyz + bf_t * (bf_tint - bf_m) * bf_behind, 0.0) / bf_opacity;
+        color.a *= bf_opacity;
+    }
+"""
 #: (file, anchor, replacement) applied to pyrender's shaders after the patches above: the world's light from
-#: spherical harmonics (diffuse and glossy, shaders/blendify_env.glsl), sphere impostors
+#: spherical harmonics (diffuse and glossy, shaders/blendify_env.glsl), glass, sphere impostors
 _PATCHES = (
+    ("mesh.frag", "uniform vec3 ambient_light;\n", "uniform vec3 ambient_light;\nuniform vec2 bf_glass;\n"),
+    ("mesh.frag", _GLASS_DIFFUSE, _GLASS_DIFFUSE + "    c_diff *= 1.0 - bf_glass.x;\n"),
+    ("mesh.frag", _GLASS_ALPHA, _GLASS_OPACITY + _GLASS_ALPHA),
     (
         "mesh.frag",
         "    color.xyz += base_color.xyz * ambient_light;\n",
@@ -230,6 +251,7 @@ _PATCHES = (
     ),
 )
 _patched_dir: str | None = None
+_NO_GLASS = np.zeros(2, dtype=np.float32)
 
 
 def _shader_dir() -> str:
@@ -517,6 +539,8 @@ class FrameRenderer(pyrender.Renderer):
             self._program_cache.sprite = False
 
     def _bind_and_draw_primitive(self, primitive: Any, pose: Any, program: Any, flags: int) -> None:
+        glass = getattr(primitive.material, "blendify_glass", None)
+        program.set_uniform("bf_glass", _NO_GLASS if glass is None else glass)
         if is_sprite(primitive):
             program.set_uniform("sprite_viewport", float(self.viewport_width))
             program.set_uniform("sprite_diameter_scale", float(getattr(primitive, "sprite_scale", 1.0)))

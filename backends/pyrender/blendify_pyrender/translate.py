@@ -148,6 +148,7 @@ class PBR:
     metallic: float
     roughness: float
     transmission: float = 0.0
+    ior: float = 1.5
     roughness_map: Any = None
     metallic_map: Any = None
     normal_map: Any = None
@@ -783,7 +784,12 @@ class PyrenderTranslator(Translator):
                 "pyrender keeps an F0 = 0.04 GGX lobe; base colour / 0.96 gives -0.8% mean vs Lambert (p95 1.5%)"
             ),
             "material.metallic": approximate("GGX metal lit by the lights only (no reflections); highlights clip at 1"),
-            "material.transmission": approximate("no refraction: drawn alpha-blended with alpha x (1 - 0.7 x weight)"),
+            "material.transmission": approximate(
+                "no refraction: see-through with a Fresnel-weighted opacity (Schlick, F0 from the IOR): the "
+                "transmitted share weight x (1 - F) shows what is behind, unrefracted, tinted by the base colour "
+                "(its largest channel through the blend, the others against the world's radiance behind); the "
+                "diffuse part scaled by 1 - weight; shadows stay opaque"
+            ),
             "material.coat": approximate("coat layer ignored"),
             "material.sheen": approximate("sheen ignored"),
             "material.subsurface": approximate("subsurface ignored (base colour shaded as diffuse)"),
@@ -810,6 +816,7 @@ class PyrenderTranslator(Translator):
             metallic=float(mat.metallic),
             roughness=float(mat.roughness),
             transmission=float(mat.transmission_weight),
+            ior=float(getattr(mat, "ior", 1.5)),
             roughness_map=mat.roughness_map,
             metallic_map=mat.metallic_map,
             normal_map=mat.normal_map,
@@ -850,8 +857,6 @@ class PyrenderTranslator(Translator):
         albedo = np.array(surf.rgba, dtype=np.float64)
         alpha = pbr.alpha * float(surf.rgba[3])
         metallic, roughness = pbr.metallic, pbr.roughness
-        if pbr.transmission > 0:  # no refraction: a see-through hint
-            alpha *= 1.0 - 0.7 * pbr.transmission
         mr_tex = normal_tex = None
         rmap, mmap, nmap = pbr.roughness_map, pbr.metallic_map, pbr.normal_map
         if pbr.has_maps and not has_uv:
@@ -883,7 +888,7 @@ class PyrenderTranslator(Translator):
         base = np.empty(4)
         base[:3] = albedo[:3] / k
         base[3] = alpha
-        translucent = alpha < 1.0 or surf.translucent
+        translucent = alpha < 1.0 or surf.translucent or pbr.transmission > 0
         pm = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=base,
             metallicFactor=float(metallic_factor),
@@ -895,6 +900,9 @@ class PyrenderTranslator(Translator):
             alphaMode="BLEND" if translucent else "OPAQUE",
             doubleSided=True,
         )
+        if pbr.transmission > 0:  # see-through with a Fresnel-weighted opacity (render.py's glass patch)
+            f0 = ((pbr.ior - 1.0) / (pbr.ior + 1.0)) ** 2
+            pm.blendify_glass = np.array([min(pbr.transmission, 1.0), f0], dtype=np.float32)
         albedo_factor = np.array([albedo[0], albedo[1], albedo[2], 1.0])
         return pm, albedo_factor
 

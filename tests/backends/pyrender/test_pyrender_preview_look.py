@@ -224,3 +224,37 @@ def test_environment_lights_by_direction_and_is_seen_behind(pyr):
     miss = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance")).instance < 0
     assert miss[:8].all()  # the sky above the plane's horizon
     np.testing.assert_allclose(res.rgba[:8, :, :3], 1.0, atol=1e-5)
+
+
+# -- glass: see-through with a Fresnel-weighted opacity ------------------------------------------------------
+def _glass_scene(tint=(1.0, 1.0, 1.0), behind=(0.8, 0.1, 0.1), with_plane: bool = True) -> Scene:
+    """A glass quad (transmission 1, IOR 1.5) head-on in front of a Lambertian plane, uniform background."""
+    scene = Scene()
+    scene.set_orthographic_camera((32, 32), ortho_scale=2.0, translation=(0, 0, 5.0), near=0.1, far=20)
+    if with_plane:
+        scene.renderables.add_plane_mesh(4.0, DiffuseMaterial(), UniformColors(behind, color_space="linear"))
+    scene.renderables.add_plane_mesh(
+        1.0,
+        PrincipledBSDFMaterial(transmission_weight=1.0, roughness=0.0, ior=1.5),
+        UniformColors(tint, color_space="linear"),
+        translation=(0, 0, 1.0),
+        tag="glass",
+    )
+    scene.lights.set_background_light(1.0)
+    return scene
+
+
+def test_glass_shows_what_is_behind_tinted(pyr):
+    clear = render(_glass_scene(), backend=pyr, quality="preview").rgba
+    behind = clear[2, 2, :3]  # the plane beside the glass
+    through = clear[16, 16, :3]  # the plane through the glass: (1 - F0) of it plus the reflection
+    np.testing.assert_allclose(through, behind, rtol=0.08, atol=0.02)
+    tinted = render(_glass_scene(tint=(0.9, 0.3, 0.9), behind=(0.5, 0.5, 0.5)), backend=pyr, quality="preview").rgba
+    plane, glass = tinted[2, 2, :3], tinted[16, 16, :3]
+    print(f"plane {plane}, through the tinted glass {glass}")
+    # green absorbed (as far as blending can: 1 - opacity = 0.86 for every channel), red passes
+    assert glass[1] < 0.8 * plane[1] and glass[0] > 0.85 * plane[0]
+    alone = render(_glass_scene(with_plane=False), backend=pyr, quality="preview").rgba
+    assert 0.0 < alone[16, 16, 3] < 0.1  # on a transparent film: opacity = the reflected share (F0 = 0.04)
+    res = render(_glass_scene(), backend=pyr, quality="preview")
+    assert any("Fresnel-weighted opacity" in a for a in res.meta["approximations"])
