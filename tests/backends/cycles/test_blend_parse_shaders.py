@@ -212,7 +212,7 @@ BUMP_WRITE = (
     SETTINGS
     + """
 import bpy, sys, json, math
-dest = sys.argv[1]
+dest, mode = sys.argv[1], (sys.argv[2] if len(sys.argv) > 2 else "")
 bpy.ops.wm.read_factory_settings(use_empty=True)
 sc = bpy.context.scene
 bpy.ops.mesh.primitive_plane_add(size=1)
@@ -229,6 +229,15 @@ bump = nt.nodes.new("ShaderNodeBump"); bump.name = "Ridges"
 bump.inputs["Strength"].default_value = 1.0
 nt.links.new(wave.outputs["Fac"], bump.inputs["Height"])
 nt.links.new(bump.outputs["Normal"], p.inputs["Normal"])
+if mode == "maps":  # no bump; metallic and roughness from procedural textures instead
+    nt.links.remove(p.inputs["Normal"].links[0])
+    chk = nt.nodes.new("ShaderNodeTexChecker"); chk.name = "Metal Tiles"
+    chk.inputs["Scale"].default_value = 3.0
+    chk.inputs["Color1"].default_value = (1, 1, 1, 1); chk.inputs["Color2"].default_value = (0, 0, 0, 1)
+    grad = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(chk.outputs["Fac"], p.inputs["Metallic"])
+    nt.links.new(grad.outputs["Fac"], p.inputs["Roughness"])
+    p.inputs["Base Color"].default_value = (0.9, 0.6, 0.3, 1)
 sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
 sun.data.energy = 3.0
 sun.rotation_euler = (math.radians(60), 0, math.radians(90))
@@ -241,30 +250,52 @@ print(json.dumps({"ok": True}))
 )
 
 
+def _ir_render(path: Path, ref: np.ndarray, edit: str, **kw) -> tuple[float, object, str]:
+    """Attach ``path``, touch the material parameter ``edit`` of 'Bumpy' (an IR edit: Cycles renders the IR
+    parse), render; (mean relative error against ``ref``, the IR material, the warning)."""
+    import blendify_core as bf
+
+    scene = Scene()
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        att = attach_blend(scene, path, with_camera=True, render_settings=True, **kw)
+    msg = " ".join(str(w.message) for w in rec if issubclass(w.category, BlendAttachWarning))
+    bumpy = scene.renderables["Bumpy"]
+    setattr(bumpy.material, edit, float(getattr(bumpy.material, edit)))
+    settings = {**att.render_settings, "outputs": ("rgba",)}
+    img = np.asarray(bf.render(scene, backend="cycles", cycles_settings=att.cycles_settings, **settings).rgba)
+    return float(np.abs(img - ref)[..., :3].mean() / ref[..., :3].mean()), bumpy.material, msg
+
+
 def test_bump_is_baked_into_a_normal_map(tmp_path: Path, bpy_script, blender_render, cycles):
     """A Bump node driven by a procedural texture becomes a baked tangent-space normal map in the IR (said
     so): rendered from the IR, the ridges light like Blender's render of the file; without it, flat."""
-    import blendify_core as bf
 
     path = tmp_path / "bumpy.blend"
     bpy_script(BUMP_WRITE, str(path))
     _info, ref = blender_render(path, tmp_path / "ref.exr")
 
-    def ir_render(**kw) -> tuple[float, object, str]:
-        scene = Scene()
-        with warnings.catch_warnings(record=True) as rec:
-            warnings.simplefilter("always")
-            att = attach_blend(scene, path, with_camera=True, render_settings=True, **kw)
-        msg = " ".join(str(w.message) for w in rec if issubclass(w.category, BlendAttachWarning))
-        bumpy = scene.renderables["Bumpy"]
-        bumpy.material.roughness = float(bumpy.material.roughness)  # an IR edit: rendered from the IR
-        settings = {**att.render_settings, "outputs": ("rgba",)}
-        img = np.asarray(bf.render(scene, backend="cycles", cycles_settings=att.cycles_settings, **settings).rgba)
-        return float(np.abs(img - ref)[..., :3].mean() / ref[..., :3].mean()), bumpy.material, msg
-
-    err, material, msg = ir_render(bake_resolution=128)
+    err, material, msg = _ir_render(path, ref, "roughness", bake_resolution=128)
     assert material.normal_map is not None
     assert "normal (tangent-space normal map) from a ShaderNodeBump node baked to a 128x128 image" in msg
-    err_flat, material, msg = ir_render(bake_resolution=None)
+    err_flat, material, msg = _ir_render(path, ref, "roughness", bake_resolution=None)
     assert material.normal_map is None and "Normal input from a ShaderNodeBump node not parsed" in msg
     assert err < 0.5 * err_flat, (err, err_flat)
+
+
+def test_procedural_roughness_and_metallic_are_baked_into_maps(tmp_path: Path, bpy_script, blender_render, cycles):
+    """Metallic from a Checker and Roughness from a Gradient become baked roughness / metallic maps (said
+    so); rendered from the IR they light like Blender's render of the file, better than the default values."""
+    from blendify_core.ir.colors import TextureMap
+
+    path = tmp_path / "maps.blend"
+    bpy_script(BUMP_WRITE, str(path), "maps")
+    _info, ref = blender_render(path, tmp_path / "ref.exr")
+
+    err, material, msg = _ir_render(path, ref, "ior", bake_resolution=64)
+    assert isinstance(material.metallic_map, TextureMap) and isinstance(material.roughness_map, TextureMap)
+    assert "metallic_map from a ShaderNodeTexChecker node baked to a 64x64 image" in msg
+    assert "roughness_map from a ShaderNodeTexGradient node baked" in msg
+    err_default, material, _msg = _ir_render(path, ref, "ior", bake_resolution=None)
+    assert material.metallic_map is None
+    assert err < 0.5 * err_default, (err, err_default)

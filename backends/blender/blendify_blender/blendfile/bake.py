@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from blendify_blender.blendfile.common import Notes
-from blendify_core.ir.colors import NormalMap, TextureColors
+from blendify_core.ir.colors import NormalMap, TextureColors, TextureMap
 
 __all__ = ["DEFAULT_BAKE_RESOLUTION", "Baker"]
 
@@ -39,6 +39,7 @@ class _Request:
     placeholder: Any  # the IR colour source (or, for a normal, the IR material) to replace
     where: str
     kind: str = "color"  # or "normal": the object's shading normal as a tangent-space normal map
+    param: str = ""  # for a material (placeholder): the IR parameter the bake feeds (normal / roughness / metallic map)
 
 
 def _route_to_emission(tree: Any, socket: Any) -> list[tuple[Any, Any]]:
@@ -61,7 +62,9 @@ class Baker:
     notes: Notes
     resolution: int = DEFAULT_BAKE_RESOLUTION
     requests: list[_Request] = field(default_factory=list)
-    baked: dict[int, Any] = field(default_factory=dict)  # id(placeholder) -> TextureColors or None
+    baked: dict[int, Any] = field(default_factory=dict)  # id(colour placeholder) -> pixels or None
+    #: id(material placeholder) -> {IR parameter: pixels}
+    baked_params: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
 
     def request(self, obj: Any, material: Any, node: Any, socket: Any, placeholder: Any, where: str) -> None:
         """Bake ``socket`` of ``node`` (in ``material``, maybe evaluated copies) for ``obj``'s original."""
@@ -77,7 +80,18 @@ class Baker:
         """Bake ``obj``'s shading normal (bump, procedural normal map) into a tangent-space normal map for
         the IR material ``placeholder`` (a copy used by this object only)."""
         orig_obj = getattr(obj, "original", None) or obj
-        self.requests.append(_Request(orig_obj, None, "", node_type, "", placeholder, where, kind="normal"))
+        self.requests.append(
+            _Request(orig_obj, None, "", node_type, "", placeholder, where, kind="normal", param="normal_map")
+        )
+
+    def request_map(
+        self, obj: Any, material: Any, names: tuple[str, str, str], placeholder: Any, param: str, where: str
+    ) -> None:
+        """Bake the float output ``names`` = (node name, bl_idname, output identifier) of ``material`` into the
+        IR parameter ``param`` (``roughness_map`` / ``metallic_map``) of the material ``placeholder``."""
+        orig_obj = getattr(obj, "original", None) or obj
+        orig_mat = getattr(material, "original", None) or material
+        self.requests.append(_Request(orig_obj, orig_mat, *names, placeholder, where, param=param))
 
     def run(self, bpy: Any, sc: Any, view_layer: Any) -> None:
         """Bake every request (each (object, material, socket) once)."""
@@ -92,15 +106,17 @@ class Baker:
         r.bake.use_clear = True
         for req in self.requests:
             mat_key = req.material.as_pointer() if req.material is not None else 0
-            key = (req.obj.as_pointer(), mat_key, hash((req.kind, req.node_name, req.socket_id)))
+            key = (req.obj.as_pointer(), mat_key, hash((req.kind, req.node_name, req.socket_id, req.param)))
             if key not in done:
                 done[key] = self._bake(bpy, sc, view_layer, req)
             pixels = done[key]
             if pixels is None:
-                self.baked[id(req.placeholder)] = None
                 continue
-            self.baked[id(req.placeholder)] = pixels
-            what = "colour" if req.kind == "color" else "normal (tangent-space normal map)"
+            if req.param:
+                self.baked_params.setdefault(id(req.placeholder), {})[req.param] = pixels
+            else:
+                self.baked[id(req.placeholder)] = pixels
+            what = {"": "colour", "normal_map": "normal (tangent-space normal map)"}.get(req.param, req.param)
             self.notes.add(
                 f"{req.where}: {what} from a {req.node_type} node baked to a {self.resolution}x{self.resolution} "
                 "image with Cycles' baker through the render UV map (an approximation: resolution-limited)"
@@ -108,7 +124,7 @@ class Baker:
 
     def _bake(self, bpy: Any, sc: Any, view_layer: Any, req: _Request) -> np.ndarray | None:
         """(n, n, 3) float pixels (row 0 at the top, as the IR's images) of one request, or None (noted)."""
-        what = "colour" if req.kind == "color" else "normal"
+        what = req.param or "colour"
         obj = req.obj
         if getattr(obj.data, "uv_layers", None) is None or not len(obj.data.uv_layers):
             self.notes.add(f"{req.where}: {req.node_type} {what} not baked: the object has no UV map")
@@ -173,9 +189,13 @@ class Baker:
         for _name, spec in specs:
             mats = spec["material"] if isinstance(spec["material"], list) else [spec["material"]]
             for i, m in enumerate(mats):
-                pixels = self.baked.get(id(m))
-                if pixels is not None:
-                    mats[i] = m.copy(normal_map=NormalMap(np.clip(pixels, 0.0, 1.0)))
+                params = self.baked_params.get(id(m))
+                if params:
+                    changes = {
+                        p: (NormalMap if p == "normal_map" else TextureMap)(np.clip(px, 0.0, 1.0))
+                        for p, px in params.items()
+                    }
+                    mats[i] = m.copy(**changes)
             spec["material"] = mats if isinstance(spec["material"], list) else mats[0]
             cols = spec["colors"] if isinstance(spec["colors"], list) else [spec["colors"]]
             changed = False

@@ -97,9 +97,13 @@ class _MeshReader:
         colors = [self._colors(col, len(verts), src_corner) for _m, col in mats]
         if self.baker is not None:  # bumped / procedural normals: this object's normal map, baked
             for i, (m, col) in enumerate(mats):
+                if not (col.get("bake_normal") or col.get("bake_maps")):
+                    continue
+                mats[i] = (m.copy(), col)  # this object's own copy: its maps follow its UVs
                 if col.get("bake_normal"):
-                    mats[i] = (m.copy(), col)
                     self.baker.request_normal(self.obj, mats[i][0], col["bake_normal"], self.where)
+                for param, names in col.get("bake_maps", ()):
+                    self.baker.request_map(self.obj, col["material"], names, mats[i][0], param, self.where)
         return self._posed(matrix, verts, faces, [m for m, _c in mats], colors, faces_material, smooth)
 
     def _read_triangles(self) -> _Triangles | None:

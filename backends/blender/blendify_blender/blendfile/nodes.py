@@ -100,6 +100,8 @@ class MaterialReader:
         self.notes = notes
         #: a blendfile.bake.Baker: procedural colours become "bake" descriptions instead of their default value
         self.baker = baker
+        #: (IR map parameter, (node name, bl_idname, output identifier)) of the Principled being parsed
+        self._maps_to_bake: list[tuple[str, tuple[str, str, str]]] = []
         self._ranges = _param_ranges()
         self._cache: dict[int, tuple[Any, dict[str, Any]]] = {}
 
@@ -108,7 +110,7 @@ class MaterialReader:
         key = mat.as_pointer() if mat is not None else 0
         if key not in self._cache:
             parsed = self.material(mat, where)
-            if parsed[1].get("kind") == "bake":
+            if parsed[1].get("kind") == "bake" or parsed[1].get("bake_maps"):
                 parsed[1]["material"] = mat
             self._cache[key] = parsed
         return self._cache[key]
@@ -470,6 +472,7 @@ class MaterialReader:
     def _principled(self, node: Any, where: str) -> tuple[Any, dict[str, Any]]:
         inputs = {s.name: s for s in node.inputs}
         params: dict[str, Any] = {}
+        self._maps_to_bake = []
         self._principled_floats(node, inputs, params, where)
         emission_from_color = self._principled_colors(inputs, params, where)
         sock = inputs.get("Subsurface Radius")
@@ -491,6 +494,8 @@ class MaterialReader:
         if bake_normal:
             src = link_from(inputs["Normal"])
             colors["bake_normal"] = src[0].bl_idname if src is not None else "node"
+        if self._maps_to_bake:
+            colors["bake_maps"] = list(self._maps_to_bake)
         if emission_from_color > 0:
             colors["emission_from_color"] = emission_from_color
         if colors["kind"] in ("texture", "attribute") and self._alpha_value(node) is None:
@@ -503,6 +508,13 @@ class MaterialReader:
             sock = inputs.get(bl_name)
             if sock is None:
                 continue
+            src = link_from(sock) if sock.is_linked else None
+            if src is not None and ir_name in ("roughness", "metallic") and self.baker is not None:
+                if src[0].type != "TEX_IMAGE":  # procedural: baked per object (blendfile.bake)
+                    names = (str(src[0].name), str(src[0].bl_idname), str(src[1].identifier))
+                    self._maps_to_bake.append((f"{ir_name}_map", names))
+                    params[ir_name] = self._clip(ir_name, sock.default_value, where)
+                    continue
             if sock.is_linked and ir_name in ("roughness", "metallic"):
                 tex = self.texture_input(sock, where, bl_name)
                 if tex is not None:
