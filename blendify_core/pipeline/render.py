@@ -589,11 +589,14 @@ def _add_timings(total: dict[str, float], more: dict[str, float]) -> None:
 #: full passes: the same first samples, so their difference is mostly the indirect light; measured: half the
 #: samples loosened the estimate's upper bound 3.5x on a ball over a dark floor)
 PILOT_PASSES = 2
-#: ... and only when the full passes still need this many times the pilot's samples (it costs <= 1/8 of them)
-PILOT_MIN_GAIN = 8.0
-#: direct light may need this many times the full settings' samples (its noise is estimated from 2 passes and its
-#: samples are cheaper: no bounces)
-DIRECT_SAMPLES_SLACK = 1.25
+#: ... and only when the full passes still need this many times the pilot's samples (it costs <= 1/16 of them;
+#: measured at 4x: 10-15 % slower on a floating bunny, whose indirect light it rightly kept; Mitsuba also
+#: loads the direct-light scene once more)
+PILOT_MIN_GAIN = 16.0
+#: direct light may need this many times the full settings' samples. 1: a direct sample is barely cheaper (Russian
+#: roulette already ends the paths that carry little), and without the indirect light the relative noise of dark
+#: pixels is higher (measured on a ball over a 5 % floor: 1.1x the samples, 0.85x the speed with a slack of 1.25)
+DIRECT_SAMPLES_SLACK = 1.0
 #: indirect light may be left out when its estimated relative RMS (90 % upper bound) is <= this x target
 INDIRECT_SHARE = 0.5
 
