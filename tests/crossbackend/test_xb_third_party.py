@@ -95,5 +95,8 @@ def test_cached_blend_cycles_mitsuba_agree_within_noise(name):
     assert cam is not None
     cam.resolution_percentage = max(1, min(100, round(100 * 96 / cam.width)))  # about 96 px wide
     rep = _crosscheck(scene, name)
+    if ("cycles", "mitsuba") in rep.limited:  # Cycles renders the file itself, Mitsuba its IR parse
+        assert rep.limited[("cycles", "mitsuba")], "a limited pair names what the IR parse could not carry"
+        pytest.xfail("limited by the IR: " + "; ".join(rep.limited[("cycles", "mitsuba")]))
     assert rep.pairs[("cycles", "mitsuba")].noise is not None
     assert rep.passed, rep.summary()

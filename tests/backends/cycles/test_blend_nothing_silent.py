@@ -158,6 +158,8 @@ def test_tint_and_render_settings_are_named_with_the_files_own_names(files, bpy)
         assert what in msg
     assert "diffuse_bounces=2 (bf.render: 12)" in msg
     assert scene.renderables["Box"].material.alpha == pytest.approx(0.4)  # the tint is the approximation
+    lost = scene.attachments[-1].approximations  # the IR parse's limits: the tint, not the settings (bf.render's)
+    assert any("Red Glass is tinted" in a for a in lost) and not any("render settings" in a for a in lost)
     assert added.render_settings is None and added.cycles_settings is None
 
 

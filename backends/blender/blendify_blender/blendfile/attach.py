@@ -49,7 +49,7 @@ from blendify_blender.blendfile.safety import (
     loaded_blend,
     scripts_auto_execute_disabled,
 )
-from blendify_blender.blendfile.settings import describe_unimported, file_render_settings
+from blendify_blender.blendfile.settings import UNIMPORTED, describe_unimported, file_render_settings
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.attachments import Attachment
 from blendify_core.ir.scene import Scene
@@ -414,7 +414,8 @@ def _commit(scene: Any, p: Path, pend: _Pending, with_camera: bool) -> AttachedB
         raise
     if with_camera and camera is None:
         pend.notes.add("no usable camera in the file; scene.camera unchanged")
-    scene.attachments.append(Attachment("blend", str(p), approximations=tuple(pend.notes)))
+    limits = tuple(n for n in pend.notes if not n.startswith(UNIMPORTED))  # the settings are bf.render's anyway
+    scene.attachments.append(Attachment("blend", str(p), approximations=limits))
     record_attach(
         str(p),
         pend.scene_label,

@@ -21,7 +21,21 @@ from typing import Any
 
 from blendify_core.pipeline.settings import resolve_settings
 
-__all__ = ["CYCLES_KEYS", "PORTABLE_KEYS", "SETTINGS_PROPERTY", "describe_unimported", "file_render_settings"]
+__all__ = [
+    "CYCLES_KEYS",
+    "PORTABLE_KEYS",
+    "SETTINGS_PROPERTY",
+    "UNIMPORTED",
+    "describe_unimported",
+    "file_render_settings",
+]
+
+#: the start of the warning line naming the settings not imported (not an approximation of the IR parse: every
+#: backend, Cycles included, renders with bf.render's settings)
+UNIMPORTED = (
+    "render settings not imported (pass render_settings=True to get them in result.render_settings and "
+    "result.cycles_settings): "
+)
 
 #: scene custom property where export_blend stores the blendify render settings of the file (JSON)
 SETTINGS_PROPERTY = "blendify_render_settings"
@@ -174,7 +188,4 @@ def describe_unimported(portable: dict[str, Any], cycles: dict[str, Any]) -> str
         diffs.append(f"cycles.{k}={v!r} (blendify: {d!r})")
     if not diffs:
         return None
-    return (
-        "render settings not imported (pass render_settings=True to get them in result.render_settings and "
-        "result.cycles_settings): " + ", ".join(diffs)
-    )
+    return UNIMPORTED + ", ".join(diffs)
