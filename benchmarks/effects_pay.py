@@ -8,12 +8,14 @@ alternates between repetitions, both sides use the same seed) and the ratio full
 the pair; the table gives the median of the ratios, with their range. The machine may be shared: the load
 average is recorded; the ratios, not the absolute times, are the result.
 
-The scenes do not call for some effect: a Lambertian scene (no glossy, transmission, caustics or transparency),
-lights that cast no shadows, an object floating in the dark (direct light only), a glossy scene whose indirect
-light is below the target, and geometric outputs only. A scene that calls for every effect (a glass sphere on a
-floor) shows that nothing is dropped where everything is needed.
+The scenes do not call for some effect: a Lambertian scene (no glossy, transmission, caustics or
+transparency), lights that cast no shadows, an object floating in the dark (direct light only), a glossy bunny
+floating in the dark, a ball on a near-black floor (indirect light below the target), and geometric outputs
+only. A glass sphere on a floor calls for every effect (too slow to time here: the table says why).
 
-Run: ``wtpy benchmarks/effects_pay.py [--quick] [--reps N]`` (writes benchmarks/results/effects_pay.{md,json,png}).
+Run: ``wtpy benchmarks/effects_pay.py [--quick] [--reps N] [--scenes a,b]`` (writes
+benchmarks/results/effects_pay.{md,json,png}); ``--report run1.json,run2.json`` rewrites the table and plot
+from measured runs (a later run replaces the rows it has).
 """
 
 from __future__ import annotations
@@ -128,12 +130,25 @@ WHY = {
     "use_shadow, Mitsuba's no-shadow integrator); the indirect light is needed",
     "floating": "direct light only in both: every bounce ray off one convex object escapes into the black world at "
     "once, so the bounce limits (Cycles' per-type bounces, Mitsuba's max_depth 2 vs 14) have nothing to cut",
-    "floating_bunny": "the pilot measures the bunny's light on itself (concave, glossy) above half the target: kept",
-    "dark_floor": "the pilot measures the indirect light below half the target and renders direct light only; "
-    "bounces off a 5 % floor are few anyway (Russian roulette ends most of them), which bounds the saving",
+    "floating_bunny": "the pilot measures the bunny's light on itself (concave, glossy) above half the target: kept; "
+    "the pilot's own cost (2 direct passes; Mitsuba loads the direct-light scene) is why it now runs only when the "
+    "full passes need >= 16x its samples (at 4x this row ran 0.94x in Cycles and 0.37x in Mitsuba)",
+    "dark_floor": "the pilot measures the indirect light below half the target, but direct light alone needs about "
+    "as many samples or more (dark pixels' relative noise rises without it) and each is barely cheaper (Russian "
+    "roulette already ends most bounces off a 5 % floor): kept unless fewer samples are needed. Dropping it with "
+    "a 1.25x sample slack ran 0.85x (Cycles) and 0.89x (Mitsuba) in an earlier run",
     "glass": "calls for every effect (refraction, caustics on the floor): nothing to drop; the pilot is not tried",
     "depth_normal": "geometric outputs are rendered without lighting in both settings (Cycles: 1 sample, no "
     "bounces; Mitsuba: ray casts): nothing left to drop",
+}
+
+
+#: scenes whose equal-error time is too long for this loaded machine, and what is known without timing them
+NOT_TIMED = {
+    "glass": "caustics through glass need tens of thousands of samples to reach the target (accuracy_vs_time: "
+    "relMSE 1e-3 not reached within 1024 spp); the effect-aware settings differ from the full ones only by "
+    "transparent bounces 0, which no path takes (nothing is alpha-transparent), and the pilot is not tried "
+    "(transmission): the two settings render the same paths, so no saving is possible",
 }
 
 
@@ -178,6 +193,10 @@ def write_report(data: dict[str, Any], out: Path) -> None:
             + (f" ({r['res']} px, {r['reps']} pairs)" if r.get("res", info["res"]) != info["res"] else "")
             + " |"
         )
+    missing = [sc for sc in SCENES if not any(r["scene"] == sc for r in rows)]
+    if missing:
+        lines += ["", "Not timed in this run:", ""]
+        lines += [f"- {sc}: {NOT_TIMED.get(sc, WHY.get(sc, ''))}" for sc in missing]
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
     import matplotlib
 
@@ -285,14 +304,17 @@ def main() -> None:
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--backends", default="cycles,mitsuba")
     ap.add_argument("--out", default=str(RESULTS / "effects_pay"))
-    ap.add_argument("--report", help="only write the .md/.png from these json files (comma-separated)")
+    ap.add_argument("--report", help="only write the .md/.png from these json files (comma-separated; later wins)")
     args = ap.parse_args()
     if args.report:  # several runs (e.g. a smaller image for the slow glass scene) merge into one table
         runs = [json.loads(Path(f).read_text()) for f in args.report.split(",")]
         for run in runs:
             for row in run["rows"]:
                 row["res"], row["reps"], row["load"] = run["info"]["res"], run["info"]["reps"], run["info"]["load"]
-        merged = {"info": runs[0]["info"], "rows": [row for run in runs for row in run["rows"]]}
+        by_scene: dict[tuple[str, str], Any] = {}  # a later run replaces a scene an earlier one measured
+        for run in runs:
+            by_scene.update({(row["backend"], row["scene"]): row for row in run["rows"]})
+        merged = {"info": runs[0]["info"], "rows": sorted(by_scene.values(), key=lambda r: r["backend"])}
         write_report(merged, Path(args.out))
         return
     res = 64 if args.quick else args.res
