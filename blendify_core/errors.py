@@ -8,6 +8,11 @@ them all at once, and each also derives from the builtin exception a Python user
 
 from __future__ import annotations
 
+import functools
+import inspect
+from collections.abc import Callable
+from typing import Any, TypeVar
+
 __all__ = [
     "BlendifyError",
     "InvalidSceneError",
@@ -20,7 +25,10 @@ __all__ = [
     "exit_code",
     "exit_code_epilog",
     "warn_at_caller",
+    "strict_arguments",
 ]
+
+_F = TypeVar("_F", bound=Callable[..., Any])
 
 
 class BlendifyError(Exception):
@@ -124,3 +132,28 @@ def describe(value: object) -> str:
     if len(text) > 80:
         text = text[:77] + "..."
     return f"{type(value).__name__} {text}"
+
+
+def strict_arguments(func: _F) -> _F:
+    """Decorator: a call with unknown keyword arguments (or missing / surplus arguments) raises
+    InvalidSceneError naming them, instead of Python's bare TypeError. The signature is unchanged
+    (``inspect.signature`` follows ``__wrapped__``). A call that binds costs nothing extra: the arguments
+    are checked only when the call raised TypeError (Python binds before the body runs, so a binding
+    failure means the body never ran; a TypeError from inside the body is raised unchanged)."""
+    if getattr(func, "__blendify_strict__", False):
+        return func
+    sig = inspect.signature(func)
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except TypeError:
+            try:
+                sig.bind(*args, **kwargs)
+            except TypeError as exc:
+                raise InvalidSceneError(f"{func.__qualname__}: {exc}") from None
+            raise
+
+    wrapper.__blendify_strict__ = True  # type: ignore[attr-defined]
+    return wrapper  # type: ignore[return-value]

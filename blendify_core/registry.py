@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from importlib import metadata
 from typing import Any
 
-from blendify_core.errors import BackendUnavailableError, InvalidSceneError, UnsupportedFeatureError
+from blendify_core.errors import BackendUnavailableError, InvalidSceneError, UnsupportedFeatureError, strict_arguments
 
 __all__ = [
     "BackendStatus",
@@ -57,6 +57,7 @@ _registered: dict[str, Any] = {}  # name -> class or "module:Class"
 _lock = threading.Lock()
 
 
+@strict_arguments
 def register_backend(name: str, target: type | str) -> None:
     """Register a backend class (or a "module:Class" path) under ``name`` at run time."""
     if not isinstance(name, str) or not name:
@@ -64,6 +65,7 @@ def register_backend(name: str, target: type | str) -> None:
     _registered[name] = target
 
 
+@strict_arguments
 def unregister_backend(name: str) -> None:
     _registered.pop(name, None)
 
@@ -76,11 +78,13 @@ def _entry_points() -> dict[str, Any]:
     return found
 
 
+@strict_arguments
 def backend_names() -> list[str]:
     """Names of every registered backend (available or not), without importing any of them."""
     return sorted(_entry_points())
 
 
+@strict_arguments
 def get_backend_class(name: str) -> Any:
     """Import and return the class of backend ``name`` (raises BackendUnavailableError with the reason)."""
     points = _entry_points()
@@ -102,6 +106,7 @@ def get_backend_class(name: str) -> Any:
     return cls
 
 
+@strict_arguments
 def available_backends() -> dict[str, BackendStatus]:
     """Every registered backend with its status: available, why not, engine version."""
     out: dict[str, BackendStatus] = {}
@@ -114,6 +119,7 @@ def available_backends() -> dict[str, BackendStatus]:
     return out
 
 
+@strict_arguments
 def get_backend(name: str, **options: Any) -> Any:
     """A new instance of backend ``name`` with ``options`` (close it when done, or use ``with``)."""
     cls = get_backend_class(name)
@@ -142,6 +148,7 @@ def shared_backend(name: str, **options: Any) -> Any:
         return inst
 
 
+@strict_arguments
 def close_backends() -> None:
     """Close every shared backend instance created by ``bf.render``."""
     with _lock:
@@ -151,6 +158,7 @@ def close_backends() -> None:
         inst.close()
 
 
+@strict_arguments
 def backend_for_format(file_format: str) -> Any:
     """The class of the first available backend (by name) that declares ``file_format`` in its
     ``file_formats``; raises UnsupportedFeatureError naming the format and what was tried."""
@@ -185,6 +193,7 @@ _CORE_TOOLS = {
 FORMAT_SUFFIXES = {".glb": "glb", ".gltf": "gltf", ".html": "html", ".blend": "blend", ".xml": "mitsuba"}
 
 
+@strict_arguments
 def core_tool(name: str) -> Any:
     """The core function registered as ``name`` (``"glb"``, ``"html"``, ``"show"``, ...), imported now."""
     target = _CORE_TOOLS.get(name)
@@ -194,6 +203,7 @@ def core_tool(name: str) -> Any:
     return getattr(importlib.import_module(module_name), attr)
 
 
+@strict_arguments
 def exporter_for_format(file_format: str) -> Any:
     """A function ``(scene, path, **kwargs)`` writing ``file_format``: the core's own exporter (glTF,
     HTML) or, for engine formats (``blend``, ``mitsuba``), the ``export_file`` of the first available

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import datetime
-import functools
 import inspect
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any, TypeVar
 
 import numpy as np
 
 from blendify_core.errors import InvalidSceneError, describe
+from blendify_core.errors import strict_arguments as strict_arguments  # re-exported: the IR's decorator
 from blendify_core.typing import AnyArray
 
 _Array = TypeVar("_Array", bound="np.ndarray[Any, Any]")
@@ -240,33 +240,7 @@ def reject_unknown(where: str, kwargs: dict[str, Any], allowed: Iterable[str] = 
         raise InvalidSceneError(f"{where}: unknown keyword argument(s) {unknown}")
 
 
-_F = TypeVar("_F", bound=Callable[..., Any])
 _C = TypeVar("_C", bound=type)
-
-
-def strict_arguments(func: _F) -> _F:
-    """Decorator: a call with unknown keyword arguments (or missing / surplus arguments) raises
-    InvalidSceneError naming them, instead of Python's bare TypeError. The signature is unchanged
-    (``inspect.signature`` follows ``__wrapped__``). A call that binds costs nothing extra: the arguments
-    are checked only when the call raised TypeError (Python binds before the body runs, so a binding
-    failure means the body never ran; a TypeError from inside the body is raised unchanged)."""
-    if getattr(func, "__blendify_strict__", False):
-        return func
-    sig = inspect.signature(func)
-
-    @functools.wraps(func)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return func(*args, **kwargs)
-        except TypeError:
-            try:
-                sig.bind(*args, **kwargs)
-            except TypeError as exc:
-                raise InvalidSceneError(f"{func.__qualname__}: {exc}") from None
-            raise
-
-    wrapper.__blendify_strict__ = True  # type: ignore[attr-defined]
-    return wrapper  # type: ignore[return-value]
 
 
 def strict_api(cls: _C) -> _C:

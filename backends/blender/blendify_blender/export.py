@@ -11,6 +11,7 @@ This module sits above the translator, which sits above the .blend parsing and s
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 from pathlib import Path
@@ -20,7 +21,7 @@ from blendify_blender import session
 from blendify_blender.blendfile.common import TAG_PROPERTY
 from blendify_blender.blendfile.settings import PORTABLE_KEYS, SETTINGS_PROPERTY
 from blendify_blender.translate import build_scene
-from blendify_core.errors import InvalidSceneError, RenderError
+from blendify_core.errors import InvalidSceneError, OutputError, RenderError
 from blendify_core.ir.scene import Scene
 from blendify_core.ir.validate import as_bool, strict_arguments
 from blendify_core.pipeline.settings import resolve_settings
@@ -79,7 +80,7 @@ def _checked_arguments(scene: Any, path: Any, pack_textures: Any, settings: dict
     if out.suffix.lower() != ".blend":
         raise InvalidSceneError(f"path: expected a file name ending in .blend, got {str(out)!r}")
     if out.is_dir():
-        raise InvalidSceneError(f"path: {str(out)!r} is a directory")
+        raise OutputError(f"path: {str(out)!r} is a directory, not a .blend file to write", str(out), errno.EISDIR)
     pack_textures = as_bool("pack_textures", pack_textures)
     if scene.camera is None:
         raise InvalidSceneError("scene.camera: the scene has no camera; call scene.set_perspective_camera(...) first")
@@ -91,7 +92,9 @@ def _checked_arguments(scene: Any, path: Any, pack_textures: Any, settings: dict
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise InvalidSceneError(f"path: cannot create the folder {str(out.parent)!r} ({exc})") from None
+        raise OutputError(
+            f"path: cannot create the folder {str(out.parent)!r} ({exc})", str(out.parent), exc.errno
+        ) from None
     return out, render_settings
 
 
