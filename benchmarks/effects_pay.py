@@ -178,7 +178,9 @@ def write_report(data: dict[str, Any], out: Path) -> None:
         f"load average {info['load'][0]:.1f} -> {info['load'][1]:.1f} on {info['cpus']} cores (a shared, loaded "
         "machine: the absolute times are slow and noisy; ratios within 0.7-1.4 are noise at this load).",
         "",
-        "Run: `wtpy benchmarks/effects_pay.py` (``--quick`` for 64 px, 3 repetitions).",
+        "Run: `wtpy benchmarks/effects_pay.py --res 64 --reps 5` (``--quick``: 64 px, 3 repetitions)"
+        + (f"; this table merges {', '.join(info['sources'])} (later runs replace rows)" if info.get("sources") else "")
+        + ".",
         "",
         "| scene | engine | effect-aware drops | spp eff / full | time eff / full (s, median) | ratio full/eff | why |",
         "|---|---|---|---|---|---|---|",
@@ -190,7 +192,11 @@ def write_report(data: dict[str, Any], out: Path) -> None:
             f"| {r['scene']} | {r['backend']} | {_dropped(r)} | {spp_e} / {spp_f} | "
             f"{r['t_eff_median']:.2f} / {r['t_full_median']:.2f} | "
             f"{r['ratio_median']:.2f} ({r['ratio_min']:.2f}-{r['ratio_max']:.2f}) | {WHY.get(r['scene'], '')}"
-            + (f" ({r['res']} px, {r['reps']} pairs)" if r.get("res", info["res"]) != info["res"] else "")
+            + (
+                f" ({r['res']} px, {r['reps']} pairs)"
+                if (r.get("res", info["res"]), r.get("reps", info["reps"])) != (info["res"], info["reps"])
+                else ""
+            )
             + " |"
         )
     missing = [sc for sc in SCENES if not any(r["scene"] == sc for r in rows)]
@@ -314,7 +320,11 @@ def main() -> None:
         by_scene: dict[tuple[str, str], Any] = {}  # a later run replaces a scene an earlier one measured
         for run in runs:
             by_scene.update({(row["backend"], row["scene"]): row for row in run["rows"]})
-        merged = {"info": runs[0]["info"], "rows": sorted(by_scene.values(), key=lambda r: r["backend"])}
+        sources = [Path(f).name for f in args.report.split(",")]
+        merged = {
+            "info": {**runs[0]["info"], "sources": sources},
+            "rows": sorted(by_scene.values(), key=lambda r: r["backend"]),
+        }
         write_report(merged, Path(args.out))
         return
     res = 64 if args.quick else args.res
