@@ -4,8 +4,9 @@ A path tracer's error falls as 1/sqrt(samples) and its time grows as a fixed cos
 sample. The pilot renders exactly the first passes ``final`` renders (``FIRST_PASSES`` independent passes of
 the preset's samples: their spread is the render's own first estimate, with the same sampler at the same
 sample count, so a quasi-Monte-Carlo sampler's faster convergence at higher counts is not extrapolated from
-tiny passes), one 1-sample pass and one pass of ``LONG_PASS`` times the preset's samples: a line fitted to the
-passes' times separates the fixed cost per pass from the cost per sample. The
+tiny passes) and one pass of ``LONG_PASS`` times the preset's samples. Their times separate the fixed cost
+per pass, the cost per sample and what an engine pays the first time it renders a sample count (Mitsuba's
+llvm variants compile a kernel: the first pass against its repeats). The
 prediction replays the schedule :func:`~blendify_core.pipeline.render.render_to_target` follows from there
 (the same pass sizing), so predicted passes and samples are those the render takes if the error keeps
 falling as 1/sqrt(samples). The pilot costs about twice the cheapest ``final`` render.
@@ -36,7 +37,7 @@ from blendify_core.pipeline.render import (
 from blendify_core.pipeline.settings import FINAL_TARGET_ERROR, resolve_settings
 from blendify_core.typing import FloatArray
 
-__all__ = ["CostEstimate", "estimate_cost", "predict_schedule"]
+__all__ = ["CostEstimate", "estimate_cost", "predict_schedule", "schedule"]
 
 #: the pilot's last pass renders this many times the preset's pass samples: it fixes the cost per sample,
 #: which 1- and 16-sample passes alone leave to timing noise on hard scenes
@@ -63,6 +64,8 @@ class CostEstimate:
     #: "noise" for a path tracer; "bias" for a raster backend (one render; its error is not noise)
     kind: str
     reaches_target: bool
+    #: an engine's extra cost the first time it renders a sample count (Mitsuba's llvm variants compile)
+    seconds_per_new_size: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -79,18 +82,24 @@ class CostEstimate:
         )
 
 
-def predict_schedule(error_at: float, samples_at: int, target: float, base: int) -> tuple[int, int, bool]:
-    """Passes and total samples ``render_to_target`` takes if the error is ``error_at`` at ``samples_at``
-    samples and falls as 1/sqrt(samples); and whether it reaches ``target`` before the caps."""
+def schedule(error_at: float, samples_at: int, target: float, base: int) -> tuple[list[int], bool]:
+    """The pass sizes ``render_to_target`` renders if the error is ``error_at`` at ``samples_at`` samples and
+    falls as 1/sqrt(samples), and whether it reaches ``target`` before the caps."""
     counts = [base] * FIRST_PASSES
     while True:
         total = sum(counts)
         estimate = error_at * np.sqrt(samples_at / total)
         if estimate <= target:
-            return len(counts), total, True
+            return counts, True
         if len(counts) >= MAX_PASSES or total >= MAX_SAMPLES:
-            return len(counts), total, False
+            return counts, False
         counts.append(_next_pass_samples(total, float(estimate), target, base))
+
+
+def predict_schedule(error_at: float, samples_at: int, target: float, base: int) -> tuple[int, int, bool]:
+    """Passes and total samples of :func:`schedule`, and whether it reaches ``target``."""
+    counts, reached = schedule(error_at, samples_at, target, base)
+    return len(counts), sum(counts), reached
 
 
 @strict_arguments
@@ -104,7 +113,7 @@ def estimate_cost(
 ) -> CostEstimate:
     """Predict the samples and seconds a render of ``scene`` to ``target_error`` (default: the quality
     preset's target, else :data:`FINAL_TARGET_ERROR`) takes, from a pilot at the scene's own resolution: the
-    render's own first passes and one 1-sample pass (see the module's documentation).
+    render's own first passes and one longer pass (see the module's documentation).
     ``kwargs`` are passed to :func:`bf.render` (settings overrides and backend options)."""
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
@@ -133,16 +142,14 @@ def estimate_cost(
         _, seconds, _ = one(1, 0)
         return CostEstimate(name, target, 1, 1, seconds, (seconds, seconds), 0, time.perf_counter() - t_start,
                             0.0, 0.0, seconds, "bias", True)  # fmt: skip
-    _, t_one, _ = one(1, 1)
-    firsts = [one(base, i) for i in range(FIRST_PASSES)]  # seeds as render_to_target's first passes
+    # the render's own first passes (the first of a sample count pays an engine's compilation for it, e.g.
+    # Mitsuba's llvm variants: the difference to the repeats), then one pass of a new, larger count
+    firsts = [one(base, i) for i in range(FIRST_PASSES)]
     long_rgb, t_long, _ = one(LONG_PASS * base, FIRST_PASSES)
-    # time = per_pass + n * per_sample, fitted to every pilot pass (the long one fixes the slope)
-    ns = np.array([1.0] + [float(base)] * FIRST_PASSES + [float(LONG_PASS * base)])
-    ts = np.array([t_one] + [t for _, t, _ in firsts] + [t_long])
-    per_sample, per_pass = (float(v) for v in np.polyfit(ns, ts, 1))
-    if per_sample <= 0.0:  # timing noise larger than the work: all cost is per pass
-        per_sample, per_pass = 0.0, float(np.median(ts))
-    per_pass = max(per_pass, 0.0)
+    t_rep = float(np.median([t for _, t, _ in firsts[1:]]))
+    per_size = max(firsts[0][1] - t_rep, 0.0)
+    per_sample = max((t_long - per_size - t_rep) / ((LONG_PASS - 1) * base), 0.0)
+    per_pass = max(t_rep - base * per_sample, 0.0)
     colours = [c for c, _, _ in firsts] + [long_rgb]
     if any(c is None for c in colours):
         raise InvalidSceneError("estimate_cost: the error is estimated on colour; the render has no 'rgb' output")
@@ -151,13 +158,14 @@ def estimate_cost(
     pilot_error = relative_error_estimate(stack, counts)
     lo_err, hi_err = error_interval(stack, counts)
     pilot_n = int(counts.sum())
-    passes, samples, reached = predict_schedule(pilot_error, pilot_n, target, base)
+    compiled = {base, LONG_PASS * base}  # sizes this process's engine has seen now
 
     def seconds_for(err: float) -> float:
-        k, n, _ = predict_schedule(err, pilot_n, target, base)
-        return k * per_pass + n * per_sample
+        sizes, _ = schedule(err, pilot_n, target, base)
+        return len(sizes) * per_pass + sum(sizes) * per_sample + len(set(sizes) - compiled) * per_size
 
-    seconds = passes * per_pass + samples * per_sample
+    passes, samples, reached = predict_schedule(pilot_error, pilot_n, target, base)
+    seconds = seconds_for(pilot_error)
     hi_err = hi_err if np.isfinite(hi_err) else pilot_error * 2
     return CostEstimate(
         backend=name,
@@ -173,4 +181,5 @@ def estimate_cost(
         seconds_per_pass=per_pass,
         kind="noise",
         reaches_target=reached,
+        seconds_per_new_size=per_size,
     )

@@ -566,16 +566,27 @@ MAX_SAMPLES = 1 << 16
 FIRST_PASSES = 4
 
 
+def _rendered_samples(result: RenderResult, asked: int) -> int:
+    """The samples a pass really took (an engine's stratified sampler may round the request up: Mitsuba
+    reports ``rendered_spp``), which weigh the passes' mean."""
+    rendered = result.meta.get("rendered_spp")
+    return int(rendered) if isinstance(rendered, (int, np.integer)) and rendered > 0 else asked
+
+
 def pass_seed(seed: int, index: int) -> int:
     """The seed of independent pass ``index`` (pass 0 uses ``seed`` itself)."""
     return (seed + 7919 * index) % (2**31 - 1)
 
 
 def _next_pass_samples(total: int, estimate: float, target: float, base: int) -> int:
-    """Samples of the next pass: half of what the estimate says is still needed (error ~ 1/sqrt(samples)),
-    at least ``base``; the target is approached in a few passes without overshooting by much."""
+    """Samples of the next pass: about half of what the estimate says is still needed (error ~
+    1/sqrt(samples)), rounded down to ``base`` times a power of two, so the target is approached in a few
+    passes without overshooting by much, and a render repeats few distinct pass sizes (an engine that compiles
+    per sample count, like Mitsuba's llvm variants, then reuses its kernels)."""
     needed = total * (estimate / target) ** 2 * 1.1 - total
-    return int(np.clip(np.ceil(needed / 2), base, max(MAX_SAMPLES - total, 1)))
+    half = max(float(np.ceil(needed / 2)), float(base))
+    n = base * 2 ** int(np.floor(np.log2(half / base)))
+    return int(np.clip(n, 1, max(MAX_SAMPLES - total, 1)))
 
 
 def _add_timings(total: dict[str, float], more: dict[str, float]) -> None:
@@ -707,7 +718,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
         return first
     colours = [first.rgba[..., :3].astype(np.float64)]
     alphas = [first.rgba[..., 3:4].astype(np.float64)]
-    counts = [base]
+    counts = [_rendered_samples(first, base)]
     estimate = float("inf")
     stopped = "pass cap"
     noise_target, pilot, bias = target, None, 0.0
@@ -742,7 +753,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
             raise RenderError(f"backend {inst.name!r} returned no 'rgb' output for pass {len(colours) + 1}")
         colours.append(r.rgba[..., :3].astype(np.float64))
         alphas.append(r.rgba[..., 3:4].astype(np.float64))
-        counts.append(max(1, n))
+        counts.append(_rendered_samples(r, max(1, n)))
         _add_timings(first.meta.setdefault("timings", {}), r.meta.get("timings", {}))
     n_arr = np.array(counts, dtype=np.float64)
     w = (n_arr / n_arr.sum()).reshape(-1, 1, 1, 1)
