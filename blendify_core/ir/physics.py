@@ -28,6 +28,7 @@ __all__ = [
     "point_intensity",
     "sphere_light_radiance",
     "spot_cone",
+    "spot_falloff",
 ]
 
 
@@ -54,6 +55,21 @@ def spot_cone(spot_size: float, spot_blend: float) -> tuple[float, float]:
     blend = float(spot_blend)
     inner = math.acos(min(1.0, blend + (1.0 - blend) * math.cos(half)))
     return half, inner
+
+
+def spot_falloff(cos_angle: ArrayLike, spot_size: float, spot_blend: float) -> Float64Array:
+    """Blender's spot attenuation at directions whose angle to the axis has cosine ``cos_angle``: 0 outside
+    the cone, 1 inside the full-intensity cone of :func:`spot_cone`, a smoothstep in cos(angle) over the blend
+    band between (no cosine factor)."""
+    half, inner = spot_cone(spot_size, spot_blend)
+    c = np.asarray(cos_angle, dtype=np.float64)
+    lo, hi = math.cos(half), math.cos(inner)
+    if hi - lo <= 0.0:
+        out: Float64Array = (c > lo).astype(np.float64)
+        return out
+    t = np.clip((c - lo) / (hi - lo), 0.0, 1.0)
+    out = t * t * (3.0 - 2.0 * t)
+    return out
 
 
 def blend_normal_map(normals: ArrayLike, strength: float) -> Float64Array:

@@ -26,8 +26,6 @@ KNOWN_THIRD_PARTY: dict[str, str] = {
     "mitsuba_cbox": "colour agrees within noise; instance ids differ on ~37 of 4096 pixels, all on the seams where "
     "two walls meet (the symmetric box puts the shared edges exactly through pixel centres: a tie either engine "
     "may break)",
-    "pyrender_example": "colour +3 % over the whole image from the spot light (spot_size 60 deg, blend 0.625): "
-    "without it the pair passes; the engines' spot blend falloff differs (lights issue)",
     "blendify_nurbs_primitives": "normals 15 deg apart (median) on the NURBS curve only (its tube's shading "
     "normals differ between the engines: geometry issue); the colour beyond the material margin in 14 of 84 tiles",
     "blendify_readme_cube": "2-3 of 64 tiles beyond the material margin on a pure green Principled cube under a "

@@ -47,7 +47,13 @@ from blendify_core.ir.materials import (
     PrincipledBSDFMaterial,
     PrincipledBSDFWireframeMaterial,
 )
-from blendify_core.ir.physics import blend_normal_map, point_intensity, sphere_light_radiance, spot_cone
+from blendify_core.ir.physics import (
+    blend_normal_map,
+    point_intensity,
+    sphere_light_radiance,
+    spot_cone,
+    spot_falloff,
+)
 from blendify_core.ir.renderables import (
     CircleMesh,
     CubeMesh,
@@ -212,6 +218,43 @@ def _data_texture(values: np.ndarray) -> dict[str, Any]:
     """A raw (never colour-managed) single-channel bitmap; UVs are v-flipped like colour textures."""
     data = np.ascontiguousarray(np.asarray(values, dtype=np.float32)[..., None])
     return {"type": "bitmap", "data": _mi().TensorXf(data), "raw": True, "filter_type": "bilinear"}
+
+
+#: Mitsuba's spot texture spans tan(angle) / tan(cutoff): beyond this half-angle the blend band would be
+#: squeezed into too few texels (and tan(90 deg) overflows), so wider spots keep Mitsuba's linear ramp
+_SPOT_TEXTURE_MAX_HALF = math.radians(88.0)
+#: largest spot falloff texture (per side) and the interpolation error it must reach
+_SPOT_TEXTURE_MAX_RES = 2048
+_SPOT_TEXTURE_TOL = 2e-3
+
+
+def _spot_texture(spot_size: float, spot_blend: float) -> dict[str, Any] | None:
+    """Blender's spot falloff (:func:`blendify_core.ir.physics.spot_falloff`) as the texture Mitsuba's ``spot``
+    projects over its cone: the texel at uv looks along tan(angle) = 2 |uv - 0.5| tan(cutoff) (Mitsuba's
+    ``spot``: uv = 0.5 + 0.5 (x / z) / tan(cutoff)), radially symmetric so the v flip is moot. The size is the
+    smallest power of two whose bilinear interpolation along a radius stays within ``_SPOT_TEXTURE_TOL``;
+    None when the cone is too wide or no size up to ``_SPOT_TEXTURE_MAX_RES`` is fine enough."""
+    half = 0.5 * float(spot_size)
+    if half > _SPOT_TEXTURE_MAX_HALF:
+        return None
+    tan_half = math.tan(half)
+
+    def falloff(r: np.ndarray) -> np.ndarray:  # r: distance from the texture's centre in uv
+        tan = 2.0 * r * tan_half
+        return spot_falloff(1.0 / np.sqrt(1.0 + tan * tan), spot_size, spot_blend)
+
+    n = 64
+    while True:
+        centres = (np.arange(n // 2) + 0.5) / n  # texel centres along a radius
+        fine = np.linspace(centres[0], centres[-1], 16 * n)
+        if np.max(np.abs(np.interp(fine, centres, falloff(centres)) - falloff(fine))) <= _SPOT_TEXTURE_TOL:
+            break
+        if n >= _SPOT_TEXTURE_MAX_RES:
+            return None
+        n *= 2
+    c = (np.arange(n) + 0.5) / n - 0.5
+    r = np.hypot(c[:, None], c[None, :])
+    return _data_texture(falloff(r)) | {"wrap_mode": "clamp"}
 
 
 def _normal_texture(nmap: Any) -> dict[str, Any]:
@@ -1196,21 +1239,36 @@ class MitsubaTranslator(Translator):
         SpotLight,
         features={
             "light.spot": _exact("spot, intensity = P / (4 pi), cutoff = spot_size / 2"),
-            "light.spot.blend": approximate("Mitsuba's falloff is linear in angle, Blender's a smoothstep"),
+            "light.spot.blend": _exact(
+                "Blender's smoothstep falloff as a projected texture (beam_width = cutoff; cones over "
+                f"{math.degrees(_SPOT_TEXTURE_MAX_HALF):.0f} deg half-angle keep Mitsuba's linear ramp, listed in meta)"
+            ),
         },
     )
     def spot_light(self, light: SpotLight, ctx: MitsubaContext) -> dict[str, Any] | None:
-        """A ``spot`` emitter (delta: the radius is ignored) turned to emit along Blender's local -Z."""
+        """A ``spot`` emitter (delta: the radius is ignored) turned to emit along Blender's local -Z, its blend
+        band a projected texture of :func:`blendify_core.ir.physics.spot_falloff` (see :func:`_spot_texture`)."""
         if light.strength <= 0:
             return None
         half, beam = spot_cone(light.spot_size, light.spot_blend)
-        return {
+        out = {
             "type": "spot",
             "intensity": _rgb(light.linear_color * point_intensity(light.strength)),
             "cutoff_angle": math.degrees(half),
             "beam_width": max(math.degrees(beam), 1e-4),
             "to_world": _mat(light.matrix_world @ _FLIP_Z),
         }
+        if beam < half:
+            tex = _spot_texture(light.spot_size, light.spot_blend)
+            if tex is None:
+                ctx.approximate(
+                    f"light.spot.blend: spot light {light.tag!r} (half-angle {math.degrees(half):.1f} deg) falls off "
+                    "linearly in angle over its blend band, Blender's smoothstep in cos(angle)"
+                )
+            else:
+                out["beam_width"] = math.degrees(half)
+                out["texture"] = tex
+        return out
 
     @handles(
         AreaLight,

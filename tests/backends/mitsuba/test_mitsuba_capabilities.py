@@ -117,7 +117,11 @@ FROZEN: dict[str, tuple[str, str]] = {
     "light.sun": ("exact", "directional, irradiance = strength"),
     "light.sun.soft": ("approximate", "delta directional light (angular diameter ignored: hard shadows)"),
     "light.spot": ("exact", "spot, intensity = P / (4 pi), cutoff = spot_size / 2"),
-    "light.spot.blend": ("approximate", "Mitsuba's falloff is linear in angle, Blender's a smoothstep"),
+    "light.spot.blend": (
+        "exact",
+        "Blender's smoothstep falloff as a projected texture (beam_width = cutoff; cones over 88 deg half-angle "
+        "keep Mitsuba's linear ramp, listed in meta)",
+    ),
     "light.area": (
         "exact",
         "rectangle with radiance P / (pi A), one-sided, hidden from the camera (visible from its emitting"

@@ -120,7 +120,7 @@ def test_lights_radiometry(mi_scalar):
     assert sun["direction"] == pytest.approx(list(sun_dir))
     assert spot["type"] == "spot" and spot["intensity"]["value"] == pytest.approx([200 / (4 * np.pi)] * 3)
     assert spot["cutoff_angle"] == pytest.approx(45.0)
-    assert spot["beam_width"] == pytest.approx(math.degrees(math.acos(0.3 + 0.7 * math.cos(math.radians(45)))))
+    assert spot["beam_width"] == pytest.approx(45.0)  # no built-in ramp: Blender's falloff is the texture
     assert _m(spot["to_world"])[:3, 2] == pytest.approx([0, 0, -1])  # Mitsuba +Z = Blender -Z: downwards
     assert rect["type"] == "rectangle" and rect["flip_normals"] and rect["bsdf"]["type"] == "null"
     assert rect["emitter"]["radiance"]["value"] == pytest.approx([40 / (np.pi * 0.1)] * 3)
@@ -128,6 +128,33 @@ def test_lights_radiometry(mi_scalar):
     assert disk["type"] == "disk"
     assert disk["emitter"]["radiance"]["value"] == pytest.approx([30 / (np.pi * np.pi * 0.04)] * 3)
     assert d["background"]["type"] == "constant" and d["background"]["radiance"]["value"] == pytest.approx([0.5] * 3)
+
+
+def test_spot_blend_is_blenders_falloff_as_projected_texture(mi_scalar):
+    """The spot's texture holds spot_falloff at the direction each texel looks along (Mitsuba's spot: uv =
+    0.5 + 0.5 tan(angle) / tan(cutoff)); a spot too wide for the texture keeps the linear ramp, listed."""
+    from blendify_core.ir.physics import spot_cone, spot_falloff
+
+    size, blend = np.deg2rad(90), 0.3
+    scene = bf.Scene()
+    scene.lights.add_spot(200.0, spot_size=size, spot_blend=blend, translation=(0, 0, 3))
+    tex = np.array(_emitters(scene)["light0000"]["texture"]["data"])[..., 0]
+    n = tex.shape[0]
+    assert tex.shape == (n, n) and n >= 64
+    uv = (np.arange(n) + 0.5) / n
+    tan = 2.0 * np.hypot(uv[:, None] - 0.5, uv[None, :] - 0.5) * np.tan(0.5 * size)
+    np.testing.assert_allclose(tex, spot_falloff(1.0 / np.sqrt(1.0 + tan**2), size, blend), atol=1e-6)
+    half, inner = spot_cone(size, blend)
+    band = (tan > np.tan(inner)) & (tan < np.tan(half))
+    assert band.sum() > 100 and 0.0 < tex[band].min() < 0.1 and 0.9 < tex[band].max() < 1.0
+    assert tex[n // 2, n // 2] == pytest.approx(1.0) and tex[0, 0] == 0.0
+
+    wide = bf.Scene()
+    wide.lights.add_spot(200.0, spot_size=np.deg2rad(179), spot_blend=blend, translation=(0, 0, 3))
+    ctx = MitsubaContext(scene=wide)
+    d = MitsubaTranslator(SETTINGS).emitters(ctx)["light0000"]
+    assert "texture" not in d and d["beam_width"] < d["cutoff_angle"] == pytest.approx(89.5)
+    assert any("light.spot.blend" in a and "Spot_000" in a for a in ctx.approximations)
 
 
 def test_point_light_with_radius_is_a_sphere_emitter(mi_scalar):
