@@ -224,8 +224,8 @@ def _data_texture(values: np.ndarray) -> dict[str, Any]:
 #: squeezed into too few texels (and tan(90 deg) overflows), so wider spots keep Mitsuba's linear ramp
 _SPOT_TEXTURE_MAX_HALF = math.radians(88.0)
 #: largest spot falloff texture (per side) and the interpolation error it must reach
-_SPOT_TEXTURE_MAX_RES = 2048
-_SPOT_TEXTURE_TOL = 2e-3
+_SPOT_TEXTURE_MAX_RES = 1024
+_SPOT_TEXTURE_TOL = 5e-3
 
 
 def _spot_texture(spot_size: float, spot_blend: float) -> dict[str, Any] | None:
@@ -246,7 +246,7 @@ def _spot_texture(spot_size: float, spot_blend: float) -> dict[str, Any] | None:
     n = 64
     while True:
         centres = (np.arange(n // 2) + 0.5) / n  # texel centres along a radius
-        fine = np.linspace(centres[0], centres[-1], 16 * n)
+        fine = np.linspace(0.0, 0.5, 16 * n)  # to the cone's edge: beyond the last centre Mitsuba clamps
         if np.max(np.abs(np.interp(fine, centres, falloff(centres)) - falloff(fine))) <= _SPOT_TEXTURE_TOL:
             break
         if n >= _SPOT_TEXTURE_MAX_RES:
@@ -1240,8 +1240,9 @@ class MitsubaTranslator(Translator):
         features={
             "light.spot": _exact("spot, intensity = P / (4 pi), cutoff = spot_size / 2"),
             "light.spot.blend": _exact(
-                "Blender's smoothstep falloff as a projected texture (beam_width = cutoff; cones over "
-                f"{math.degrees(_SPOT_TEXTURE_MAX_HALF):.0f} deg half-angle keep Mitsuba's linear ramp, listed in meta)"
+                "Blender's smoothstep falloff as a projected texture (beam_width = cutoff; spots over "
+                f"{2 * math.degrees(_SPOT_TEXTURE_MAX_HALF):.0f} deg or with blend bands too narrow for "
+                f"{_SPOT_TEXTURE_MAX_RES} texels keep Mitsuba's linear ramp, listed in meta)"
             ),
         },
     )
@@ -1262,8 +1263,9 @@ class MitsubaTranslator(Translator):
             tex = _spot_texture(light.spot_size, light.spot_blend)
             if tex is None:
                 ctx.approximate(
-                    f"light.spot.blend: spot light {light.tag!r} (half-angle {math.degrees(half):.1f} deg) falls off "
-                    "linearly in angle over its blend band, Blender's smoothstep in cos(angle)"
+                    f"light.spot.blend: spot light {light.tag!r} (spot_size {math.degrees(light.spot_size):.1f} deg, "
+                    f"spot_blend {light.spot_blend:g}) is too wide or its blend band too narrow for the falloff "
+                    "texture: it falls off linearly in angle over the band, Blender's smoothstep in cos(angle)"
                 )
             else:
                 out["beam_width"] = math.degrees(half)

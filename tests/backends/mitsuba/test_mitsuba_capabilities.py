@@ -119,8 +119,8 @@ FROZEN: dict[str, tuple[str, str]] = {
     "light.spot": ("exact", "spot, intensity = P / (4 pi), cutoff = spot_size / 2"),
     "light.spot.blend": (
         "exact",
-        "Blender's smoothstep falloff as a projected texture (beam_width = cutoff; cones over 88 deg half-angle "
-        "keep Mitsuba's linear ramp, listed in meta)",
+        "Blender's smoothstep falloff as a projected texture (beam_width = cutoff; spots over 176 deg or with "
+        "blend bands too narrow for 1024 texels keep Mitsuba's linear ramp, listed in meta)",
     ),
     "light.area": (
         "exact",
