@@ -49,6 +49,17 @@ CACHE = ROOT / "benchmarks" / ".cache" / "preview_look"
 TAGS = ("before", "after")
 #: the issue's goals: diffuse scenes, the others
 GOAL_DIFFUSE, GOAL_OTHER = 0.9, 0.8
+#: what the numbers do not say by themselves (kept with the table)
+NOTES = [
+    "Notes: 'before' = main at 30ae1ef (12:36 UTC), 'after' = issue 23's changes plus what other sessions landed "
+    "meanwhile (notably pyrender's integrated area lights: sphere_diffuse/metal, plane_area, Cornell box). "
+    "small_points: the coverage now matches Cycles (0.336 vs 0.340, was 0.529) but the SSIM fell (0.66 -> 0.51): "
+    "the cloud of 150k sub-pixel spheres is drawn as ~12k spheres of 0.7 px with the same summed area (each "
+    "pixel's coverage is 0 or 1 in the colour pass, 1/9 steps in the coverage pass: speckle where Cycles is "
+    "smooth); drawing more of them raises it (0.57 at 0.4 px, 0.61 at 0.25 px) at 2-7x the time. The remaining "
+    "gaps are indirect light (Cornell box, emitter, spheres on a lit floor: no bounce light or ambient "
+    "occlusion in the preview), refraction (glass) and mirror reflections of the scene (metal).",
+]
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -265,6 +276,7 @@ def write_table(size: tuple[int, int], samples: int) -> None:
                 f"- {t}: small points (150k, 0.006 wide) cover {cov['coverage_preview']:.3f} of the image in the "
                 f"preview, {cov['coverage_cycles']:.3f} in Cycles (alpha, 64 spp)"
             )
+    lines += ["", *NOTES]
     lines += [
         "",
         "'ratio' = mean preview colour / mean Cycles colour (covered pixels). Contact sheet: per scene Cycles, "
