@@ -83,6 +83,13 @@ def test_sub_pixel_spheres_cover_their_area(pyr, impostors, d_px):
     res = render(scene, backend=pyr, quality="preview")
     expected = 1 - np.exp(-n * np.pi * d_px**2 / 4 / (48 * 36))  # 0.25, 0.69
     assert abs(res.rgba[..., 3].mean() - expected) < 0.05 * expected
+    # later frames draw a random subset of wider spheres of the same summed area: the same coverage
+    from blendify_pyrender.render import SUBPIXEL_DRAWN_DIAMETER
+
+    again = render(scene, backend=pyr, quality="preview")
+    thinned = any("sub-pixel spheres" in a for a in again.meta["approximations"])
+    assert thinned == (d_px < SUBPIXEL_DRAWN_DIAMETER)
+    assert abs(again.rgba[..., 3].mean() - expected) < 0.05 * expected
 
 
 @pytest.mark.slow
