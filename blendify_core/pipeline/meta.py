@@ -107,8 +107,11 @@ class RenderMeta(TypedDict, total=False):
     estimated_error_kind: str
     #: (core, ``target_error``; ``bf.crosscheck`` of a path tracer) independent passes rendered
     passes: int
-    #: (core, ``target_error`` only) 90 % confidence interval of ``estimated_error`` (jackknife over passes)
+    #: (core, ``target_error`` only) 90 % interval of the true error: the jackknife spread over passes widened
+    #: to the estimator's validated factor 1.5 (benchmarks/results/error_estimator.md)
     estimated_error_interval: list[float]
+    #: (core, ``target_error`` only) the jackknife spread over passes alone (the variance of the estimate)
+    estimated_error_jackknife: list[float]
     #: (core, ``target_error`` only) whether the estimate reached the target
     target_reached: bool
     #: (core, ``target_error`` only) why the passes stopped: "target reached", "time_limit", "pass cap",
