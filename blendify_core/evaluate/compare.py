@@ -163,7 +163,8 @@ def _noise_verdict(a: RenderResult, b: RenderResult, tier_name: str, noise: bool
                 f"result {label}: rgb_var needs meta['passes'] (the number of independent passes, >= 2), got {k!r}"
             )
         dofs.append(float(k - 1))
-    assert a.rgba is not None and b.rgba is not None and a.rgb_var is not None and b.rgb_var is not None
+    if a.rgba is None or b.rgba is None or a.rgb_var is None or b.rgb_var is None:  # checked above (types)
+        raise InvalidSceneError("noise: both results need the colour and its noise (rgb_var)")
     return noise_test(
         a.rgba[..., :3],
         a.rgb_var,

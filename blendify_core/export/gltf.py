@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core.errors import InvalidSceneError
+from blendify_core.errors import InvalidSceneError, UnsupportedFeatureError
 from blendify_core.io.output import atomic_write
 from blendify_core.ir.cameras import OrthographicCamera, PerspectiveCamera
 from blendify_core.ir.colors import (
@@ -445,8 +445,9 @@ def _camera(doc: _Document, cam: Any) -> dict[str, Any]:
         extras["K"] = cam.K.tolist()
         if abs(cam.cx - (w - 1) / 2.0) > 1e-6 or abs(cam.cy - (h - 1) / 2.0) > 1e-6:
             doc.note("camera: an off-centre principal point is not expressible in glTF (kept in extras.K)")
+    elif not isinstance(cam, OrthographicCamera):
+        raise UnsupportedFeatureError(f"glTF export: camera type {type(cam).__name__} has no glTF camera")
     else:
-        assert isinstance(cam, OrthographicCamera)
         xmag = float(cam.ortho_scale) / 2.0
         item = {
             "type": "orthographic",
@@ -484,8 +485,9 @@ def _light(doc: _Document, light: Any, lumens_per_watt: float) -> dict[str, Any]
         )
         extras.update(unit="W", shape=light.shape, size=[float(s) for s in light.size])
         doc.note("area lights: written as 90-degree spot lights of the emitter's on-axis intensity")
+    elif not isinstance(light, PointLight):
+        raise UnsupportedFeatureError(f"glTF export: light type {type(light).__name__} has no glTF light")
     else:
-        assert isinstance(light, PointLight)
         item.update(type="point", intensity=point_intensity(light.strength) * lumens_per_watt)
         extras["unit"] = "W"
     ext = doc.gltf.setdefault("extensions", {}).setdefault("KHR_lights_punctual", {"lights": []})
