@@ -134,3 +134,28 @@ def close_fake_instances() -> None:
         instances = [backend_mod._shared.pop(k) for k in keys]
     for inst in instances:
         inst.close()
+
+
+class NoisyPathTracer(Backend):
+    """A fake path tracer: a constant ``truth`` grey plus Gaussian noise drawn from the render's seed, with
+    per-sample standard deviation ``sigma`` (so it falls as 1/sqrt(samples)). Subclasses set their name
+    and the two constants."""
+
+    name = "noisy-fake-pt"
+    path_tracer = True
+    truth = 0.5
+    sigma = 0.5
+
+    @classmethod
+    def capabilities(cls) -> dict[str, Capability]:
+        return {k: Capability("exact") for k in ALL_FEATURES}
+
+    def translate(self, scene: Any, settings: Any) -> Any:
+        return scene
+
+    def render(self, native: Any, settings: Any) -> RenderResult:
+        w, h = native.camera.resolution
+        rng = np.random.default_rng(settings.seed)
+        rgb = self.truth + rng.normal(size=(h, w, 3)) * self.sigma / np.sqrt(settings.samples)
+        rgba = np.concatenate([rgb, np.ones((h, w, 1))], axis=-1).astype(np.float32)
+        return RenderResult(rgba=rgba, meta={"samples": settings.samples, "seed": settings.seed})

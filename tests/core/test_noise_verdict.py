@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from core_fake_backend import NoisyPathTracer
 
 import blendify_core as bf
 from blendify_core.evaluate.noise import combine_passes, estimate_from_passes, noise_test, pass_samples, render_passes
-from blendify_core.pipeline.backend import Backend
-from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.registry import register_backend, unregister_backend
 from blendify_core.testing import depth_plane_scene
 
@@ -191,25 +190,11 @@ def test_dark_channel_is_judged_against_the_image_brightness():
     assert not noise_test(brighter, zero, 3, green, zero, 3).passed
 
 
-class _Seeded(Backend):
+class _Seeded(NoisyPathTracer):
     """A fake path tracer: a constant grey plus Gaussian noise drawn from the render's seed."""
 
     name = "noise-fake-pt"
-    path_tracer = True
-
-    @classmethod
-    def capabilities(cls):
-        return {k: Capability("exact") for k in ALL_FEATURES}
-
-    def translate(self, scene, settings):
-        return scene
-
-    def render(self, native, settings):
-        w, h = native.camera.resolution
-        rng = np.random.default_rng(settings.seed)
-        rgba = np.ones((h, w, 4), np.float32)
-        rgba[..., :3] = 0.5 + rng.normal(size=(h, w, 3)).astype(np.float32) * 0.1 / np.sqrt(settings.samples)
-        return bf.RenderResult(rgba=rgba, meta={"samples": settings.samples, "seed": settings.seed})
+    sigma = 0.1
 
 
 class _Raster(_Seeded):

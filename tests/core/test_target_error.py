@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from core_fake_backend import NoisyPathTracer
 
 import blendify_core as bf
-from blendify_core.pipeline.backend import Backend
-from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.render import error_interval, relative_error_estimate
-from blendify_core.pipeline.result import RenderResult
 from blendify_core.registry import register_backend, unregister_backend
 from blendify_core.testing import plane_scene
 
@@ -17,25 +15,12 @@ TRUTH = 0.5
 SIGMA = 0.5  # per-sample standard deviation of the fake path tracer
 
 
-class NoisyBackend(Backend):
+class NoisyBackend(NoisyPathTracer):
     """A fake path tracer: the true value plus Gaussian noise shrinking as 1/sqrt(samples)."""
 
     name = "noisy-test"
-    path_tracer = True
-
-    @classmethod
-    def capabilities(cls):
-        return {k: Capability("exact") for k in ALL_FEATURES}
-
-    def translate(self, scene, settings):
-        return scene
-
-    def render(self, native, settings):
-        rng = np.random.default_rng(settings.seed)
-        h, w = native.camera.height, native.camera.width
-        rgb = TRUTH + rng.normal(size=(h, w, 3)) * SIGMA / np.sqrt(settings.samples)
-        rgba = np.concatenate([rgb, np.ones((h, w, 1))], axis=-1).astype(np.float32)
-        return RenderResult(rgba=rgba, meta={})
+    truth = TRUTH
+    sigma = SIGMA
 
 
 @pytest.fixture
