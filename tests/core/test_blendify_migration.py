@@ -247,11 +247,14 @@ def test_use_gpu_reaches_every_backend():
     device 0); use_gpu=False on pyrender says what to pass instead."""
     from blendify_core.registry import get_backend_class
 
-    for name in ("cycles", "mitsuba", "pyrender"):
-        if not bf.available_backends()[name].available:
-            continue
+    # A backend that is not installed (the core-only CI step) is not registered at all.
+    status = bf.available_backends()
+    usable = [name for name in ("cycles", "mitsuba", "pyrender") if name in status and status[name].available]
+    if not usable:
+        pytest.skip("no backend is installed here (core-only environment)")
+    for name in usable:
         get_backend_class(name)(device="gpu")
-    if bf.available_backends()["pyrender"].available:
+    if "pyrender" in usable:
         assert get_backend_class("pyrender")(device="gpu").device == 0
         with pytest.raises(bf.InvalidSceneError, match="platform='osmesa'"):
             get_backend_class("pyrender")(device="cpu")
