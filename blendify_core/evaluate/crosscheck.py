@@ -1,5 +1,5 @@
 """``bf.crosscheck``: render one scene with every available backend at comparable settings (box filter, no
-denoiser, no clamping, fixed seed) and compare every pair at the tier that fits the pair and the scene.
+denoiser, no clamping unless asked for, fixed seed) and compare every pair at the tier that fits the pair and the scene.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from blendify_core.ir.scene import Scene
 from blendify_core.ir.validate import strict_arguments
 from blendify_core.pipeline.render import render
 from blendify_core.pipeline.result import RenderResult
-from blendify_core.pipeline.settings import _outputs
+from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX, _outputs
 from blendify_core.registry import available_backends, backend_names
 
 __all__ = ["crosscheck", "crosscheck_main"]
@@ -57,9 +57,13 @@ def crosscheck(
 ) -> CrosscheckReport:
     """Render ``scene`` with each of ``backends`` and compare every pair.
 
-    Comparable settings are forced: box pixel filter, no denoiser, no clamping, no adaptive sampling,
-    seed ``seed``, ``samples`` samples per pixel; ``settings`` may override other RenderSettings fields
-    (e.g. ``max_bounces``). ``backend_options``: per-backend options (``{"mitsuba": {"variant": ...}}``).
+    Comparable settings are forced: box pixel filter, no denoiser, no adaptive sampling, seed ``seed``,
+    ``samples`` samples per pixel; no clamping and no Filter Glossy unless asked for; ``settings`` may
+    override other RenderSettings fields (e.g. ``max_bounces``, the per-kind bounce limits). A biased setting
+    (clamp, Filter Glossy, per-kind bounce limits) one engine applies and the other cannot makes that pair
+    limited by the engine (``report.limited``, with the settings): neither passed nor failed; an attached
+    file's IR parse does the same for what it could not carry (limited by the IR).
+    ``backend_options``: per-backend options (``{"mitsuba": {"variant": ...}}``).
     ``tier``: None = per pair by :func:`choose_tier` (path tracer pair on delta lights and diffuse
     materials -> "pathtracer_delta", other path tracer pairs -> "pathtracer", with a rasteriser ->
     "raster"), or a tier name / dict for every pair. Unavailable backends are skipped with their reason;
@@ -116,7 +120,7 @@ def crosscheck(
             "Monte-Carlo noise alone may fail them (use more samples, or repeats=k for the statistical test)"
         )
     pairs = _compare_pairs(scene, renders.results, tier)
-    limited = _limited_by_ir(renders.results, pairs)
+    limited = _limited(renders.results, pairs)
     limited_reports = {k: pairs.pop(k) for k in limited}
     estimates = renders.estimates
     ztests = {(a, b): estimates[a].compare(estimates[b]) for (a, b) in pairs if a in estimates and b in estimates}
@@ -140,20 +144,28 @@ def crosscheck(
     )
 
 
-def _limited_by_ir(results: Mapping[str, RenderResult], pairs: Mapping[tuple[str, str], Any]) -> dict[Any, list[str]]:
-    """Pairs where one side renders an attached file itself and the other its IR parse: what the parse could
-    not carry (the ``IR parse of`` approximations only one side lists) makes them differ, not the engines."""
+def _limited(results: Mapping[str, RenderResult], pairs: Mapping[tuple[str, str], Any]) -> dict[Any, list[str]]:
+    """Pairs limited by the IR or by the engine, with what makes them differ rather than the engines' light
+    transport: the ``meta["approximations"]`` lines only one side lists among
 
-    def ir_limits(name: str) -> set[str]:
+    - ``IR parse of ...``: one side renders an attached file itself, the other its IR parse, which could
+      not carry these items;
+    - ``setting the engine cannot apply: ...``: a biased render setting (clamp, Filter Glossy, per-kind bounce
+      limits) one side applies and the other engine cannot (``Backend.unapplied_settings``)."""
+
+    def limits(name: str) -> set[str]:
         approx = results[name].meta.get("approximations", []) if isinstance(results[name].meta, dict) else []
-        return {a for a in approx if isinstance(a, str) and a.startswith(IR_LIMIT_PREFIX)}
+        return {a for a in approx if isinstance(a, str) and a.startswith(_LIMIT_PREFIXES)}
 
     out = {}
     for a, b in pairs:
-        differ = ir_limits(a) ^ ir_limits(b)
+        differ = limits(a) ^ limits(b)
         if differ:
             out[(a, b)] = sorted(differ)
     return out
+
+
+_LIMIT_PREFIXES = (IR_LIMIT_PREFIX, ENGINE_LIMIT_PREFIX)
 
 
 #: settings crosscheck fixes so that the backends' images are comparable
@@ -166,6 +178,10 @@ FIXED_SETTINGS: dict[str, Any] = {
     "filter_glossy": 0.0,
     "adaptive": False,
 }
+#: biased settings a crosscheck may be asked for (e.g. an attached .blend's own ``render_settings``): an engine
+#: that cannot apply one (``Backend.unapplied_settings``) makes its pairs with an engine that can limited by
+#: the engine (``report.limited``), neither passed nor failed
+BIASED_SETTINGS = ("clamp_direct", "clamp_indirect", "filter_glossy")
 
 
 def _checked_arguments(
@@ -182,11 +198,11 @@ def _checked_arguments(
         backends = (backends,)
     if not backends or len(set(backends)) != len(backends):
         raise InvalidSceneError(f"backends: expected a non-empty sequence of distinct names, got {backends!r}")
-    forbidden = set(FIXED_SETTINGS) & set(settings)
+    forbidden = (set(FIXED_SETTINGS) - set(BIASED_SETTINGS)) & set(settings)
     if forbidden:
         raise InvalidSceneError(
-            f"crosscheck: {sorted(forbidden)} are fixed by crosscheck (1 px box filter, no denoiser, clamping, "
-            "Filter Glossy or adaptive sampling)"
+            f"crosscheck: {sorted(forbidden)} are fixed by crosscheck (1 px box filter, no denoiser or adaptive "
+            "sampling)"
         )
     outs = _outputs(outputs if isinstance(outputs, str) else tuple(outputs))  # bad names: error up front
     if not isinstance(repeats, (int, np.integer)) or repeats < 1:
@@ -238,8 +254,7 @@ class _Renders:
             samples=self.samples_of(name),
             seed=seed,
             outputs=outputs,
-            **FIXED_SETTINGS,
-            **self.settings,
+            **{**FIXED_SETTINGS, **self.settings},
             **dict(self.backend_options.get(name, {})),
         )
         self.done += 1

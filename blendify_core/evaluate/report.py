@@ -23,6 +23,7 @@ from blendify_core.io.output import atomic_write, ensure_folder
 from blendify_core.ir.colorspace import linear_to_srgb
 from blendify_core.ir.validate import strict_api
 from blendify_core.pipeline.result import RenderResult, depth_to_image, instance_to_image
+from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX
 
 __all__ = ["CompareReport", "CrosscheckReport"]
 
@@ -169,6 +170,20 @@ def _json(metrics: Mapping[str, Mapping[str, float]]) -> dict[str, dict[str, Any
 # ---------------------------------------------------------------------------------------------------
 # crosscheck
 # ---------------------------------------------------------------------------------------------------
+def _limited_heading(items: Sequence[str]) -> str:
+    """The summary heading of a limited pair: by the IR, by the engine, or both."""
+    engine = any(x.startswith(ENGINE_LIMIT_PREFIX) for x in items)
+    ir = any(not x.startswith(ENGINE_LIMIT_PREFIX) for x in items)
+    if engine and not ir:
+        return "LIMITED BY THE ENGINE (not judged); a render setting one engine cannot apply:"
+    if engine:
+        return (
+            "LIMITED BY THE IR AND THE ENGINE (not judged); what the IR parse could not carry and the render "
+            "settings one engine cannot apply:"
+        )
+    return "LIMITED BY THE IR (not judged); the IR parse could not carry:"
+
+
 @strict_api
 @dataclass
 class CrosscheckReport:
@@ -187,8 +202,11 @@ class CrosscheckReport:
     estimates: dict[str, ReferenceEstimate] = field(default_factory=dict, repr=False)
     #: (a, b) -> ZTestResult of the two-sample test between two path tracers' estimates
     ztests: dict[tuple[str, str], ZTestResult] = field(default_factory=dict)
-    #: pairs limited by the IR: one side renders an attached file itself, the other its IR parse -> what
-    #: the parse could not carry; neither passed nor failed (their comparisons in ``limited_reports``)
+    #: pairs limited by the IR or by the engine -> what makes them differ: the items the IR parse of an
+    #: attached file could not carry (one side renders the file itself, the other its parse; lines starting
+    #: ``IR parse of``) and the biased render settings one side applies and the other engine cannot (lines
+    #: starting ``setting the engine cannot apply:``); neither passed nor failed (their comparisons in
+    #: ``limited_reports``)
     limited: dict[tuple[str, str], list[str]] = field(default_factory=dict)
     limited_reports: dict[tuple[str, str], CompareReport] = field(default_factory=dict, repr=False)
 
@@ -235,12 +253,15 @@ class CrosscheckReport:
         for rep in self.pairs.values():
             lines.append(rep.summary())
         for (a, b), items in self.limited.items():
-            lines.append(f"### {a} vs {b}: LIMITED BY THE IR (not judged); the IR parse could not carry:")
+            lines.append(f"### {a} vs {b}: {_limited_heading(items)}")
             lines += [f"- {x}" for x in items] + [""]
         return "\n".join(lines)
 
     def __repr__(self) -> str:
-        pairs = ", ".join(f"{a}/{b}: {'PASS' if r.passed else 'FAIL'}" for (a, b), r in self.pairs.items())
+        pairs = ", ".join(
+            [f"{a}/{b}: {'PASS' if r.passed else 'FAIL'}" for (a, b), r in self.pairs.items()]
+            + [f"{a}/{b}: LIMITED" for (a, b) in self.limited]
+        )
         skipped = ", ".join(self.skipped) or "none"
         return f"CrosscheckReport({self.scene_name}: {pairs or 'no pairs'}; skipped: {skipped})"
 

@@ -84,6 +84,11 @@ class Backend(abc.ABC):
     #: file formats (suffix without the dot) this backend can export a scene to and attach to a scene
     #: (:meth:`export_file`, :meth:`attach_file`); found by :func:`blendify_core.registry.backend_for_format`
     file_formats: ClassVar[tuple[str, ...]] = ()
+    #: biased render settings this engine cannot apply (keys of
+    #: :data:`blendify_core.pipeline.settings.BIAS_KEYS` that change the converged picture: clamps, Filter
+    #: Glossy, per-kind bounce limits): a render asking for one lists it in ``meta["approximations"]``
+    #: (``strict=True`` refuses), and a crosscheck pair whose other side applies it is limited by the engine
+    unapplied_settings: ClassVar[tuple[str, ...]] = ()
     #: marks backend classes for the registry (which cannot import this module)
     _is_blendify_backend: ClassVar[bool] = True
     #: the backend's translator (one handler per IR type); the core refuses an IR object whose exact type

@@ -31,7 +31,13 @@ from blendify_core.pipeline.effects import Effects, analyse_effects
 from blendify_core.pipeline.meta import RenderMeta, Simulated, complete_timings
 from blendify_core.pipeline.recentre import Bounds, _scene_scale, needs_recentring, recentred_view
 from blendify_core.pipeline.result import RenderResult
-from blendify_core.pipeline.settings import RenderSettings, resolve_settings, settings_bias
+from blendify_core.pipeline.settings import (
+    ENGINE_LIMIT_PREFIX,
+    RenderSettings,
+    engine_limits,
+    resolve_settings,
+    settings_bias,
+)
 from blendify_core.pipeline.translator import check_handlers
 from blendify_core.registry import available_backends, shared_backend
 from blendify_core.typing import Float64Array, FloatArray
@@ -100,6 +106,15 @@ def check_capabilities(backend: Backend, scene: Scene, settings: RenderSettings)
                 backend=backend.name,
             )
         approximations.extend(limits)
+    unapplied = engine_limits(settings, backend.unapplied_settings)
+    if unapplied and settings.strict:
+        raise UnsupportedFeatureError(
+            f"backend {backend.name!r} cannot apply the render settings "
+            f"{'; '.join(x[len(ENGINE_LIMIT_PREFIX) :] for x in unapplied)}; strict=True forbids approximations",
+            feature="settings",
+            backend=backend.name,
+        )
+    approximations.extend(unapplied)
     return approximations
 
 

@@ -18,6 +18,9 @@ __all__ = [
     "FINAL_TARGET_ERROR",
     "resolve_settings",
     "settings_bias",
+    "ENGINE_LIMIT_PREFIX",
+    "BIAS_KEYS",
+    "engine_limits",
 ]
 
 QUALITIES = ("preview", "draft", "final", "blendify")
@@ -137,36 +140,71 @@ class RenderSettings:
         return max(self.max_bounces, 8) if kind == "transparent" else self.max_bounces
 
 
-def settings_bias(settings: RenderSettings) -> list[str]:
-    """What makes a render with ``settings`` converge to something other than the unbiased picture
-    (``result.meta["bias"]``; empty for ``final``)."""
+#: the start of every ``meta["approximations"]`` line naming a biased setting the engine cannot apply
+#: (:func:`engine_limits`); a crosscheck pair where one side applies it reports the pair as limited by the engine
+ENGINE_LIMIT_PREFIX = "setting the engine cannot apply: "
+#: the keys of :func:`settings_bias`'s items (what ``Backend.unapplied_settings`` names)
+BIAS_KEYS = ("denoise", "clamp_direct", "clamp_indirect", "filter_glossy", "adaptive", "time_limit", "bounce_limits")
+
+
+def _bias_items(settings: RenderSettings) -> list[tuple[str, str]]:
+    """(key of :data:`BIAS_KEYS`, description) of each biased setting of ``settings``."""
     out = []
     if settings.denoise:
-        out.append("denoise: the denoiser smooths noise and fine detail")
+        out.append(("denoise", "denoise: the denoiser smooths noise and fine detail"))
     if settings.clamp_direct:
-        out.append(f"clamp_direct={settings.clamp_direct:g}: direct light samples brighter than this are clamped")
+        out.append(
+            (
+                "clamp_direct",
+                f"clamp_direct={settings.clamp_direct:g}: direct light samples brighter than this are clamped",
+            )
+        )
     if settings.clamp_indirect:
         out.append(
-            f"clamp_indirect={settings.clamp_indirect:g}: indirect light samples brighter than this are clamped "
-            "(fewer fireflies, darker caustics and highlights)"
+            (
+                "clamp_indirect",
+                f"clamp_indirect={settings.clamp_indirect:g}: indirect light samples brighter than this are "
+                "clamped (fewer fireflies, darker caustics and highlights)",
+            )
         )
     if settings.filter_glossy:
         out.append(
-            f"filter_glossy={settings.filter_glossy:g}: glossy reflections after a diffuse or rough bounce are "
-            "blurred (fewer fireflies, softer caustics)"
+            (
+                "filter_glossy",
+                f"filter_glossy={settings.filter_glossy:g}: glossy reflections after a diffuse or rough bounce "
+                "are blurred (fewer fireflies, softer caustics)",
+            )
         )
     if settings.adaptive:
-        out.append("adaptive: pixels stop sampling at a noise threshold (0.01), not at the sample count")
+        out.append(("adaptive", "adaptive: pixels stop sampling at a noise threshold (0.01), not at the sample count"))
     if settings.time_limit:
-        out.append(f"time_limit={settings.time_limit:g}: sampling stops at the time limit")
+        out.append(("time_limit", f"time_limit={settings.time_limit:g}: sampling stops at the time limit"))
     capped = [
         f"{kind} {settings.bounces(kind)}"
         for kind in ("diffuse", "glossy", "transmission")
         if settings.bounces(kind) < settings.max_bounces
     ]
     if capped:
-        out.append("bounce limits below max_bounces (" + ", ".join(capped) + "): light of longer paths is missing")
+        out.append(
+            (
+                "bounce_limits",
+                "bounce limits below max_bounces (" + ", ".join(capped) + "): light of longer paths is missing",
+            )
+        )
     return out
+
+
+def settings_bias(settings: RenderSettings) -> list[str]:
+    """What makes a render with ``settings`` converge to something other than the unbiased picture
+    (``result.meta["bias"]``; empty for ``final``)."""
+    return [line for _key, line in _bias_items(settings)]
+
+
+def engine_limits(settings: RenderSettings, unapplied: Sequence[str]) -> list[str]:
+    """The biased settings of ``settings`` an engine cannot apply (``unapplied``: keys of :data:`BIAS_KEYS`,
+    ``Backend.unapplied_settings``), as ``meta["approximations"]`` lines starting with
+    :data:`ENGINE_LIMIT_PREFIX` (the same text for every engine, so a crosscheck can tell which pairs differ)."""
+    return [ENGINE_LIMIT_PREFIX + line for key, line in _bias_items(settings) if key in unapplied]
 
 
 def _outputs(value: object) -> tuple[str, ...]:

@@ -92,6 +92,8 @@ class MitsubaBackend(Backend):
     translator_class = MitsubaTranslator
     #: ``scene.export_mitsuba("x.xml")`` / ``scene.export("x.xml")`` (see :mod:`blendify_mitsuba.export`)
     file_formats = ("mitsuba",)
+    #: Mitsuba's path tracer has no sample clamp, no Filter Glossy and one depth limit for every kind of bounce
+    unapplied_settings = ("clamp_direct", "clamp_indirect", "filter_glossy", "bounce_limits")
     # measured with Mitsuba 3.9.1 (tests/robustness/test_hard_cases_round2.py): a sphere 4.5e13 m away renders,
     # 4.5e14 m away nothing; near 1e-18 m renders, 1e-19 m nothing
     numeric_limits = {"max_distance": 1e14, "min_near": 1e-18}

@@ -101,7 +101,8 @@ def render_native(
         "sampler": session.sampler,
         "seed": settings.seed,
         "pixel_filter": settings.pixel_filter,
-        # Mitsuba applies none of the biased settings (no clamp, denoiser, adaptive stop: see "notes")
+        # Mitsuba applies none of the biased settings: clamps, Filter Glossy and per-kind bounce limits are in
+        # meta["approximations"] (Backend.unapplied_settings), the denoiser and adaptive stop in "notes"
         "bias": [],
         "alpha_compositing": native.coverage_scene is not None,
         "shadow_catcher_emulated": native.catcher_scene is not None,
@@ -121,17 +122,9 @@ def render_native(
         meta.setdefault("notes", []).append(
             "adaptive / time_limit / target_error are not supported by Mitsuba: fixed spp rendered"
         )
-    if settings.clamp_direct or settings.clamp_indirect:
-        meta.setdefault("notes", []).append("sample clamping is not supported by Mitsuba (unclamped)")
-    if settings.filter_glossy:
-        meta.setdefault("notes", []).append("filter_glossy is not supported by Mitsuba (glossy not blurred)")
     if settings.pixel_filter == "blackman_harris":
         meta.setdefault("notes", []).append(
             "pixel_filter 'blackman_harris': Mitsuba has none; a Gaussian of the same standard deviation is used"
-        )
-    if any(settings.bounces(k) < settings.max_bounces for k in ("diffuse", "glossy", "transmission")):
-        meta.setdefault("notes", []).append(
-            "per-kind bounce limits are not supported by Mitsuba: max_bounces applies to every kind"
         )
     return RenderResult(
         rgba=out.get("rgba"),

@@ -81,6 +81,8 @@ class PyrenderBackend(Backend):
     translator_class = PyrenderTranslator
     # measured (tests/robustness/test_hard_cases_round2.py): far / near = 1e8 renders, 1e9 loses the sphere
     numeric_limits = {"max_clip_ratio": 1e8}
+    #: a rasteriser traces no paths: nothing to clamp, blur or cut at a bounce limit
+    unapplied_settings = ("clamp_direct", "clamp_indirect", "filter_glossy", "bounce_limits")
 
     def __init__(
         self,

@@ -560,3 +560,25 @@ def test_area_light_in_the_plane_of_an_emitter_is_listed(scalar_backend, height,
     r = _render(scalar_backend, scene, samples=1)
     found = [a for a in r.meta["approximations"] if "'lamp'" in a and "'panel'" in a]
     assert bool(found) == listed, r.meta["approximations"]
+
+
+def test_biased_settings_mitsuba_cannot_apply_are_approximations(scalar_backend):
+    """Indirect clamp, Filter Glossy and per-kind bounce limits (an attached .blend's own render settings, or
+    quality="blendify") have no Mitsuba counterpart: listed in meta["approximations"], refused by strict."""
+    from blendify_core.errors import UnsupportedFeatureError
+    from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX
+
+    scene = testing.depth_plane_scene((16, 12))
+    kw = {"samples": 1, "clamp_indirect": 10.0, "filter_glossy": 1.0, "glossy_bounces": 4, "max_bounces": 8}
+    res = _render(scalar_backend, scene, **kw)
+    limits = sorted(
+        a[len(ENGINE_LIMIT_PREFIX) :] for a in res.meta["approximations"] if a.startswith(ENGINE_LIMIT_PREFIX)
+    )
+    assert [x.split(":")[0].split(" (")[0] for x in limits] == [
+        "bounce limits below max_bounces",
+        "clamp_indirect=10",
+        "filter_glossy=1",
+    ]
+    assert res.meta["bias"] == [] and not any("clamp" in n or "glossy" in n for n in res.meta.get("notes", []))
+    with pytest.raises(UnsupportedFeatureError, match="cannot apply the render settings"):
+        _render(scalar_backend, scene, strict=True, **kw)

@@ -1,0 +1,122 @@
+"""Biased render settings an engine cannot apply (``Backend.unapplied_settings``): listed in
+``meta["approximations"]``, refused by ``strict=True``, and a crosscheck pair whose other side applies them is
+reported as limited by the engine (neither passed nor failed)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import blendify_core as bf
+from blendify_core.errors import UnsupportedFeatureError
+from blendify_core.pipeline.backend import Backend
+from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
+from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX, engine_limits, resolve_settings, settings_bias
+from blendify_core.registry import register_backend, unregister_backend
+from blendify_core.testing import depth_plane_scene
+
+
+class _Plane(Backend):
+    """Analytic 'render' of depth_plane_scene: a constant colour, dimmed by 10 % when the indirect light is
+    clamped and this engine applies the clamp (as a path tracer's clamp darkens the picture)."""
+
+    path_tracer = True
+
+    @classmethod
+    def capabilities(cls):
+        return {k: Capability("exact") for k in ALL_FEATURES}
+
+    def translate(self, scene, settings):
+        return scene
+
+    def render(self, native, settings):
+        from blendify_core.testing import expected_plane_depth
+
+        d = expected_plane_depth(native)
+        hit = np.isfinite(d)
+        v = 0.25 * (0.9 if settings.clamp_indirect and "clamp_indirect" not in self.unapplied_settings else 1.0)
+        rgba = np.zeros(d.shape + (4,), np.float32)
+        rgba[hit] = (v, v, v, 1.0)
+        return bf.RenderResult(rgba=rgba, meta={})
+
+
+class Applies(_Plane):
+    name = "limits-applies"
+
+
+class CannotApply(_Plane):
+    name = "limits-cannot"
+    unapplied_settings = ("clamp_direct", "clamp_indirect", "filter_glossy", "bounce_limits")
+
+
+class CannotApplyEither(CannotApply):
+    name = "limits-cannot-2"
+
+
+@pytest.fixture
+def fakes():
+    for cls in (Applies, CannotApply, CannotApplyEither):
+        register_backend(cls.name, cls)
+    yield
+    for cls in (Applies, CannotApply, CannotApplyEither):
+        unregister_backend(cls.name)
+    bf.close_backends()
+
+
+def test_engine_limits_lines_follow_the_bias_lines():
+    s = resolve_settings("final", clamp_indirect=10.0, filter_glossy=1.0, glossy_bounces=4, denoise=True)
+    lines = engine_limits(s, CannotApply.unapplied_settings)
+    assert len(lines) == 3 and all(x.startswith(ENGINE_LIMIT_PREFIX) for x in lines)
+    assert [x[len(ENGINE_LIMIT_PREFIX) :] for x in lines] == [
+        b for b in settings_bias(s) if b.startswith(("clamp_indirect=10", "filter_glossy=1", "bounce limits"))
+    ]
+    assert "glossy 4" in lines[2]
+    assert engine_limits(resolve_settings("final"), CannotApply.unapplied_settings) == []
+    assert engine_limits(s, ()) == []
+
+
+def test_render_lists_unapplied_settings_and_strict_refuses(fakes):
+    scene = depth_plane_scene()
+    plain = bf.render(scene, CannotApply.name, samples=1)
+    assert not any(a.startswith(ENGINE_LIMIT_PREFIX) for a in plain.meta["approximations"])
+    res = bf.render(scene, CannotApply.name, samples=1, clamp_indirect=10.0, diffuse_bounces=2, max_bounces=6)
+    limits = [a for a in res.meta["approximations"] if a.startswith(ENGINE_LIMIT_PREFIX)]
+    assert len(limits) == 2
+    assert any("clamp_indirect=10" in a for a in limits) and any("diffuse 2" in a for a in limits)
+    # the engine that applies them lists nothing (its bias says what it applied)
+    ok = bf.render(scene, Applies.name, samples=1, clamp_indirect=10.0)
+    assert not any(a.startswith(ENGINE_LIMIT_PREFIX) for a in ok.meta["approximations"])
+    assert any("clamp_indirect=10" in b for b in ok.meta["bias"])
+    with pytest.raises(UnsupportedFeatureError, match=r"limits-cannot.*cannot apply.*clamp_indirect=10.*strict"):
+        bf.render(scene, CannotApply.name, samples=1, clamp_indirect=10.0, strict=True)
+    bf.render(scene, CannotApply.name, samples=1, strict=True)  # nothing biased: nothing refused
+
+
+def test_crosscheck_reports_the_pair_limited_by_the_engine(fakes):
+    scene = depth_plane_scene()
+    names = (Applies.name, CannotApply.name, CannotApplyEither.name)
+    rep = bf.crosscheck(scene, backends=names, samples=4, passes=1, outputs=("rgb",), clamp_indirect=10.0)
+    limited = {(Applies.name, CannotApply.name), (Applies.name, CannotApplyEither.name)}
+    assert set(rep.limited) == limited and set(rep.limited_reports) == limited
+    for key in limited:
+        assert len(rep.limited[key]) == 1 and rep.limited[key][0].startswith(ENGINE_LIMIT_PREFIX + "clamp_indirect=10")
+        assert not rep.limited_reports[key].passed  # judged, it would fail: the clamp darkens one side by 10 %
+    # two engines that both cannot apply the clamp render the same picture: judged as usual
+    assert list(rep.pairs) == [(CannotApply.name, CannotApplyEither.name)] and rep.passed
+    text = rep.summary()
+    assert f"### {Applies.name} vs {CannotApply.name}: LIMITED BY THE ENGINE (not judged)" in text
+    assert "LIMITED" in repr(rep)
+    # without the biased setting every pair is judged
+    plain = bf.crosscheck(scene, backends=names[:2], samples=4, passes=1, outputs=("rgb",))
+    assert not plain.limited and list(plain.pairs) == [names[:2]] and plain.passed
+
+
+def test_summary_heading_names_both_limits():
+    from blendify_core.evaluate.report import _limited_heading
+    from blendify_core.ir.attachments import IR_LIMIT_PREFIX
+
+    ir = IR_LIMIT_PREFIX + "x.blend: a Checker node baked"
+    eng = ENGINE_LIMIT_PREFIX + "clamp_indirect=10: ..."
+    assert _limited_heading([ir]).startswith("LIMITED BY THE IR (")
+    assert _limited_heading([eng]).startswith("LIMITED BY THE ENGINE (")
+    assert _limited_heading([eng, ir]).startswith("LIMITED BY THE IR AND THE ENGINE (")
