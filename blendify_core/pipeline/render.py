@@ -89,33 +89,29 @@ def check_capabilities(backend: Backend, scene: Scene, settings: RenderSettings)
         if cap.level == "approximate":
             text = f"{feature}: {cap.note}" if cap.note else feature
             if settings.strict:
-                raise UnsupportedFeatureError(
-                    f"backend {backend.name!r} only approximates {feature} used by {where} ({cap.note}); "
-                    "strict=True forbids approximations",
-                    feature=feature,
-                    backend=backend.name,
-                )
+                raise _strict_refusal(backend, f"only approximates {feature} used by {where} ({cap.note})", feature)
             approximations.append(text)
     for a in scene.attachments:  # a file this backend does not read: it renders the file's IR parse
         limits = a.ir_limits() if a.format not in backend.file_formats else []
         if limits and settings.strict:
-            raise UnsupportedFeatureError(
-                f"backend {backend.name!r} renders the IR parse of {a.path!r}, which approximates "
-                f"{len(limits)} item(s) ({'; '.join(a.approximations[:3])}...); strict=True forbids approximations",
-                feature="attachment",
-                backend=backend.name,
+            what = f"{len(limits)} item(s) ({'; '.join(a.approximations[:3])}...)"
+            raise _strict_refusal(
+                backend, f"renders the IR parse of {a.path!r}, which approximates {what}", "attachment"
             )
         approximations.extend(limits)
     unapplied = engine_limits(settings, backend.unapplied_settings)
     if unapplied and settings.strict:
-        raise UnsupportedFeatureError(
-            f"backend {backend.name!r} cannot apply the render settings "
-            f"{'; '.join(x[len(ENGINE_LIMIT_PREFIX) :] for x in unapplied)}; strict=True forbids approximations",
-            feature="settings",
-            backend=backend.name,
-        )
+        what = "; ".join(x[len(ENGINE_LIMIT_PREFIX) :] for x in unapplied)
+        raise _strict_refusal(backend, f"cannot apply the render settings {what}", "settings")
     approximations.extend(unapplied)
     return approximations
+
+
+def _strict_refusal(backend: Backend, what: str, feature: str) -> UnsupportedFeatureError:
+    """The error of ``strict=True`` for an approximation: backend ``what``."""
+    return UnsupportedFeatureError(
+        f"backend {backend.name!r} {what}; strict=True forbids approximations", feature=feature, backend=backend.name
+    )
 
 
 _OUTPUT_FIELDS: dict[str, tuple[str, tuple[int, ...], type[np.generic]]] = {

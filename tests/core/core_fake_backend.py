@@ -159,3 +159,30 @@ class NoisyPathTracer(Backend):
         rgb = self.truth + rng.normal(size=(h, w, 3)) * self.sigma / np.sqrt(settings.samples)
         rgba = np.concatenate([rgb, np.ones((h, w, 1))], axis=-1).astype(np.float32)
         return RenderResult(rgba=rgba, meta={"samples": settings.samples, "seed": settings.seed})
+
+
+class FlatPlane(Backend):
+    """Analytic 'renders' of ``testing.depth_plane_scene``: the exact plane depth and a constant grey
+    (0.25 times :meth:`gain`); a path tracer. Subclasses set ``name`` (and may override ``gain``)."""
+
+    path_tracer = True
+
+    @classmethod
+    def capabilities(cls) -> dict[str, Capability]:
+        return {k: Capability("exact") for k in ALL_FEATURES}
+
+    def translate(self, scene: Any, settings: bf.RenderSettings) -> Any:
+        return scene
+
+    def gain(self, settings: bf.RenderSettings) -> float:
+        return 1.0
+
+    def render(self, native: Any, settings: bf.RenderSettings) -> RenderResult:
+        from blendify_core.testing import expected_plane_depth
+
+        d = expected_plane_depth(native).astype(np.float32)
+        hit = np.isfinite(d)
+        v = 0.25 * self.gain(settings)
+        rgba = np.zeros(d.shape + (4,), np.float32)
+        rgba[hit] = (v, v, v, 1.0)
+        return RenderResult(rgba=rgba, depth=d if settings.wants("depth") else None, meta={})

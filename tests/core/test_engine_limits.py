@@ -4,40 +4,22 @@ reported as limited by the engine (neither passed nor failed)."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
+from core_fake_backend import FlatPlane
 
 import blendify_core as bf
 from blendify_core.errors import UnsupportedFeatureError
-from blendify_core.pipeline.backend import Backend
-from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX, engine_limits, resolve_settings, settings_bias
 from blendify_core.registry import register_backend, unregister_backend
 from blendify_core.testing import depth_plane_scene
 
 
-class _Plane(Backend):
-    """Analytic 'render' of depth_plane_scene: a constant colour, dimmed by 10 % when the indirect light is
-    clamped and this engine applies the clamp (as a path tracer's clamp darkens the picture)."""
+class _Plane(FlatPlane):
+    """The flat grey plane, dimmed by 10 % when the indirect light is clamped and this engine applies the
+    clamp (as a path tracer's clamp darkens the picture)."""
 
-    path_tracer = True
-
-    @classmethod
-    def capabilities(cls):
-        return {k: Capability("exact") for k in ALL_FEATURES}
-
-    def translate(self, scene, settings):
-        return scene
-
-    def render(self, native, settings):
-        from blendify_core.testing import expected_plane_depth
-
-        d = expected_plane_depth(native)
-        hit = np.isfinite(d)
-        v = 0.25 * (0.9 if settings.clamp_indirect and "clamp_indirect" not in self.unapplied_settings else 1.0)
-        rgba = np.zeros(d.shape + (4,), np.float32)
-        rgba[hit] = (v, v, v, 1.0)
-        return bf.RenderResult(rgba=rgba, meta={})
+    def gain(self, settings):
+        return 0.9 if settings.clamp_indirect and "clamp_indirect" not in self.unapplied_settings else 1.0
 
 
 class Applies(_Plane):

@@ -9,38 +9,23 @@ import sys
 
 import numpy as np
 import pytest
+from core_fake_backend import FlatPlane
 from PIL import Image
 
 import blendify_core as bf
 from blendify_core.evaluate import progress as progress_mod
 from blendify_core.evaluate.stats import estimate_reference
-from blendify_core.pipeline.backend import Backend
-from blendify_core.pipeline.capabilities import ALL_FEATURES, Capability
 from blendify_core.registry import register_backend, unregister_backend
 from blendify_core.testing import depth_plane_scene
 
 
-class _Flat(Backend):
-    """Analytic 'renders' of depth_plane_scene: the exact plane depth and a constant grey (times ``gain``)."""
+class _Flat(FlatPlane):
+    """The flat grey plane times ``gain_factor``."""
 
-    path_tracer = True
-    gain = 1.0
+    gain_factor = 1.0
 
-    @classmethod
-    def capabilities(cls):
-        return {k: Capability("exact") for k in ALL_FEATURES}
-
-    def translate(self, scene, settings):
-        return scene
-
-    def render(self, native, settings):
-        from blendify_core.testing import expected_plane_depth
-
-        d = expected_plane_depth(native).astype(np.float32)
-        hit = np.isfinite(d)
-        rgba = np.zeros(d.shape + (4,), np.float32)
-        rgba[hit] = (0.25 * self.gain, 0.25 * self.gain, 0.25 * self.gain, 1.0)
-        return bf.RenderResult(rgba=rgba, depth=d if settings.wants("depth") else None, meta={})
+    def gain(self, settings):
+        return self.gain_factor
 
 
 class FlatA(_Flat):
@@ -49,7 +34,7 @@ class FlatA(_Flat):
 
 class FlatB(_Flat):
     name = "nb-flat-b"
-    gain = 1.5  # fails every colour tier
+    gain_factor = 1.5  # fails every colour tier
 
 
 class Broken(_Flat):
