@@ -160,17 +160,22 @@ def _fresnel_mean(fresnel: Fresnel) -> np.ndarray:
     return cos_mean(f if f.ndim > 1 else f[:, None])
 
 
-def cycles_albedo(alpha: float, fresnel: Fresnel, multiscatter: bool) -> np.ndarray:
-    """Cycles' directional albedo (N_MU, C) of a GGX reflection lobe: single scattering, times
-    ``1 + F_ms (1 - E) / E`` when compensated (docs/conventions.md, "Roughness")."""
-    single = ggx_albedo(alpha, fresnel, correlated=True)
+def compensation(alpha: float, fresnel: Fresnel, multiscatter: bool) -> np.ndarray:
+    """Cycles' multiple-scattering factor (N_MU, C) of a GGX reflection lobe per viewing cosine,
+    ``1 + F_ms (1 - E) / E`` when compensated, else 1 (docs/conventions.md, "Roughness")."""
+    f_ss = _fresnel_mean(fresnel)
     if not multiscatter:
-        return single
+        return np.ones((N_MU, f_ss.shape[0]))
     e = ggx_albedo(alpha, None, correlated=True)  # (N_MU, 1)
     e_avg = float(cos_mean(e)[0])
-    f_ss = _fresnel_mean(fresnel)
     f_ms = f_ss * e_avg / (1.0 - f_ss * (1.0 - e_avg))
-    return single * (1.0 + f_ms * (1.0 - e) / np.maximum(e, 1e-6))
+    return np.asarray(1.0 + f_ms * (1.0 - e) / np.maximum(e, 1e-6))
+
+
+def cycles_albedo(alpha: float, fresnel: Fresnel, multiscatter: bool) -> np.ndarray:
+    """Cycles' directional albedo (N_MU, C) of a GGX reflection lobe: single scattering (height-correlated
+    shadowing) times :func:`compensation`."""
+    return ggx_albedo(alpha, fresnel, correlated=True) * compensation(alpha, fresnel, multiscatter)
 
 
 # -- fitting a complex IOR to a Fresnel curve --------------------------------------------------------
@@ -288,6 +293,9 @@ class Lobe:
     scale: np.ndarray
     #: Cycles' directional albedo of the lobe (N_MU, 3), attenuation by the layers above included
     cycles: np.ndarray
+    #: the lobe for :mod:`blendify_mitsuba.layered`: ``kind``, GGX ``alpha`` and ``fresnel``, and ``table``
+    #: (N_MU, 3), the lobe's weight per viewing cosine (attenuation above x compensation x layer weight)
+    jit: dict[str, Any] | None = None
 
 
 def effective_eta(ior: float, level: float) -> tuple[float, float]:
@@ -356,7 +364,9 @@ def principled_lobes(material: Any, base: np.ndarray) -> list[Lobe]:
         a_sheen = sheen_albedo(float(material.sheen_roughness))[:, None] * tint  # (N_MU, 3)
         s_alpha = sheen_alpha(float(material.sheen_roughness))
         n, k, shape = _sheen_lobe(float(material.sheen_roughness))
-        lobes.append(Lobe(_ggx_lobe(s_alpha, n, k), cos_mean(w * a_sheen) / shape, w * a_sheen))
+        e_shape = ggx_albedo(s_alpha, None, correlated=True)
+        jit = {"kind": "ggx", "alpha": s_alpha, "fresnel": "none", "table": w * a_sheen / np.maximum(e_shape, 1e-6)}
+        lobes.append(Lobe(_ggx_lobe(s_alpha, n, k), cos_mean(w * a_sheen) / shape, w * a_sheen, jit))
         w = w * (1.0 - np.max(a_sheen, axis=1, keepdims=True))
 
     coat = float(material.coat_weight)
@@ -365,9 +375,14 @@ def principled_lobes(material: Any, base: np.ndarray) -> list[Lobe]:
         eta = max(float(material.coat_ior), 1.0)
         if eta > 1.0:
             n, k, scale, a_coat = _conductor_lobe(c_alpha, (eta, 1.0, 1.0, 1.0), "dielectric", True)
+            comp = compensation(c_alpha, _fresnel_of("dielectric", (eta, 1.0, 1.0, 1.0)), True)
+            jit = _dielectric_jit(c_alpha, eta, np.ones(3), w * coat * comp)
             lobes.append(
                 Lobe(
-                    _ggx_lobe(c_alpha, n, k), scale * cos_mean(w * coat * a_coat) / cos_mean(a_coat), w * coat * a_coat
+                    _ggx_lobe(c_alpha, n, k),
+                    scale * cos_mean(w * coat * a_coat) / cos_mean(a_coat),
+                    w * coat * a_coat,
+                    jit,
                 )
             )
             w = w * (1.0 - coat * a_coat[:, :1])
@@ -381,8 +396,24 @@ def principled_lobes(material: Any, base: np.ndarray) -> list[Lobe]:
         spec_tint = material.linear("specular_tint")[:3]
         key = tuple(float(x) for x in np.concatenate([base, spec_tint]))
         n, k, scale, a_metal = _conductor_lobe(alpha, key, "f82", multi)
+        comp = compensation(alpha, _fresnel_of("f82", key), multi)
+        c82 = 1.0 / 7.0
+        s82 = base + (1.0 - base) * (1.0 - c82) ** 5
+        jit = {
+            "kind": "ggx",
+            "alpha": alpha,
+            "fresnel": "f82",
+            "f0": [float(x) for x in base],
+            "b": [float(x) for x in s82 * (1.0 - spec_tint) / (c82 * (1.0 - c82) ** 6)],
+            "table": w * metal * comp,
+        }
         lobes.append(
-            Lobe(_ggx_lobe(alpha, n, k), scale * cos_mean(w * metal * a_metal) / cos_mean(a_metal), w * metal * a_metal)
+            Lobe(
+                _ggx_lobe(alpha, n, k),
+                scale * cos_mean(w * metal * a_metal) / cos_mean(a_metal),
+                w * metal * a_metal,
+                jit,
+            )
         )
         w = w * (1.0 - metal)
     w = w * (1.0 - float(material.transmission_weight))
@@ -392,14 +423,28 @@ def principled_lobes(material: Any, base: np.ndarray) -> list[Lobe]:
         spec_tint = material.linear("specular_tint")[:3]
         key = (eta, *(float(x) for x in spec_tint))
         n, k, scale, a_spec = _conductor_lobe(alpha, key, "dielectric", multi)
-        lobes.append(Lobe(_ggx_lobe(alpha, n, k), scale * cos_mean(w * a_spec) / cos_mean(a_spec), w * a_spec))
+        jit = _dielectric_jit(alpha, eta, spec_tint, w * compensation(alpha, _fresnel_of("dielectric", key), multi))
+        lobes.append(Lobe(_ggx_lobe(alpha, n, k), scale * cos_mean(w * a_spec) / cos_mean(a_spec), w * a_spec, jit))
         # with "GGX" the layers below lose the single-scattering albedo over the lobe's albedo without
         # Fresnel, A_ss / E (measured with white-furnace spheres in Cycles: at normal incidence 1 - F0 for
         # every roughness)
         a_below = a_spec if multi else a_spec / np.maximum(ggx_albedo(alpha, None, correlated=True), 1e-6)
         w = w * (1.0 - np.max(a_below, axis=1, keepdims=True))
-    lobes.append(Lobe(_diffuse_lobe(raw_rgb), base * cos_mean(w), w * base))
+    lobes.append(Lobe(_diffuse_lobe(raw_rgb), base * cos_mean(w), w * base, {"kind": "diffuse", "table": w * base}))
     return lobes
+
+
+def _dielectric_jit(alpha: float, eta: float, tint: np.ndarray, table: np.ndarray) -> dict[str, Any]:
+    f0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+    return {
+        "kind": "ggx",
+        "alpha": alpha,
+        "fresnel": "dielectric",
+        "eta": float(eta),
+        "f0": float(f0),
+        "tint": [float(x) for x in tint],
+        "table": table,
+    }
 
 
 # Cycles' microfiber sheen albedo is not reproduced from Cycles' tables here: it is approximated by the
@@ -537,25 +582,62 @@ def cycles_albedo_of(material: Any, base: np.ndarray) -> tuple[np.ndarray, np.nd
     return _MU.copy(), np.asarray(sum(np.broadcast_to(lb.cycles, (N_MU, 3)) for lb in lobes))
 
 
+#: the smallest GGX alpha :mod:`blendify_mitsuba.layered` takes; nearly mirror-like lobes (roughness below
+#: about 0.03) keep the lobe sum, whose smooth plugins are exact mirrors
+LAYERED_MIN_ALPHA = 1e-3
+#: the smallest sampling odds of a lobe in the layered BSDF, relative to the sum of the odds
+LAYERED_MIN_ODDS = 0.05
+
+
+def layered_bsdf(lobes: list[Lobe], factor: float = 1.0) -> dict[str, Any] | None:
+    """The opaque lobes as one :data:`blendify_mitsuba.layered.PLUGIN` BSDF (two-sided; its tables times
+    ``factor``), or None when a lobe is nearly a mirror (see :data:`LAYERED_MIN_ALPHA`)."""
+    from .layered import PLUGIN, spec_json
+
+    live = [lb for lb in lobes if lb.jit is not None and float(np.max(lb.jit["table"])) > 0]
+    if not live:
+        return None
+    if any(lb.jit["kind"] == "ggx" and float(lb.jit["alpha"]) < LAYERED_MIN_ALPHA for lb in live if lb.jit):
+        return None
+    odds = np.array([float(cos_mean(np.broadcast_to(lb.cycles, (N_MU, 3)).mean(axis=1))) for lb in live])
+    odds = np.maximum(odds, LAYERED_MIN_ODDS * max(float(odds.sum()), 1e-9))
+    out = []
+    for lb, p in zip(live, odds / odds.sum(), strict=True):
+        d = dict(lb.jit or {})
+        table = np.broadcast_to(np.asarray(d["table"], dtype=np.float64) * factor, (N_MU, 3))
+        d["table"] = [float(v) for v in np.float32(table).ravel()]
+        d["p"] = float(p)
+        if "alpha" in d:
+            d["alpha"] = float(d["alpha"])
+        out.append(d)
+    return {"type": PLUGIN, "spec": spec_json(out)}
+
+
 def principled_bsdf(
-    material: Any, base: np.ndarray, wrap: Callable[[dict[str, Any]], dict[str, Any]]
+    material: Any, base: np.ndarray, wrap: Callable[[dict[str, Any]], dict[str, Any]], layered: bool = False
 ) -> dict[str, Any]:
     """The Mitsuba BSDF of a Principled material with the constant linear ``base`` colour (3,): the opaque
-    lobes summed and made two-sided, blended with the one-sided glass of the transmission layer;
+    lobes summed and made two-sided (``layered``: as one :mod:`blendify_mitsuba.layered` BSDF with Cycles'
+    view-dependent weights, when it takes them), blended with the one-sided glass of the transmission layer;
     ``wrap`` wraps each part (the normal map)."""
     base = np.asarray(base, dtype=np.float64)[:3]
     tw = float(material.transmission_weight)
     lobes = principled_lobes(material, base)
-    if tw <= 0.0:
-        return {"type": "twosided", "bsdf": wrap(sum_lobes(lobes))}
-    glass = wrap(glass_lobe(material, base))
-    above = transmission_weight_above(material)
-    g = min(max(above * tw, 0.0), 1.0)
-    if g >= 1.0 - 1e-6:
+    g = 0.0
+    if tw > 0.0:
+        g = min(max(transmission_weight_above(material) * tw, 0.0), 1.0)
+    glass = wrap(glass_lobe(material, base)) if tw > 0.0 else None
+    if glass is not None and g >= 1.0 - 1e-6:
         return glass
-    for lb in lobes:
-        lb.scale = lb.scale / (1.0 - g)
-    opaque = {"type": "twosided", "bsdf": wrap(sum_lobes(lobes))}
+    lay = layered_bsdf(lobes, 1.0 / (1.0 - g)) if layered else None
+    if lay is not None:
+        opaque = wrap(lay)
+    else:
+        for lb in lobes:
+            lb.scale = lb.scale / (1.0 - g)
+        opaque = {"type": "twosided", "bsdf": wrap(sum_lobes(lobes))}
+    if glass is None:
+        return opaque
     return {"type": "blendbsdf", "weight": g, "bsdf_0": opaque, "bsdf_1": glass}
 
 

@@ -70,8 +70,10 @@ from blendify_core.pipeline.effects import Effects, analyse_effects
 from blendify_core.pipeline.settings import RenderSettings, resolve_settings
 from blendify_core.pipeline.translator import EXACT, TranslationContext, Translator, approximate, handles, unsupported
 
+from . import layered
 from .aniso import SquarePixelPlan, plan_square_pixels
 from .integrator import register as register_integrator
+from .layered import register as register_layered
 from .points import curve_points, curves_fit, point_bitmap
 from .principled import glossy_scale, principled_bsdf, raw_rgb, with_bitmaps
 
@@ -114,6 +116,17 @@ def _exact(note: str) -> Capability:
 #: the engine the translator builds with: None = the mitsuba module; the XML exporter
 #: (:mod:`blendify_mitsuba.export`) sets a stand-in that keeps the plain dictionaries and arrays instead
 ENGINE: contextvars.ContextVar[Any] = contextvars.ContextVar("blendify_mitsuba_engine", default=None)
+
+
+def _layered_variant() -> bool:
+    """Whether Principled materials become :mod:`blendify_mitsuba.layered` BSDFs: in the JIT variants (Dr.Jit
+    traces the Python BSDF into the kernel); not in ``scalar_rgb`` (one Python call per sample) and not when
+    exporting a scene file (plain Mitsuba has no such plugin)."""
+    if ENGINE.get() is not None or not layered.ENABLED:
+        return False
+    import mitsuba
+
+    return layered.USE_IN_SCALAR or not mitsuba.variant().startswith("scalar")
 
 
 def _mi() -> Any:
@@ -1084,7 +1097,16 @@ class MitsubaTranslator(Translator):
         base = _constant_rgb(color)
         maps = material.roughness_map is not None or material.metallic_map is not None
         if base is not None and not maps and not material.is_diffuse_only and float(material.anisotropic) == 0:
-            bsdf = principled_bsdf(material, base, lambda d: _with_normal_map(d, material))
+            use_layered = _layered_variant()
+            bsdf = principled_bsdf(material, base, lambda d: _with_normal_map(d, material), layered=use_layered)
+            if use_layered:
+                register_layered()
+            elif ENGINE.get() is None:
+                ctx.approximate(
+                    "material.principled: in scalar_rgb Cycles' view-dependent layer weights become their "
+                    "cosine-weighted means (the sum of Mitsuba's built-in lobes; the JIT variants render them "
+                    "exactly with blendify_mitsuba.layered, which scalar_rgb would call once per sample)"
+                )
             return dict(with_bitmaps(bsdf, _mi().Bitmap))
         if material.is_diffuse_only:
             inner: dict[str, Any] = {"type": "diffuse", "reflectance": color}

@@ -109,13 +109,13 @@ def test_dielectric_lobes_conserve_what_cycles_conserves():
 
 
 def test_translator_uses_the_layered_mapping_for_constant_colours(mi_scalar):
-    from blendify_mitsuba.translate import MitsubaTranslator
+    from blendify_mitsuba.translate import MitsubaContext, MitsubaTranslator
 
     tr = MitsubaTranslator()
     color = {"type": "rgb", "value": [0.8, 0.35, 0.15]}
-    opaque = tr.dispatch(PrincipledBSDFMaterial(roughness=0.4, metallic=0.5), None, color)
+    opaque = tr.dispatch(PrincipledBSDFMaterial(roughness=0.4, metallic=0.5), MitsubaContext(), color)
     assert opaque["type"] == "twosided" and opaque["bsdf"]["type"] == "blendbsdf"
-    glass = tr.dispatch(PrincipledBSDFMaterial(roughness=0.3, transmission_weight=1.0), None, color)
+    glass = tr.dispatch(PrincipledBSDFMaterial(roughness=0.3, transmission_weight=1.0), MitsubaContext(), color)
     assert glass["type"] == "roughdielectric"
     mi_scalar.load_dict(opaque)
     mi_scalar.load_dict(glass)
