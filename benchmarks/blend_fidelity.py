@@ -20,7 +20,8 @@ Metrics against Blender's seed-0 render, over RGB (premultiplied: a transparent 
 MRE of Blender's seed-1 render; ``within noise`` = Cycles' MRE <= the noise floor. pyrender: SSIM of the sRGB
 images (over black). The number of items the IR parse could not carry is the attach warning's count.
 
-Run: ``nice -n 10 python benchmarks/blend_fidelity.py [--size 96x72] [--samples 64]``. Writes
+Run: ``nice -n 10 python benchmarks/blend_fidelity.py [--size 96x72] [--samples 64] [--only stem,...]``
+(``--only``: those files re-measured, the other rows kept from the committed JSON). Writes
 ``benchmarks/results/blend_fidelity.md``, ``blend_fidelity.json`` and the contact sheet
 ``blend_fidelity.png`` (rows: files; columns: Blender, Cycles, Mitsuba, pyrender).
 """
@@ -42,6 +43,7 @@ from blendify_blender.blendfile.reference import blender_render, prepare_blend
 
 import blendify_core as bf
 from blendify_core.ir.colorspace import linear_to_srgb
+from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX
 from blendify_core.testing import THIRD_PARTY_DIR, THIRD_PARTY_ENV
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -110,6 +112,10 @@ def measure(path: Path, work: Path, size: tuple[int, int], samples: int) -> dict
             row[f"{name} error"] = f"{type(exc).__name__}: {exc}"
             continue
         row[f"{name} s"] = time.perf_counter() - t0
+        approx = res.meta.get("approximations", [])
+        row[f"{name} engine limits"] = [
+            a[len(ENGINE_LIMIT_PREFIX) :] for a in approx if a.startswith(ENGINE_LIMIT_PREFIX)
+        ]
         img = np.asarray(res.rgba, dtype=np.float32)
         images[name] = img
         row[f"{name} mre"] = mre(img, refs[0])
@@ -128,23 +134,37 @@ _METHOD = " ".join(
         "MRE = mean |a - b| / mean b over RGB (premultiplied) against Blender's seed-0 render;",
         "noise = the MRE of Blender's own seed-1 render; Cycles renders the attached objects from the file",
         "(`attach_blend(..., render_settings=True)` + `cycles_settings`), Mitsuba and pyrender the IR parse;",
-        "'IR limits' = the lines of the attach warning (what the parse could not carry).",
+        "'IR limits' = the lines of the attach warning (what the parse could not carry);",
+        "'Mitsuba limited by the engine' = the file's biased settings Mitsuba cannot apply (its",
+        '`meta["approximations"]`, `setting the engine cannot apply: ...`): a crosscheck reports such a pair as',
+        "limited by the engine, not as passed or failed.",
     ]
 )
+
+
+def _short_limits(lines: list[str]) -> str:
+    """The settings of engine-limit lines, without their explanations ('-' for none)."""
+    return "; ".join(x.split(": ")[0] for x in lines) if lines else "-"
 
 
 def write_results(rows: list[dict[str, Any]], notes: list[str], args: argparse.Namespace) -> None:
     from blendify_core.utils import contact_sheet
 
     RESULTS.mkdir(parents=True, exist_ok=True)
-    tiles, labels = [], []
-    for r in rows:
-        for name in ("blender", "cycles", "mitsuba", "pyrender"):
-            img = r["_images"].get(name)
-            tiles.append(np.zeros((args.h, args.w, 4), np.float32) if img is None else img)
-            labels.append(f"{Path(r['file']).stem[:16]} {name}")
-    sheet = contact_sheet(tiles, labels=labels, ncols=4)
-    _png(sheet)
+    if all("_images" in r for r in rows):
+        tiles, labels = [], []
+        for r in rows:
+            for name in ("blender", "cycles", "mitsuba", "pyrender"):
+                img = r["_images"].get(name)
+                tiles.append(np.zeros((args.h, args.w, 4), np.float32) if img is None else img)
+                labels.append(f"{Path(r['file']).stem[:16]} {name}")
+        sheet = contact_sheet(tiles, labels=labels, ncols=4)
+        _png(sheet)
+    else:
+        notes = [
+            *notes,
+            f"re-run with --only {args.only}: the other rows and the contact sheet are from the last full run",
+        ]
 
     def f(v: Any, pct: bool = True) -> str:
         if v is None or (isinstance(v, float) and not np.isfinite(v)):
@@ -159,8 +179,8 @@ def write_results(rows: list[dict[str, Any]], notes: list[str], args: argparse.N
         + _METHOD,
         "",
         "| file | engine in file | objects / lights | IR limits | noise | Cycles MRE | within noise | Mitsuba MRE "
-        "| pyrender MRE | pyrender SSIM |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| Mitsuba limited by the engine | pyrender MRE | pyrender SSIM |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         cells = [
@@ -172,6 +192,7 @@ def write_results(rows: list[dict[str, Any]], notes: list[str], args: argparse.N
             f(r.get("cycles mre")),
             "yes" if r["cycles within noise"] else "NO",
             f(r.get("mitsuba mre")),
+            _short_limits(r.get("mitsuba engine limits", [])),
             f(r.get("pyrender mre")),
             f(r.get("pyrender ssim"), pct=False),
         ]
@@ -217,6 +238,10 @@ def main() -> None:
                 flush=True,
             )
             rows.append(row)
+    if args.only and (RESULTS / "blend_fidelity.json").is_file():  # the other rows from the committed results
+        new = {r["file"]: r for r in rows}
+        old = json.loads((RESULTS / "blend_fidelity.json").read_text())
+        rows = [new.pop(r["file"], r) for r in old] + list(new.values())
     write_results(rows, notes, args)
 
 

@@ -238,6 +238,27 @@ if mode == "maps":  # no bump; metallic and roughness from procedural textures i
     nt.links.new(chk.outputs["Fac"], p.inputs["Metallic"])
     nt.links.new(grad.outputs["Fac"], p.inputs["Roughness"])
     p.inputs["Base Color"].default_value = (0.9, 0.6, 0.3, 1)
+if mode in ("object", "world"):  # no bump; an object/world-space Normal Map of a constant tilted normal
+    nt.links.remove(p.inputs["Normal"].links[0])
+    nmap = nt.nodes.new("ShaderNodeNormalMap"); nmap.name = "Tilt"
+    nmap.space = mode.upper()
+    rgb = nt.nodes.new("ShaderNodeRGB")
+    n = (math.sin(0.7), 0.0, math.cos(0.7))  # tilted 40 degrees towards +x
+    rgb.outputs[0].default_value = (*(0.5 * c + 0.5 for c in n), 1.0)
+    nt.links.new(rgb.outputs[0], nmap.inputs["Color"])
+    nt.links.new(nmap.outputs["Normal"], p.inputs["Normal"])
+    ob.rotation_euler = (0.0, 0.0, math.radians(30))  # object and world space differ
+if mode == "floats":  # no bump; Coat Weight from a Checker, IOR from a Value node, Alpha from a Gradient
+    nt.links.remove(p.inputs["Normal"].links[0])
+    chk = nt.nodes.new("ShaderNodeTexChecker"); chk.name = "Coat Tiles"
+    chk.inputs["Scale"].default_value = 2.0
+    chk.inputs["Color1"].default_value = (1, 1, 1, 1); chk.inputs["Color2"].default_value = (0, 0, 0, 1)
+    nt.links.new(chk.outputs["Fac"], p.inputs["Coat Weight"])
+    val = nt.nodes.new("ShaderNodeValue"); val.outputs[0].default_value = 1.8
+    nt.links.new(val.outputs[0], p.inputs["IOR"])
+    grad = nt.nodes.new("ShaderNodeTexGradient")
+    nt.links.new(grad.outputs["Fac"], p.inputs["Emission Strength"])
+    p.inputs["Emission Color"].default_value = (1, 1, 1, 1)
 sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
 sun.data.energy = 3.0
 sun.rotation_euler = (math.radians(60), 0, math.radians(90))
@@ -299,3 +320,47 @@ def test_procedural_roughness_and_metallic_are_baked_into_maps(tmp_path: Path, b
     err_default, material, _msg = _ir_render(path, ref, "ior", bake_resolution=None)
     assert material.metallic_map is None
     assert err < 0.5 * err_default, (err, err_default)
+
+
+@pytest.mark.parametrize("space", ["object", "world"])
+def test_object_and_world_space_normal_maps_are_baked(space, tmp_path: Path, bpy_script, blender_render, cycles):
+    """An object- or world-space Normal Map node (a constant tilted normal, the plane turned so the spaces
+    differ) becomes a baked tangent-space normal map in the IR (said so): rendered from the IR it lights like
+    Blender's render of the file, much closer than the flat normal the IR had before."""
+    path = tmp_path / f"{space}.blend"
+    bpy_script(BUMP_WRITE, str(path), space)
+    _info, ref = blender_render(path, tmp_path / "ref.exr")
+
+    err, material, msg = _ir_render(path, ref, "roughness", bake_resolution=32)
+    assert material.normal_map is not None
+    assert f"normal (tangent-space normal map) from a ShaderNodeNormalMap ({space}-space) node baked" in msg
+    err_flat, material, msg = _ir_render(path, ref, "roughness", bake_resolution=None)
+    assert material.normal_map is None and f"{space}-space normal map not parsed" in msg
+    assert err < 0.02 and err < 0.25 * err_flat, (err, err_flat)
+
+
+def test_procedural_float_inputs_without_an_ir_map_take_the_baked_mean(tmp_path: Path, bpy_script, cycles):
+    """Float inputs the IR holds as one value (Coat Weight from a Checker, IOR from a Value node, Emission
+    Strength from a Gradient) are baked through the same path as the maps: the IR takes the bake's mean over
+    the surface, named in the warning; without a baker their default values (noted as before)."""
+    path = tmp_path / "floats.blend"
+    bpy_script(BUMP_WRITE, str(path), "floats")
+    scene = Scene()
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        attach_blend(scene, path, with_camera=True, bake_resolution=32)
+    msg = " ".join(str(w.message) for w in rec if issubclass(w.category, BlendAttachWarning))
+    m = scene.renderables["Bumpy"].material
+    assert m.ior == pytest.approx(1.8, abs=1e-4)
+    assert m.coat_weight == pytest.approx(0.5, abs=0.05)  # a 2x2 checker: half the surface
+    assert m.emission_strength == pytest.approx(0.5, abs=0.05)  # a linear ramp across the plane
+    for param, node in (("ior", "ShaderNodeValue"), ("coat_weight", "ShaderNodeTexChecker")):
+        assert f"{param} from a {node} node baked with Cycles' baker (32x32); the IR holds one value" in msg
+    assert "mean over the surface, 1.8, used" in msg
+    plain = Scene()
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        attach_blend(plain, path, with_camera=True, bake_resolution=None)
+    msg = " ".join(str(w.message) for w in rec if issubclass(w.category, BlendAttachWarning))
+    m = plain.renderables["Bumpy"].material
+    assert m.coat_weight == 0.0 and "Principled input 'Coat Weight' is driven by nodes, used its default value" in msg

@@ -78,3 +78,32 @@ def test_cycles_renders_the_file_like_blender(path: Path, tmp_path: Path, cycles
     assert res.meta["translation"]["from_file"]["renderables"] == len(att)
     # the same engine, scene, settings and seed: the same samples (within float noise of the passes)
     assert np.abs(img - ref).mean() <= 1e-3 * max(float(np.abs(ref).mean()), 1e-3)
+
+
+_READ_SETTINGS = """
+import bpy, sys, json
+bpy.ops.wm.open_mainfile(filepath=sys.argv[1])
+cy = bpy.context.scene.cycles
+print(json.dumps({"clamp_indirect": cy.sample_clamp_indirect, "filter_glossy": cy.blur_glossy,
+                  "samples": cy.samples, "use_light_tree": cy.use_light_tree,
+                  "light_sampling_threshold": cy.light_sampling_threshold, "version": list(bpy.data.version)}))
+"""
+
+
+def test_an_old_file_imports_the_settings_blender_opens_it_with(cycles):
+    """04_lights was saved by Blender 2.78, before Cycles' indirect clamp (10) and Filter Glossy (1) defaults:
+    Blender opens it with both off (Cycles' versioning of the file), and so does attach_blend(render_settings=
+    True), although an appended scene skips that versioning and would read the current defaults."""
+    from blendify_blender.blendfile.reference import run_bpy_script
+
+    path = next(p for p in COMMITTED if p.stem == "04_lights")
+    blender = run_bpy_script(_READ_SETTINGS, str(path))
+    assert tuple(blender["version"]) <= (2, 79, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        added = attach_blend(Scene(), path, render_settings=True)
+    assert added.render_settings["clamp_indirect"] == blender["clamp_indirect"] == 0.0
+    assert added.render_settings["filter_glossy"] == blender["filter_glossy"] == 0.0
+    assert added.render_settings["samples"] == blender["samples"]
+    assert added.cycles_settings["use_light_tree"] is blender["use_light_tree"] is False
+    assert added.cycles_settings["light_sampling_threshold"] == pytest.approx(blender["light_sampling_threshold"])

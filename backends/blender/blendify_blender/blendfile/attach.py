@@ -49,7 +49,13 @@ from blendify_blender.blendfile.safety import (
     loaded_blend,
     scripts_auto_execute_disabled,
 )
-from blendify_blender.blendfile.settings import UNIMPORTED, describe_unimported, file_render_settings
+from blendify_blender.blendfile.settings import (
+    UNIMPORTED,
+    apply_old_defaults,
+    describe_unimported,
+    file_render_settings,
+    file_version,
+)
 from blendify_core.errors import InvalidSceneError
 from blendify_core.ir.attachments import Attachment
 from blendify_core.ir.scene import Scene
@@ -211,6 +217,7 @@ def _parse_blend(
     with scripts_auto_execute_disabled(), loaded_blend(p) as (scenes, removed, new_ids):
         notes.extend(removed)
         pend.scene_label, sc = _pick_scene(scenes, scene_name, p, notes)
+        apply_old_defaults(sc, file_version(bpy, p))
         portable, cycles, setting_notes = file_render_settings(sc)
         if render_settings:
             pend.render_settings, pend.cycles_settings = portable, cycles

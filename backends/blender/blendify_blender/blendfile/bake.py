@@ -9,6 +9,12 @@ Cycles bakes EMIT into a ``resolution`` x ``resolution`` float image through the
 the placeholders are replaced by :class:`~blendify_core.ir.colors.TextureColors` on the mesh's UVs. Each
 bake is listed as an approximation (resolution-limited, UV-space; an object without a UV map keeps the
 uniform colour, said so).
+
+The same path bakes a shading normal (Bump, procedural or object/world-space Normal Map: Cycles' NORMAL
+bake in tangent space -> the material's ``normal_map``) and every Principled float input driven by nodes
+(:meth:`Baker.request_map`): into the IR's texture map where it has one (``roughness_map``,
+``metallic_map``), else into the parameter's one value, the bake's area-weighted mean over the object's
+surface (IOR, Coat Weight, Transmission Weight, Emission Strength, Alpha, ...; named in the warning).
 """
 
 from __future__ import annotations
@@ -39,7 +45,7 @@ class _Request:
     placeholder: Any  # the IR colour source (or, for a normal, the IR material) to replace
     where: str
     kind: str = "color"  # or "normal": the object's shading normal as a tangent-space normal map
-    param: str = ""  # for a material (placeholder): the IR parameter the bake feeds (normal / roughness / metallic map)
+    param: str = ""  # for a material (placeholder): the IR parameter the bake feeds ("normal_map" or a float)
 
 
 def _route_to_emission(tree: Any, socket: Any) -> list[tuple[Any, Any]]:
@@ -63,8 +69,8 @@ class Baker:
     resolution: int = DEFAULT_BAKE_RESOLUTION
     requests: list[_Request] = field(default_factory=list)
     baked: dict[int, Any] = field(default_factory=dict)  # id(colour placeholder) -> pixels or None
-    #: id(material placeholder) -> {IR parameter: pixels}
-    baked_params: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
+    #: id(material placeholder) -> {IR parameter: (pixels, request)}
+    baked_params: dict[int, dict[str, tuple[np.ndarray, _Request]]] = field(default_factory=dict)
 
     def request(self, obj: Any, material: Any, node: Any, socket: Any, placeholder: Any, where: str) -> None:
         """Bake ``socket`` of ``node`` (in ``material``, maybe evaluated copies) for ``obj``'s original."""
@@ -87,8 +93,9 @@ class Baker:
     def request_map(
         self, obj: Any, material: Any, names: tuple[str, str, str], placeholder: Any, param: str, where: str
     ) -> None:
-        """Bake the float output ``names`` = (node name, bl_idname, output identifier) of ``material`` into the
-        IR parameter ``param`` (``roughness_map`` / ``metallic_map``) of the material ``placeholder``."""
+        """Bake the float output ``names`` = (node name, bl_idname, output identifier) of ``material`` for the
+        IR float parameter ``param`` of the material ``placeholder``: its texture map ``<param>_map`` where the
+        IR has one (roughness, metallic), else the bake's mean over the object's surface (:meth:`apply`)."""
         orig_obj = getattr(obj, "original", None) or obj
         orig_mat = getattr(material, "original", None) or material
         self.requests.append(_Request(orig_obj, orig_mat, *names, placeholder, where, param=param))
@@ -113,10 +120,12 @@ class Baker:
             if pixels is None:
                 continue
             if req.param:
-                self.baked_params.setdefault(id(req.placeholder), {})[req.param] = pixels
+                self.baked_params.setdefault(id(req.placeholder), {})[req.param] = (pixels, req)
             else:
                 self.baked[id(req.placeholder)] = pixels
-            what = {"": "colour", "normal_map": "normal (tangent-space normal map)"}.get(req.param, req.param)
+            if req.param not in ("", "normal_map") and not _has_map(req.placeholder, req.param):
+                continue  # noted with its mean by apply()
+            what = {"": "colour", "normal_map": "normal (tangent-space normal map)"}.get(req.param, f"{req.param}_map")
             self.notes.add(
                 f"{req.where}: {what} from a {req.node_type} node baked to a {self.resolution}x{self.resolution} "
                 "image with Cycles' baker through the render UV map (an approximation: resolution-limited)"
@@ -191,10 +200,16 @@ class Baker:
             for i, m in enumerate(mats):
                 params = self.baked_params.get(id(m))
                 if params:
-                    changes = {
-                        p: (NormalMap if p == "normal_map" else TextureMap)(np.clip(px, 0.0, 1.0))
-                        for p, px in params.items()
-                    }
+                    changes = {}
+                    for p, (px, req) in params.items():
+                        if p == "normal_map":
+                            changes[p] = NormalMap(np.clip(px, 0.0, 1.0))
+                        elif _has_map(m, p):
+                            changes[f"{p}_map"] = TextureMap(np.clip(px, 0.0, 1.0))
+                        else:
+                            mean = self._scalar(m, p, px, spec, i if len(mats) > 1 else None, req)
+                            if mean is not None:
+                                changes[p] = mean
                     mats[i] = m.copy(**changes)
             spec["material"] = mats if isinstance(spec["material"], list) else mats[0]
             cols = spec["colors"] if isinstance(spec["colors"], list) else [spec["colors"]]
@@ -207,3 +222,67 @@ class Baker:
                 changed = True
             if changed:
                 spec["colors"] = cols if isinstance(spec["colors"], list) else cols[0]
+
+    def _scalar(self, m: Any, param: str, px: np.ndarray, spec: dict[str, Any], slot: int | None, req: Any) -> Any:
+        """The IR's one value for a baked float ``param`` the IR holds as a scalar: the bake's mean over the
+        surface of the object's faces using material ``slot`` (clipped to the parameter's range; noted)."""
+        mean = _surface_mean(px[..., 0], spec, slot)
+        if mean is None:
+            self.notes.add(
+                f"{req.where}: {param} from a {req.node_type} node baked, but the object has no UVs to "
+                "average it over; its default value used"
+            )
+            return None
+        p = next(q for q in type(m)._params if q.name == param)
+        lo = -np.inf if p.min_value is None else p.min_value
+        hi = np.inf if p.max_value is None else p.max_value
+        value = float(np.clip(mean, lo, hi))
+        self.notes.add(
+            f"{req.where}: {param} from a {req.node_type} node baked with Cycles' baker ({self.resolution}x"
+            f"{self.resolution}); the IR holds one value for it: the mean over the surface, {value:.4g}, used "
+            "(an approximation: the variation across the surface is lost)"
+        )
+        return value
+
+
+def _has_map(m: Any, param: str) -> bool:
+    """Whether the IR material ``m`` takes a texture for its float parameter ``param`` (``<param>_map``)."""
+    return param != "normal_map" and f"{param}_map" in m.parameter_names()
+
+
+def _surface_mean(values: np.ndarray, spec: dict[str, Any], slot: int | None) -> float | None:
+    """Area-weighted mean of a baked (n, n) image (row 0 at the top) over a mesh spec's triangles (those of
+    material ``slot``): each triangle is split into s x s equal parts (s from its size in texels, the same
+    for all, at most 4M samples) read at their UV centroids; None without per-corner or per-vertex UVs."""
+    uv, faces, verts = spec.get("uv_map"), np.asarray(spec["faces"]), np.asarray(spec["vertices"], np.float64)
+    if uv is None or faces.ndim != 2 or faces.shape[1] != 3:
+        return None
+    data = np.asarray(uv.data, np.float64)
+    corners = data[:, :3] if uv.kind == "faces_uv" else data[faces]  # (M, 3, 2)
+    if corners.shape[0] != len(faces):
+        return None
+    keep = np.ones(len(faces), bool)
+    if slot is not None and spec.get("faces_material") is not None:
+        keep = np.asarray(spec["faces_material"]) == slot
+    tri, corners = verts[faces[keep]], corners[keep]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    if not len(area) or area.sum() <= 0:
+        return None
+    n_y, n_x = values.shape
+    edge = np.abs(corners - np.roll(corners, 1, axis=1)).max(axis=(1, 2)) * max(n_x, n_y)  # longest edge, texels
+    budget = max(int(np.sqrt(4e6 / len(area))), 1)
+    bary = _subdivision_centroids(int(np.clip(np.ceil(edge.max()), 1, min(budget, 256))))
+    pts = np.einsum("kb,mbd->mkd", bary, corners)  # (M, K, 2) UVs
+    x = np.floor(np.mod(pts[..., 0], 1.0) * n_x).astype(int).clip(0, n_x - 1)
+    y = np.floor((1.0 - np.mod(pts[..., 1], 1.0)) * n_y).astype(int).clip(0, n_y - 1)
+    return float(np.sum(values[y, x].mean(axis=1) * area) / area.sum())
+
+
+def _subdivision_centroids(s: int) -> np.ndarray:
+    """(s * s, 3) barycentric coordinates of the centroids of a triangle's s x s equal sub-triangles."""
+    i, j = np.meshgrid(np.arange(s), np.arange(s), indexing="ij")
+    up = (i + j) < s
+    down = (i + j) < s - 1
+    a = np.concatenate([(i[up] + 1 / 3) / s, (i[down] + 2 / 3) / s])
+    b = np.concatenate([(j[up] + 1 / 3) / s, (j[down] + 2 / 3) / s])
+    return np.stack([a, b, 1.0 - a - b], axis=1)

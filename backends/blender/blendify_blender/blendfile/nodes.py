@@ -7,7 +7,11 @@
   domain and storage) or an image texture (with its UV map); :mod:`.geometry` turns the description
   into the IR colour source of each mesh;
 - texture-driven Roughness / Metallic -> ``roughness_map`` / ``metallic_map``, a tangent-space Normal Map
-  node fed by an image -> ``normal_map``.
+  node fed by an image -> ``normal_map`` (with a baker, any other shading normal: Bump, procedural or
+  object/world-space Normal Map -> a baked tangent-space ``normal_map``);
+- with a baker (:mod:`.bake`), every other float input driven by nodes (procedural Roughness / Metallic,
+  IOR, Coat Weight, Transmission, Emission Strength, Alpha, ...) is baked per object: into the IR's texture
+  map where it has one, else the bake's surface mean (named in the warning).
 
 Anything else that drives a socket (procedural nodes, volumes, displacement) is noted and its default
 value used. :func:`link_from` (the node feeding a socket, through reroutes) is shared with the light and
@@ -100,7 +104,8 @@ class MaterialReader:
         self.notes = notes
         #: a blendfile.bake.Baker: procedural colours become "bake" descriptions instead of their default value
         self.baker = baker
-        #: (IR map parameter, (node name, bl_idname, output identifier)) of the Principled being parsed
+        #: (IR parameter, (node name, bl_idname, output identifier)) of the Principled float inputs driven by
+        #: nodes, baked per object: into ``<parameter>_map`` where the IR has one, else the bake's mean
         self._maps_to_bake: list[tuple[str, tuple[str, str, str]]] = []
         self._ranges = _param_ranges()
         self._cache: dict[int, tuple[Any, dict[str, Any]]] = {}
@@ -494,6 +499,8 @@ class MaterialReader:
         if bake_normal:
             src = link_from(inputs["Normal"])
             colors["bake_normal"] = src[0].bl_idname if src is not None else "node"
+            if src is not None and src[0].type == "NORMAL_MAP" and src[0].space != "TANGENT":
+                colors["bake_normal"] += f" ({src[0].space.lower().replace('blender_', 'Blender ')}-space)"
         if self._maps_to_bake:
             colors["bake_maps"] = list(self._maps_to_bake)
         if emission_from_color > 0:
@@ -509,13 +516,15 @@ class MaterialReader:
             if sock is None:
                 continue
             src = link_from(sock) if sock.is_linked else None
-            if src is not None and ir_name in ("roughness", "metallic") and self.baker is not None:
-                if src[0].type != "TEX_IMAGE":  # procedural: baked per object (blendfile.bake)
-                    names = (str(src[0].name), str(src[0].bl_idname), str(src[1].identifier))
-                    self._maps_to_bake.append((f"{ir_name}_map", names))
+            mapped = f"{ir_name}_map" in PrincipledBSDFMaterial.parameter_names()
+            alpha_of_colour = ir_name == "alpha" and src is not None and self._alpha_value(node) is not None
+            if src is not None and self.baker is not None and not alpha_of_colour:
+                if not (mapped and src[0].type == "TEX_IMAGE"):  # baked per object (blendfile.bake): a map, or
+                    names = (str(src[0].name), str(src[0].bl_idname), str(src[1].identifier))  # its mean
+                    self._maps_to_bake.append((ir_name, names))
                     params[ir_name] = self._clip(ir_name, sock.default_value, where)
                     continue
-            if sock.is_linked and ir_name in ("roughness", "metallic"):
+            if sock.is_linked and mapped:
                 tex = self.texture_input(sock, where, bl_name)
                 if tex is not None:
                     params[f"{ir_name}_map"] = self._texture_map(tex, TextureMap, where=where)
@@ -558,14 +567,21 @@ class MaterialReader:
         return emission_from_color
 
     def _normal_map(self, normal: Any, where: str) -> Any:
-        """A tangent-space Normal Map node fed by an image on the Normal input -> IR NormalMap, or None."""
+        """A tangent-space Normal Map node fed by an image on the Normal input -> IR NormalMap; any other
+        shading normal -> _BAKE_NORMAL with a baker (a Bump, a procedural or object/world-space Normal Map:
+        baked per object into a tangent-space normal map), else None (noted)."""
         if normal is None or not normal.is_linked:
             return None
         src = link_from(normal)
         if src is not None and src[0].type == "NORMAL_MAP":
             nnode = src[0]
             if nnode.space != "TANGENT":
-                self.notes.add(f"{where}: {nnode.space.lower()}-space normal map not supported")
+                if self.baker is not None:  # object / world space: the shading normal baked in tangent space
+                    return _BAKE_NORMAL
+                self.notes.add(
+                    f"{where}: {nnode.space.lower()}-space normal map not parsed (bake_resolution=None; the IR "
+                    "holds tangent-space normal maps)"
+                )
                 return None
             csrc = link_from(nnode.inputs["Color"])
             if self.baker is not None and csrc is not None and csrc[0].type != "TEX_IMAGE":

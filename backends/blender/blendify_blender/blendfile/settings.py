@@ -26,8 +26,10 @@ __all__ = [
     "PORTABLE_KEYS",
     "SETTINGS_PROPERTY",
     "UNIMPORTED",
+    "apply_old_defaults",
     "describe_unimported",
     "file_render_settings",
+    "file_version",
 ]
 
 #: the start of the warning line naming the settings not imported (not an approximation of the IR parse: every
@@ -94,8 +96,51 @@ def _stored_settings(sc: Any) -> dict[str, Any] | None:
     return {k: data[k] for k in PORTABLE_KEYS if k in data} if isinstance(data, dict) else None
 
 
+#: Cycles' own versioning of scene settings whose default changed (its ``version_update`` runs when Blender
+#: opens a file as the main file, not when a scene is appended): (last file version of the old default,
+#: property, the old default set when the file did not set the property), in Cycles' order
+_CYCLES_OLD_DEFAULTS = (
+    ((2, 71, 0), "volume_bounces", 1),
+    ((2, 76, 8), "samples", 10),
+    ((2, 78, 2), "light_sampling_threshold", 0.0),
+    ((2, 79, 0), "blur_glossy", 0.0),
+    ((2, 79, 0), "sample_clamp_indirect", 0.0),
+    ((3, 0, 25), "samples", 128),
+    ((3, 0, 25), "use_adaptive_sampling", False),
+    ((3, 0, 25), "use_denoising", False),
+    ((3, 5, 3), "use_light_tree", False),
+)
+
+
+def file_version(bpy: Any, path: Any) -> tuple[int, int, int] | None:
+    """The Blender version that saved ``path``, from the library bpy made for it while appending (None when
+    bpy has none)."""
+    import os
+
+    want = os.path.realpath(str(path))
+    for lib in bpy.data.libraries:
+        if os.path.realpath(bpy.path.abspath(lib.filepath)) == want:
+            return (int(lib.version[0]), int(lib.version[1]), int(lib.version[2]))
+    return None
+
+
+def apply_old_defaults(sc: Any, version: tuple[int, int, int] | None) -> None:
+    """Give the appended scene ``sc`` of a file saved by Blender ``version`` the Cycles settings Blender
+    gives it when it opens the file (:data:`_CYCLES_OLD_DEFAULTS`: e.g. no indirect clamp and no Filter Glossy
+    before 2.79.1, where the current defaults are 10 and 1)."""
+    if version is None:
+        return
+    cy = sc.cycles
+    given = {name for _v, name, _d in _CYCLES_OLD_DEFAULTS if cy.is_property_set(name)}
+    for last, name, value in _CYCLES_OLD_DEFAULTS:
+        if version <= last and name not in given and hasattr(cy, name):
+            setattr(cy, name, value)
+            given.add(name)
+
+
 def file_render_settings(sc: Any) -> tuple[dict[str, Any], dict[str, Any], list[str]]:
-    """(portable bf.render keywords, Cycles-only properties, notes) of the bpy scene ``sc`` (see module)."""
+    """(portable bf.render keywords, Cycles-only properties, notes) of the bpy scene ``sc`` (see module; an
+    old file's scene first goes through :func:`apply_old_defaults`)."""
     stored = _stored_settings(sc)
     if stored is not None:
         return stored, {}, []
