@@ -1146,3 +1146,110 @@ def write_png16(path: str | Path, values: AnyArray, filters: tuple[int, ...] = (
         + chunk(b"IEND", b"")
     )
     return p
+
+
+# -- realistic benchmark scenes (accuracy_vs_time at realistic size) ---------------------------------------
+def _inward_quad(corners: Any, facing: Any) -> AnyArray:
+    """Four corners ordered so that the quad's normal points along ``facing``."""
+    c = np.asarray(corners, dtype=np.float64)
+    n = np.cross(c[1] - c[0], c[2] - c[0])
+    return c if float(n @ np.asarray(facing, dtype=np.float64)) > 0 else c[::-1].copy()
+
+
+def _box_mesh(centre: Any, half: Any, angle_deg: float) -> tuple[AnyArray, AnyArray]:
+    """An axis-aligned box of half extents ``half`` turned by ``angle_deg`` about +Z, centred at ``centre``:
+    (vertices, outward quads)."""
+    corners = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], dtype=np.float64)
+    a = np.deg2rad(angle_deg)
+    rot = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    v = (corners * np.asarray(half, dtype=np.float64)) @ rot.T + np.asarray(centre, dtype=np.float64)
+    faces = np.array([[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]])
+    return v, faces
+
+
+def cornell_room_scene(resolution: tuple[int, int] = (64, 64), light_strength: float = 15.0) -> Scene:
+    """A closed Cornell-style room (2 x 2 x 2 m, all six walls facing inward: red on the left, green on the
+    right, white elsewhere, the wall behind the camera included), a tall and a short white box, one square
+    area light under the ceiling and no background light. Lambertian throughout; most of what the camera
+    sees is lit indirectly (the ceiling only so): the global-illumination case of the benchmarks."""
+    scene = Scene()
+    white, red, green = (0.75, 0.75, 0.75), (0.65, 0.06, 0.05), (0.12, 0.45, 0.10)
+    lo, hi = (-1.0, -1.0, 0.0), (1.0, 1.0, 2.0)
+    x0, y0, z0 = lo
+    x1, y1, z1 = hi
+    walls = {
+        "floor": ([(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0)], (0, 0, 1), white),
+        "ceiling": ([(x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)], (0, 0, -1), white),
+        "back_wall": ([(x0, y1, z0), (x1, y1, z0), (x1, y1, z1), (x0, y1, z1)], (0, -1, 0), white),
+        "front_wall": ([(x0, y0, z0), (x1, y0, z0), (x1, y0, z1), (x0, y0, z1)], (0, 1, 0), white),
+        "red_wall": ([(x0, y0, z0), (x0, y1, z0), (x0, y1, z1), (x0, y0, z1)], (1, 0, 0), red),
+        "green_wall": ([(x1, y0, z0), (x1, y1, z0), (x1, y1, z1), (x1, y0, z1)], (-1, 0, 0), green),
+    }
+    for tag, (corners, facing, colour) in walls.items():
+        scene.renderables.add_mesh(
+            _inward_quad(corners, facing),
+            np.array([[0, 1, 2, 3]]),
+            DiffuseMaterial(),
+            UniformColors(colour, color_space="linear"),
+            tag=tag,
+        )
+    for tag, centre, half, angle in (
+        ("tall_box", (-0.4, 0.45, 0.6), (0.28, 0.28, 0.6), 18.0),
+        ("short_box", (0.42, -0.05, 0.28), (0.28, 0.28, 0.28), -17.0),
+    ):
+        v, f = _box_mesh(centre, half, angle)
+        scene.renderables.add_mesh(v, f, DiffuseMaterial(), UniformColors(white, color_space="linear"), tag=tag)
+    scene.lights.add_area("square", 0.5, strength=light_strength, translation=(0.0, 0.0, 1.98), tag="ceiling_light")
+    look_at_camera(scene, resolution, (0.0, -0.95, 1.0), (0.0, 1.0, 0.95), fov_x=np.deg2rad(70.0), near=0.01)
+    return scene
+
+
+def textured_scan_scene(resolution: tuple[int, int] = (64, 64)) -> Scene:
+    """A textured scan on a table: the fuze bottle (``tests/data/fuze.obj`` with its photographed texture)
+    standing on a light-grey diffuse table top, a warm rectangular key light above one side, a dim sky,
+    seen from a little above at close range. Textured, soft shadows, some indirect light from the table."""
+    scene = Scene()
+    scene.renderables.add_trimesh(str(data_path("fuze.obj")), translation=(0.0, 0.0, -0.004016), tag="fuze")
+    scene.renderables.add_plane_mesh(
+        1.5, DiffuseMaterial(), UniformColors((0.55, 0.5, 0.45)), translation=(0.0, 0.0, 0.0), tag="table"
+    )
+    scene.lights.add_area(
+        "rectangle",
+        (0.4, 0.25),
+        strength=25.0,
+        color=(1.0, 0.92, 0.8),
+        rotation_mode="look_at",
+        rotation=(0.0, 0.0, 0.08),
+        translation=(-0.35, -0.25, 0.5),
+        tag="key",
+    )
+    scene.lights.set_background_light(0.25)
+    look_at_camera(scene, resolution, (0.22, -0.3, 0.2), (0.0, 0.0, 0.1), fov_x=np.deg2rad(45.0))
+    return scene
+
+
+def pointcloud_catcher_scene(
+    resolution: tuple[int, int] = (64, 64), n: int = 6000, seed: int = 0, point_size: float = 0.005
+) -> Scene:
+    """A scanned point cloud standing on a shadow catcher: ``n`` vertices of the Stanford bunny
+    (``tests/data/bunny.ply``, +Z up, resting on z = 0) as spheres coloured by height, on a shadow-catcher
+    plane (invisible except for the shadows on it), lit by a sun and the background."""
+    import trimesh
+
+    tm: Any = trimesh.load(data_path("bunny.ply"), process=False)
+    v = np.asarray(tm.vertices, dtype=np.float64)
+    v = v[:, [0, 2, 1]] * np.array([1, -1, 1])  # +Y up -> +Z up (right-handed)
+    v -= [v[:, 0].mean(), v[:, 1].mean(), v[:, 2].min()]
+    rng = np.random.default_rng(seed)
+    pts = v[rng.choice(len(v), size=min(n, len(v)), replace=False)]
+    h = (pts[:, 2] - pts[:, 2].min()) / max(float(np.ptp(pts[:, 2])), 1e-9)
+    colours = np.stack([0.85 - 0.5 * h, 0.35 + 0.3 * h, 0.25 + 0.55 * h], axis=1)
+    scene = Scene()
+    scene.renderables.add_pointcloud(pts, DiffuseMaterial(), VertexColors(colours), point_size=point_size, tag="points")
+    scene.renderables.add_plane_mesh(
+        1.0, DiffuseMaterial(), UniformColors((1.0, 1.0, 1.0)), shadow_catcher=True, tag="catcher"
+    )
+    scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(35, 25, 0))
+    scene.lights.set_background_light(0.3)
+    look_at_camera(scene, resolution, (0.25, -0.35, 0.2), (0.0, 0.0, 0.06), fov_x=np.deg2rad(35.0))
+    return scene
