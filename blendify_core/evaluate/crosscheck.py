@@ -34,7 +34,7 @@ from blendify_core.ir.scene import Scene
 from blendify_core.ir.validate import strict_arguments
 from blendify_core.pipeline.render import render
 from blendify_core.pipeline.result import RenderResult
-from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX, _outputs
+from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX, ENGINE_ONLY_PREFIX, _outputs
 from blendify_core.registry import available_backends, backend_names
 
 __all__ = ["crosscheck", "crosscheck_main"]
@@ -151,11 +151,15 @@ def _limited(results: Mapping[str, RenderResult], pairs: Mapping[tuple[str, str]
     - ``IR parse of ...``: one side renders an attached file itself, the other its IR parse, which could
       not carry these items;
     - ``setting the engine cannot apply: ...``: a biased render setting (clamp, Filter Glossy, per-kind bounce
-      limits) one side applies and the other engine cannot (``Backend.unapplied_settings``)."""
+      limits) one side applies and the other engine cannot (``Backend.unapplied_settings``);
+    - ``setting only one engine applies: <backend>: ...``: a setting of one engine's own (its
+      ``meta["engine_only_settings"]``: Cycles' ``cycles_settings`` such as caustics off or film exposure)."""
 
     def limits(name: str) -> set[str]:
-        approx = results[name].meta.get("approximations", []) if isinstance(results[name].meta, dict) else []
-        return {a for a in approx if isinstance(a, str) and a.startswith(_LIMIT_PREFIXES)}
+        meta = results[name].meta if isinstance(results[name].meta, dict) else {}
+        approx = meta.get("approximations", [])
+        only = [f"{ENGINE_ONLY_PREFIX}{name}: {x}" for x in meta.get("engine_only_settings", [])]
+        return {a for a in approx if isinstance(a, str) and a.startswith(_LIMIT_PREFIXES)} | set(only)
 
     out = {}
     for a, b in pairs:

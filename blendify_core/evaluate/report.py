@@ -23,7 +23,7 @@ from blendify_core.io.output import atomic_write, ensure_folder
 from blendify_core.ir.colorspace import linear_to_srgb
 from blendify_core.ir.validate import strict_api
 from blendify_core.pipeline.result import RenderResult, depth_to_image, instance_to_image
-from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX
+from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX, ENGINE_ONLY_PREFIX
 
 __all__ = ["CompareReport", "CrosscheckReport"]
 
@@ -172,14 +172,14 @@ def _json(metrics: Mapping[str, Mapping[str, float]]) -> dict[str, dict[str, Any
 # ---------------------------------------------------------------------------------------------------
 def _limited_heading(items: Sequence[str]) -> str:
     """The summary heading of a limited pair: by the IR, by the engine, or both."""
-    engine = any(x.startswith(ENGINE_LIMIT_PREFIX) for x in items)
-    ir = any(not x.startswith(ENGINE_LIMIT_PREFIX) for x in items)
+    engine = any(x.startswith((ENGINE_LIMIT_PREFIX, ENGINE_ONLY_PREFIX)) for x in items)
+    ir = any(not x.startswith((ENGINE_LIMIT_PREFIX, ENGINE_ONLY_PREFIX)) for x in items)
     if engine and not ir:
-        return "LIMITED BY THE ENGINE (not judged); a render setting one engine cannot apply:"
+        return "LIMITED BY THE ENGINE (not judged); render settings only one engine applies:"
     if engine:
         return (
             "LIMITED BY THE IR AND THE ENGINE (not judged); what the IR parse could not carry and the render "
-            "settings one engine cannot apply:"
+            "settings only one engine applies:"
         )
     return "LIMITED BY THE IR (not judged); the IR parse could not carry:"
 

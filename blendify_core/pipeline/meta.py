@@ -90,8 +90,13 @@ class RenderMeta(TypedDict, total=False):
     #: (core) what makes a path tracer's picture converge to something other than the unbiased one (clamps,
     #: Filter Glossy, denoiser, adaptive stop, bounce limits; ``settings_bias``); empty for ``final``
     bias: list[str]
-    #: (core) sorted notes on every feature the backend only approximates for this scene
+    #: (core) sorted notes on every feature the backend only approximates for this scene (also the biased
+    #: settings it cannot apply, ``setting the engine cannot apply: ...``, and an attached file's ``IR parse of``)
     approximations: list[str]
+    #: [cycles] settings of this engine's own that change the picture and no other engine applies (Cycles'
+    #: ``cycles_settings``, e.g. "cycles.caustics_reflective=False (blendify: True)"); a crosscheck pair with
+    #: an engine that lacks them is limited by the engine
+    engine_only_settings: list[str]
     #: (core) warnings about the scene or the settings (clipping, precision, target_error on a raster backend)
     warnings: list[str]
     #: (core) world origin the scene was re-centred on before translation (far-from-origin scenes only)

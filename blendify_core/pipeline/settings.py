@@ -19,6 +19,7 @@ __all__ = [
     "resolve_settings",
     "settings_bias",
     "ENGINE_LIMIT_PREFIX",
+    "ENGINE_ONLY_PREFIX",
     "BIAS_KEYS",
     "engine_limits",
 ]
@@ -143,6 +144,9 @@ class RenderSettings:
 #: the start of every ``meta["approximations"]`` line naming a biased setting the engine cannot apply
 #: (:func:`engine_limits`); a crosscheck pair where one side applies it reports the pair as limited by the engine
 ENGINE_LIMIT_PREFIX = "setting the engine cannot apply: "
+#: the start of a crosscheck's limited-pair line for a setting only one engine of the pair applies (its
+#: ``meta["engine_only_settings"]``, e.g. Cycles' ``cycles_settings`` from an attached .blend)
+ENGINE_ONLY_PREFIX = "setting only one engine applies: "
 #: the keys of :func:`settings_bias`'s items (what ``Backend.unapplied_settings`` names)
 BIAS_KEYS = ("denoise", "clamp_direct", "clamp_indirect", "filter_glossy", "adaptive", "time_limit", "bounce_limits")
 

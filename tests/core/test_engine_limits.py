@@ -93,6 +93,44 @@ def test_crosscheck_reports_the_pair_limited_by_the_engine(fakes):
     assert not plain.limited and list(plain.pairs) == [names[:2]] and plain.passed
 
 
+class OwnSetting(_Plane):
+    """An engine with a setting of its own (``exposure``) that doubles the picture and no other engine has."""
+
+    name = "limits-own"
+
+    def __init__(self, exposure: float = 1.0, **options):
+        super().__init__(**options)
+        self.exposure = exposure
+
+    def gain(self, settings):
+        return self.exposure
+
+    def render(self, native, settings):
+        res = super().render(native, settings)
+        if self.exposure != 1.0:
+            res.meta["engine_only_settings"] = [f"own.exposure={self.exposure:g} (default: 1)"]
+        return res
+
+
+def test_a_setting_only_one_engine_applies_limits_its_pairs(fakes):
+    register_backend(OwnSetting.name, OwnSetting)
+    try:
+        scene = depth_plane_scene()
+        names = (OwnSetting.name, CannotApply.name, CannotApplyEither.name)
+        kw = {"samples": 4, "passes": 1, "outputs": ("rgb",)}
+        rep = bf.crosscheck(scene, backends=names, backend_options={OwnSetting.name: {"exposure": 2.0}}, **kw)
+        line = f"setting only one engine applies: {OwnSetting.name}: own.exposure=2 (default: 1)"
+        assert rep.limited == {
+            (OwnSetting.name, CannotApply.name): [line],
+            (OwnSetting.name, CannotApplyEither.name): [line],
+        }
+        assert list(rep.pairs) == [(CannotApply.name, CannotApplyEither.name)]
+        assert "LIMITED BY THE ENGINE (not judged)" in rep.summary()
+        assert not bf.crosscheck(scene, backends=names[:2], **kw).limited  # exposure 1: judged
+    finally:
+        unregister_backend(OwnSetting.name)
+
+
 def test_summary_heading_names_both_limits():
     from blendify_core.evaluate.report import _limited_heading
     from blendify_core.ir.attachments import IR_LIMIT_PREFIX

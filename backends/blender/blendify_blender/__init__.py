@@ -286,7 +286,14 @@ class CyclesBackend(Backend):
             built = session.current(native, self.verbose)
             if self.cycles_settings:
                 apply_cycles_settings(built, self.cycles_settings)
-            return render_built(built, settings, self.verbose)
+            result = render_built(built, settings, self.verbose)
+        if self.cycles_settings:  # what no other engine applies: a crosscheck pair is limited by the engine
+            from .blendfile.settings import cycles_changes
+
+            only = cycles_changes(self.cycles_settings, settings.max_bounces)
+            if only:
+                result.meta["engine_only_settings"] = [f"cycles.{x}" for x in only]
+        return result
 
     def clear(self) -> None:
         """Remove every datablock this backend created in the bpy session (keeps the backend usable)."""

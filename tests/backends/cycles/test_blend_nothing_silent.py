@@ -202,6 +202,24 @@ def test_cycles_settings_option_is_checked():
         CyclesBackend(isolate=True, cycles_settings={"film_exposure": 1.0})
 
 
+def test_cycles_only_settings_are_named_for_a_crosscheck(cycles):
+    """Cycles settings of a file no other engine applies (caustics off, film exposure) are listed in the
+    result's meta["engine_only_settings"]; noise-only ones (adaptive threshold, light tree) and blendify's
+    own values are not."""
+    import blendify_core as bf
+    from blendify_core.testing import plane_scene
+
+    own = {"caustics_reflective": False, "film_exposure": 2.0, "use_light_tree": False, "adaptive_threshold": 0.05}
+    res = bf.render(plane_scene(resolution=(8, 6)), backend="cycles", samples=1, cycles_settings=own)
+    assert res.meta["engine_only_settings"] == [
+        "cycles.caustics_reflective=False (blendify: True)",
+        "cycles.film_exposure=2.0 (blendify: 1.0)",
+    ]
+    same = {"caustics_reflective": True, "film_exposure": 1.0}
+    res = bf.render(plane_scene(resolution=(8, 6)), backend="cycles", samples=1, cycles_settings=same)
+    assert "engine_only_settings" not in res.meta
+
+
 def test_attaching_the_current_main_file(files, bpy_script):
     res = bpy_script(ATTACH_MAIN, str(files["plain"]))
     assert res["tags"] == ["Ball", "Floor"]

@@ -107,3 +107,34 @@ def test_an_old_file_imports_the_settings_blender_opens_it_with(cycles):
     assert added.render_settings["samples"] == blender["samples"]
     assert added.cycles_settings["use_light_tree"] is blender["use_light_tree"] is False
     assert added.cycles_settings["light_sampling_threshold"] == pytest.approx(blender["light_sampling_threshold"])
+
+
+def test_crosscheck_with_the_files_biased_settings_is_limited_by_the_engine(tmp_path: Path, cycles):
+    """04_lights asks for diffuse and glossy bounce limits of 4 (below its 12 bounces): Cycles applies them,
+    Mitsuba has one depth limit for every kind. Rendered with the file's settings Mitsuba lists them in
+    meta["approximations"], and a crosscheck with them reports the Cycles/Mitsuba pair limited by the engine
+    (neither passed nor failed); with bf.render's own settings the pair is judged."""
+    from blendify_core.pipeline.settings import ENGINE_LIMIT_PREFIX
+    from blendify_core.registry import available_backends
+
+    if not available_backends()["mitsuba"].available:
+        pytest.skip(f"mitsuba unavailable: {available_backends()['mitsuba'].reason}")
+    path = next(p for p in COMMITTED if p.stem == "04_lights")
+    copy = tmp_path / "prepared.blend"
+    prepare_blend(path, copy, (32, 24), 8)
+    scene = Scene()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BlendAttachWarning)
+        att = attach_blend(scene, copy, with_camera=True, render_settings=True)
+    biased = {k: v for k, v in att.render_settings.items() if k.startswith("clamp_") or k.endswith("_bounces")}
+    assert (biased["diffuse_bounces"], biased["glossy_bounces"], biased["max_bounces"]) == (4, 4, 12)
+    res = bf.render(scene, backend="mitsuba", samples=4, **biased)
+    limits = [a for a in res.meta["approximations"] if a.startswith(ENGINE_LIMIT_PREFIX)]
+    assert len(limits) == 1 and "bounce limits below max_bounces (diffuse 4, glossy 4)" in limits[0]
+    kw = {"backends": ("cycles", "mitsuba"), "outputs": ("rgb",), "samples": 8, "passes": 1}
+    rep = bf.crosscheck(scene, **kw, **biased)
+    assert set(rep.limited) == {("cycles", "mitsuba")} and not rep.pairs and not rep.errors
+    assert rep.limited[("cycles", "mitsuba")] == limits
+    assert "cycles vs mitsuba: LIMITED BY THE ENGINE (not judged)" in rep.summary()
+    plain = bf.crosscheck(scene, **kw)
+    assert not plain.limited and list(plain.pairs) == [("cycles", "mitsuba")]

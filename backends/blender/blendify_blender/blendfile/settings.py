@@ -27,6 +27,7 @@ __all__ = [
     "SETTINGS_PROPERTY",
     "UNIMPORTED",
     "apply_old_defaults",
+    "cycles_changes",
     "describe_unimported",
     "file_render_settings",
     "file_version",
@@ -79,7 +80,7 @@ _FILTERS = {"BOX": "box", "GAUSSIAN": "gaussian", "BLACKMAN_HARRIS": "blackman_h
 
 #: settings that change only the noise of a render, not the picture it converges to
 _NOISE_ONLY = ("samples", "seed", "adaptive")
-_NOISE_ONLY_CYCLES = ("adaptive_threshold", "adaptive_min_samples")
+_NOISE_ONLY_CYCLES = ("adaptive_threshold", "adaptive_min_samples", "use_light_tree")  # the light tree: unbiased
 #: per-kind bounce limits Cycles caps by max_bounces (transparent bounces are counted apart)
 _CAPPED_BOUNCES = ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces")
 
@@ -204,6 +205,22 @@ def _same(a: Any, b: Any) -> bool:
     return bool(a == b)
 
 
+def cycles_changes(cycles: dict[str, Any], max_bounces: int, default_max_bounces: int | None = None) -> list[str]:
+    """The Cycles-only settings of ``cycles`` (:data:`CYCLES_KEYS`) that change the expected picture against
+    what blendify sets (noise-only ones left out), as ``"name=value (blendify: default)"``; volume bounces
+    are capped by ``max_bounces`` (``default_max_bounces`` for blendify's side; the same when None)."""
+    mb_default = max_bounces if default_max_bounces is None else default_max_bounces
+    out = []
+    for k, v in cycles.items():
+        d = _cycles_defaults().get(k)
+        if k in _CAPPED_BOUNCES and isinstance(v, int) and isinstance(d, int):
+            v, d = min(v, max_bounces), min(d, mb_default)
+        if d is None or k in _NOISE_ONLY_CYCLES or _same(v, d):
+            continue
+        out.append(f"{k}={v!r} (blendify: {d!r})")
+    return out
+
+
 def describe_unimported(portable: dict[str, Any], cycles: dict[str, Any]) -> str | None:
     """The settings of a file that change the expected picture and differ from what ``bf.render`` uses by
     default, as one note line for ``attach_blend(render_settings=False)`` (None when there is none; the
@@ -224,13 +241,7 @@ def describe_unimported(portable: dict[str, Any], cycles: dict[str, Any]) -> str
         if _same(v, d):
             continue
         diffs.append(f"{k}={v!r} (bf.render: {d!r})")
-    for k, v in cycles.items():
-        d = _cycles_defaults().get(k)
-        if k in _CAPPED_BOUNCES and isinstance(v, int) and isinstance(d, int):
-            v, d = min(v, mb_file), min(d, mb_default)
-        if d is None or k in _NOISE_ONLY_CYCLES or _same(v, d):
-            continue
-        diffs.append(f"cycles.{k}={v!r} (blendify: {d!r})")
+    diffs += [f"cycles.{line}" for line in cycles_changes(cycles, mb_file, mb_default)]
     if not diffs:
         return None
     return UNIMPORTED + ", ".join(diffs)
