@@ -1,18 +1,23 @@
 """Large point clouds as one Mitsuba ``linearcurve`` shape: every point an Embree round linear curve of one
-short segment (a sphere-capped capsule 1 % of the radius long), all in one shape with one BSDF.
+short segment (a sphere-capped capsule 1 % of the radius long, centred on the point), all in one shape with
+one BSDF, its buffers set in memory (no curve file is written or parsed).
 
 Measured on ``testing.pointcloud_scene(1_000_000)`` at 128x128, 16 spp
 (``benchmarks/results/mitsuba_pointcloud_options.md``): the IR's merged icosphere mesh (80 million triangles)
-took 198 s and ~11 GB for the first render; one curve shape takes seconds and well under 1 GB. Geometric
-accuracy, against exact spheres, for camera rays aimed at points of radius 0.015 seen from 4 units: 0.3 % of
-the rays hit where a sphere is missed or the other way round (the capsule's extra length and Embree's
-single-precision curve intersector), about as often as with the icosphere mesh, whose faces lie up to 5 %
-of the radius inside the sphere. Mitsuba 3.9.1's ``ellipsoids`` shape, the other one-shape option, misses
-small spheres (radius 0.015 from 4 units away: 35 % of such rays wrong), so it is not used.
+took 198 s and ~11 GB for the first render; one curve shape takes a few seconds and under 0.5 GB, most of it
+Embree's BVH build inside ``mi.load_dict``. Geometric accuracy, against exact spheres, for camera rays aimed
+at points of radius 0.015 seen from 4 units: 0.3 % of the rays hit where a sphere is missed or the other way
+round (the capsule's extra length and Embree's single-precision curve intersector), about as often as with
+the icosphere mesh, whose faces lie up to 5 % of the radius inside the sphere. Shorter capsules are not more
+exact: at 0.1 % of that radius a third of such hits are more than 5 % of the radius off (Embree's precision).
+Mitsuba 3.9.1's ``ellipsoids`` shape, the other one-shape option, hits small spheres at the wrong distance
+(its intersection starts the quadratic from a point off the ray's closest approach by the factor 1/scale,
+so in single precision it loses the small sphere), so it is not used.
 
 Per-point colours (and alphas) are a 1 x N bitmap read at the curve's v = (v_local + segment) / segments:
-every point has a second segment of radius 0 (never hit) so that v stays inside the point's own texel row
-(v_local is 1 on the end cap).
+every point's capsule is followed by a spacer segment so that v stays inside the point's own texel row
+(v_local is 1 on the end cap). All spacers are one shared segment of negative radius (:data:`SPACER_RADIUS`),
+which Embree leaves out of its BVH: 2 segments per point for the texture, 1 for the BVH build.
 
 Curves are used for opaque, non-emissive, non-transmissive point clouds under a similarity transform (the
 backface-culled capsules have no inside, cannot be sampled as emitters, and are round) whose points are not
@@ -32,7 +37,7 @@ import numpy as np
 
 from blendify_core.ir.physics import material_lobes
 
-__all__ = ["CAPSULE_LENGTH", "MIN_SIZE_RATIO", "curves_fit", "curve_points", "point_bitmap"]
+__all__ = ["CAPSULE_LENGTH", "MIN_SIZE_RATIO", "SPACER_RADIUS", "curves_fit", "curve_points", "point_bitmap"]
 
 #: the segment length of each point's capsule, relative to its radius
 CAPSULE_LENGTH = 1e-2
@@ -40,6 +45,9 @@ CAPSULE_LENGTH = 1e-2
 #: against exact spheres): radius/distance 2.5e-3: 0.17 % of the rays hit or miss wrongly, 1.5e-3: 0.27 %,
 #: 7.5e-4: 7.8 %. Smaller points keep the merged icosphere mesh.
 MIN_SIZE_RATIO = 1e-3
+#: the radius of the shared spacer segment: negative, so Embree drops it from the BVH as an invalid curve,
+#: and tiny, so Mitsuba's bounding box (control points grown by their radius) stays the capsules'
+SPACER_RADIUS = -1e-30
 
 
 def curves_fit(
@@ -70,7 +78,13 @@ def point_bitmap(values: np.ndarray) -> dict[str, Any]:
 
 
 def curve_points(centres: np.ndarray, radii: np.ndarray, bsdf: Any) -> Any:
-    """A loaded ``linearcurve`` shape of one capsule per point (world ``centres``, world ``radii``)."""
+    """A loaded ``linearcurve`` shape of one capsule per point (world ``centres``, world ``radii``).
+
+    Layout (see the module docstring): control points ``2i`` and ``2i + 1`` are point ``i``'s capsule, centred
+    on the point along z; the last two control points are one shared spacer segment of negative radius, which
+    Embree leaves out of its BVH (an invalid curve), so the spacers cost no build time (measured at 1M points:
+    half the ``mi.load_dict`` time of spacers of radius 0). Segment ``2i`` is point ``i``'s capsule, segment
+    ``2i + 1`` the shared spacer."""
     import mitsuba as mi
 
     n = len(centres)
@@ -82,22 +96,28 @@ def curve_points(centres: np.ndarray, radii: np.ndarray, bsdf: Any) -> Any:
     finally:
         with contextlib.suppress(OSError):
             os.unlink(path)
+    centres = np.asarray(centres, dtype=np.float64)
     # the capsule's surface (so its mean projected area, the coverage of a point seen from anywhere) is
     # the sphere's: 4 pi r'^2 (1 + L/2) = 4 pi r^2
     r = np.asarray(radii, dtype=np.float64) / np.sqrt(1.0 + CAPSULE_LENGTH / 2.0)
-    cp = np.empty((n, 3, 4), np.float32)
-    cp[:, :, :3] = np.asarray(centres, dtype=np.float64)[:, None, :]
-    cp[:, 1:, 2] += (r * CAPSULE_LENGTH)[:, None]
-    cp[:, :2, 3] = r[:, None]
-    cp[:, 2, 3] = 0.0  # the spacer segment (see the module docstring)
-    base = np.arange(n, dtype=np.uint32) * 3
-    segments = np.stack([base, base + 1], axis=1).ravel()
+    cp = np.empty((n + 1, 2, 4), np.float32)
+    cp[:n, :, :3] = centres[:, None, :]
+    half = r * (CAPSULE_LENGTH / 2.0)
+    cp[:n, 0, 2] -= half
+    cp[:n, 1, 2] += half
+    cp[:n, :, 3] = r[:, None]
+    # the shared spacer: at the first point (so the shape's bounding box is the capsules'), radius < 0
+    cp[n, :, :3] = centres[0]
+    cp[n, :, 3] = SPACER_RADIUS
+    segments = np.empty((n, 2), np.uint32)
+    segments[:, 0] = np.arange(0, 2 * n, 2, dtype=np.uint32)
+    segments[:, 1] = 2 * n
     params = mi.traverse(shape)
     # the buffers change size: set them without SceneParameters.__setitem__'s equality shortcut
     for key, value in (
-        ("control_point_count", 3 * n),
+        ("control_point_count", 2 * n + 2),
         ("control_points", type(params["control_points"])(cp.ravel())),
-        ("segment_indices", type(params["segment_indices"])(segments)),
+        ("segment_indices", type(params["segment_indices"])(segments.ravel())),
     ):
         cur, value_type, node, _flags = params.properties[key]
         params.set_dirty(key)
