@@ -13,6 +13,12 @@ Fresnel remapped by the specular tint, Cycles' F82-tint metal Fresnel, or none) 
 visible normals or the cosine hemisphere; the pdf is the mixture's (one-sample MIS over the lobes).
 
 Two-sided like every blendify surface: seen from behind it scatters like its front with the normal flipped.
+
+Cycles' transmission layer is a second plugin (:data:`GLASS_PLUGIN`): rough GGX glass (a solid, one-sided),
+reflection and refraction by the real Fresnel with height-correlated shadowing, scaled per viewing cosine by
+Cycles' multiple-scattering compensation on the side the view is on (``1 + F_ms (1 - E) / E`` with ``E`` the
+single-scattering glass albedo of that side and ``F_ss`` the transmission tint,
+:func:`blendify_mitsuba.principled.glass_compensation`).
 The plugin is registered per Mitsuba variant (:func:`register`); it is used in the JIT variants, where Dr.Jit
 traces it once into the rendering kernel. In ``scalar_rgb`` Mitsuba would call the Python methods once per
 sample, which costs far more (measured in benchmarks/results/material_sweep.md), so that variant keeps the
@@ -28,6 +34,8 @@ __all__ = ["PLUGIN", "register", "spec_json"]
 
 #: the plugin name of the BSDF
 PLUGIN = "blendify_principled"
+#: the plugin name of the glass BSDF (Cycles' transmission layer)
+GLASS_PLUGIN = "blendify_glass"
 #: use the plugin at all (off: the lobe sum everywhere; for comparisons)
 ENABLED = True
 #: use the plugin in ``scalar_rgb`` too (for measuring its cost there; off: the lobe sum)
@@ -44,6 +52,8 @@ def register() -> str:
     if variant not in _REGISTERED:
         cls = _bsdf_class()
         mi.register_bsdf(PLUGIN, lambda props: cls(props))
+        glass = _glass_class()
+        mi.register_bsdf(GLASS_PLUGIN, lambda props: glass(props))
         _REGISTERED.add(variant)
     return PLUGIN
 
@@ -212,3 +222,122 @@ def _bsdf_class() -> type:
             return f"CyclesPrincipled[{len(self.lobes)} lobes]"
 
     return CyclesPrincipled
+
+
+def _glass_class() -> type:
+    """The glass BSDF class for the current variant: rough GGX glass (a solid: one-sided, relative IOR
+    ``eta`` entering through the front), height-correlated shadowing, reflection tinted by ``reflect`` and
+    transmission by ``transmit`` per crossing, both scaled per viewing cosine by Cycles' multiple-scattering
+    compensation (tables ``outside`` / ``inside``, N_MU x 3, for the side the view is on)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    class CyclesGlass(mi.BSDF):  # type: ignore[misc,name-defined]
+        def __init__(self, props: Any) -> None:
+            mi.BSDF.__init__(self, props)
+            spec = json.loads(props["spec"])
+            self.alpha = float(spec["alpha"])
+            self.eta = float(spec["eta"])
+            self.reflect = mi.Color3f(*spec["reflect"])
+            self.transmit = mi.Color3f(*spec["transmit"])
+            self.n_mu = len(spec["outside"]) // 3
+            self.jit = dr.is_jit_v(mi.Float)
+            tables = [[float(v) for v in spec[k]] for k in ("outside", "inside")]
+            self.tables = [mi.Float(t) for t in tables] if self.jit else tables
+            r = mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
+            t = mi.BSDFFlags.GlossyTransmission | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
+            t = t | mi.BSDFFlags.NonSymmetric
+            self.m_components = [r, t]
+            self.m_flags = r | t
+
+        def _comp(self, cos_i: Any) -> Any:
+            mu = dr.abs(cos_i)
+            x = dr.clip(mu * self.n_mu - 0.5, 0.0, self.n_mu - 1.0)
+            i0 = dr.minimum(mi.UInt32(dr.floor(x)), self.n_mu - 2)
+            t = x - mi.Float(i0)
+            out = []
+            for table in self.tables:
+                if self.jit:
+                    a = dr.gather(mi.Color3f, table, i0)
+                    b = dr.gather(mi.Color3f, table, i0 + 1)
+                else:
+                    j = 3 * int(i0)
+                    a, b = mi.Color3f(*table[j : j + 3]), mi.Color3f(*table[j + 3 : j + 6])
+                out.append(dr.lerp(a, b, t))
+            return dr.select(cos_i > 0, out[0], out[1])
+
+        def _lambda(self, cos_t: Any) -> Any:
+            c2 = dr.maximum(cos_t * cos_t, 1e-12)
+            return 0.5 * (dr.sqrt(1.0 + self.alpha * self.alpha * dr.maximum(1.0 - c2, 0.0) / c2) - 1.0)
+
+        def _eval_pdf(self, si: Any, wo: Any, active: Any) -> tuple[Any, Any]:
+            wi = si.wi
+            cos_i, cos_o = wi.z, wo.z
+            reflect = cos_i * cos_o > 0
+            eta = dr.select(cos_i > 0, self.eta, 1.0 / self.eta)  # relative IOR across the boundary
+            m = dr.normalize(wi + wo * dr.select(reflect, 1.0, eta))
+            m = dr.mulsign(m, m.z)
+            distr = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, self.alpha, True)
+            d = distr.eval(m)
+            lam_i, lam_o = self._lambda(cos_i), self._lambda(cos_o)
+            g2 = dr.rcp(1.0 + lam_i + lam_o)
+            im, om = dr.dot(wi, m), dr.dot(wo, m)
+            f = mi.fresnel(im, self.eta)[0]
+            abs_i = dr.maximum(dr.abs(cos_i), 1e-8)
+            denom = im + eta * om
+            denom2 = dr.maximum(denom * denom, 1e-12)
+            # the visible-normal density of m, seen from wi's side
+            d_vis = d * dr.abs(im) / (abs_i * (1.0 + lam_i))
+            comp = self._comp(cos_i)
+            # radiance transport: the transmitted radiance is divided by eta^2 (Mitsuba's convention)
+            v_r = self.reflect * (f * d * g2 / (4.0 * abs_i))
+            v_t = self.transmit * ((1.0 - f) * d * g2 * dr.abs(im * om) / (abs_i * denom2))
+            p_r = f * d_vis / (4.0 * dr.maximum(dr.abs(om), 1e-8))
+            p_t = (1.0 - f) * d_vis * eta * eta * dr.abs(om) / denom2
+            # microfacets facing away from either direction scatter nothing
+            ok = active & (cos_i != 0) & (cos_o != 0) & (im * cos_i > 0) & (om * cos_o > 0)
+            value = dr.select(ok, comp * dr.select(reflect, v_r, v_t), 0.0)
+            pdf = dr.select(ok, dr.select(reflect, p_r, p_t), 0.0)
+            return value, pdf
+
+        def eval(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
+            return self._eval_pdf(si, wo, mi.Bool(active))[0]
+
+        def pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
+            return self._eval_pdf(si, wo, mi.Bool(active))[1]
+
+        def eval_pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
+            return self._eval_pdf(si, wo, mi.Bool(active))
+
+        def sample(self, ctx: Any, si: Any, sample1: Any, sample2: Any, active: Any = True) -> Any:
+            active = mi.Bool(active)
+            wi = si.wi
+            distr = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, self.alpha, True)
+            m = distr.sample(dr.mulsign(wi, wi.z), sample2)[0]
+            f, cos_t, _eta_it, eta_ti = mi.fresnel(dr.dot(wi, m), self.eta)
+            reflect = sample1 <= f
+            wo = dr.select(reflect, mi.reflect(wi, m), mi.refract(wi, m, cos_t, eta_ti))
+            value, pdf = self._eval_pdf(si, wo, active)
+            bs = dr.zeros(mi.BSDFSample3f)
+            bs.wo = wo
+            bs.pdf = pdf
+            bs.eta = dr.select(reflect, 1.0, _eta_it)
+            bs.sampled_type = mi.UInt32(
+                dr.select(reflect, int(mi.BSDFFlags.GlossyReflection), int(mi.BSDFFlags.GlossyTransmission))
+            )
+            bs.sampled_component = dr.select(reflect, mi.UInt32(0), mi.UInt32(1))
+            # a refraction that stays on wi's side (or a reflection through the surface) scatters nothing
+            ok = active & (pdf > 0) & (reflect == (wi.z * wo.z > 0))
+            weight = dr.select(ok, value / dr.select(ok, pdf, 1.0), 0.0)
+            return bs, weight
+
+        def traverse(self, callback: Any) -> None:
+            pass
+
+        def parameters_changed(self, keys: Any = None) -> None:
+            pass
+
+        def to_string(self) -> str:
+            return f"CyclesGlass[alpha={self.alpha}, eta={self.eta}]"
+
+    return CyclesGlass

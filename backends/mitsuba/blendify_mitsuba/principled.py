@@ -23,6 +23,7 @@ cached per parameter set: about 1-3 ms per material at translation, nothing per 
 from __future__ import annotations
 
 import functools
+import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -134,7 +135,40 @@ def _vndf(alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
     h /= np.linalg.norm(h, axis=-1, keepdims=True)
     vdoth = np.sum(v * h, axis=-1)
     cos_l = 2.0 * vdoth * h[..., 2] - v[..., 2]
+    _H_Z[alpha] = h[..., 2]
     return vdoth, cos_l, _smith_lambda(v[..., 2], alpha), _smith_lambda(cos_l, alpha)
+
+
+_H_Z: dict[float, np.ndarray] = {}  # the microfacet normals' cosines of _vndf(alpha)
+
+
+def glass_albedo(alpha: float, eta: float) -> np.ndarray:
+    """Directional albedo (N_MU,) of single-scattering GGX glass of relative IOR ``eta`` (< 1: seen from
+    inside) with height-correlated shadowing: reflection plus transmission, real Fresnel, as energy (no
+    ``eta^2`` radiance factor)."""
+    alpha = max(float(alpha), 1e-4)
+    vdoth, cos_l, lam_v, lam_l = _vndf(alpha)
+    h_z = _H_Z[alpha]
+    mu = _MU[:, None]
+    c = np.clip(vdoth, 0.0, 1.0)
+    f = fresnel_dielectric(c, eta)
+    sin2_t = (1.0 - c * c) / (eta * eta)
+    cos_t = np.sqrt(np.maximum(1.0 - sin2_t, 0.0))
+    o_z = (c / eta - cos_t) * h_z - mu / eta  # the refracted direction's cosine (negative: through)
+    g_r = np.where(cos_l > 0, (1.0 + lam_v) / (1.0 + lam_v + lam_l), 0.0)
+    g_t = np.where((o_z < 0) & (sin2_t < 1.0), (1.0 + lam_v) / (1.0 + lam_v + _smith_lambda(o_z, alpha)), 0.0)
+    return np.asarray((f * g_r + (1.0 - f) * g_t).mean(axis=1))
+
+
+def glass_compensation(alpha: float, eta: float, tint: np.ndarray) -> np.ndarray:
+    """Cycles' multiple-scattering factor (N_MU, 3) of MULTI_GGX glass of relative IOR ``eta`` seen from the
+    side that ``eta`` says, per viewing cosine: ``1 + F_ms (1 - E) / E`` with ``E`` :func:`glass_albedo` and
+    ``F_ss`` the transmission tint (per channel)."""
+    e = glass_albedo(alpha, eta)[:, None]
+    e_avg = float(cos_mean(e)[0])
+    t = np.clip(np.asarray(tint, dtype=np.float64)[:3], 0.0, 1.0)[None, :]
+    f_ms = t * e_avg / (1.0 - t * (1.0 - e_avg))
+    return np.asarray(1.0 + f_ms * (1.0 - e) / np.maximum(e, 1e-6))
 
 
 def ggx_albedo(alpha: float, fresnel: Fresnel | None, correlated: bool) -> np.ndarray:
@@ -575,6 +609,36 @@ def glass_lobe(material: Any, base: np.ndarray) -> dict[str, Any]:
     return d
 
 
+def glass_layered(material: Any, base: np.ndarray) -> dict[str, Any] | None:
+    """Cycles' transmission layer as a :data:`blendify_mitsuba.layered.GLASS_PLUGIN` BSDF (rough GGX glass with
+    Cycles' view-dependent multiple-scattering compensation per side), or None for smooth glass (the lobe
+    sum's ``dielectric``, exact)."""
+    from .layered import GLASS_PLUGIN
+
+    r, eta = float(material.roughness), float(material.ior)
+    alpha = r * r
+    if alpha < LAYERED_MIN_ALPHA or abs(eta - 1.0) < 1e-4:
+        return None
+    tint_t = np.sqrt(np.clip(np.asarray(base, dtype=np.float64)[:3], 0.0, None))
+    spec_tint = material.linear("specular_tint")[:3]
+    f_real = cos_mean(fresnel_dielectric(_MU, eta))
+    f_tint = cos_mean(_fresnel_of("dielectric", (eta, *(float(x) for x in spec_tint)))(_MU))
+    multi = material.distribution == "MULTI_GGX"
+    if multi:
+        outside, inside = glass_compensation(alpha, eta, tint_t), glass_compensation(alpha, 1.0 / eta, tint_t)
+    else:
+        outside = inside = np.ones((N_MU, 3))
+    spec = {
+        "alpha": float(alpha),
+        "eta": eta,
+        "reflect": [float(x) for x in np.broadcast_to(f_tint / max(float(f_real), 1e-6), (3,))],
+        "transmit": [float(x) for x in tint_t],
+        "outside": [float(v) for v in np.float32(outside).ravel()],
+        "inside": [float(v) for v in np.float32(inside).ravel()],
+    }
+    return {"type": GLASS_PLUGIN, "spec": json.dumps(spec, separators=(",", ":"))}
+
+
 def cycles_albedo_of(material: Any, base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Cycles' directional albedo (N_MU, 3) of an opaque Principled material (the sum of its lobes) at the
     viewing cosines (N_MU,): what a white uniform background shows of it."""
@@ -626,7 +690,9 @@ def principled_bsdf(
     g = 0.0
     if tw > 0.0:
         g = min(max(transmission_weight_above(material) * tw, 0.0), 1.0)
-    glass = wrap(glass_lobe(material, base)) if tw > 0.0 else None
+    glass = None
+    if tw > 0.0:
+        glass = wrap((glass_layered(material, base) if layered else None) or glass_lobe(material, base))
     if glass is not None and g >= 1.0 - 1e-6:
         return glass
     lay = layered_bsdf(lobes, 1.0 / (1.0 - g)) if layered else None

@@ -1037,32 +1037,35 @@ class MitsubaTranslator(Translator):
         MetalWireframeMaterial,
         features={
             "material.principled": approximate(
-                "uniform colours, isotropic: Cycles' layer model (docs/conventions.md) as a sum of Mitsuba's "
-                "built-in lobes (blendify_mitsuba/principled.py): each GGX lobe a roughconductor with a complex "
-                "IOR fitted to the albedo curve of Cycles' lobe and scaled to its albedo (MULTI_GGX compensation "
-                "included), the Lambertian diffuse attenuated by the layers above; Cycles' view-dependent "
-                "attenuations become their cosine-weighted means (sphere means match, grazing pixels differ). "
-                "Material sweep (benchmarks/results/material_sweep.md): dielectrics, coat and Plastic within "
-                "1.5 % of Cycles' sphere mean. Colour textures, vertex colours, roughness/metallic maps, "
+                "uniform colours, isotropic: Cycles' layer model (docs/conventions.md). JIT variants: "
+                "blendify_mitsuba/layered.py, a Dr.Jit BSDF with each GGX lobe's own Fresnel, height-correlated "
+                "shadowing and Cycles' view-dependent layer weights (tables per viewing cosine); scalar_rgb and "
+                "exported scene files: a sum of Mitsuba's built-in lobes (blendify_mitsuba/principled.py, each GGX "
+                "lobe a roughconductor fitted to the albedo curve of Cycles' lobe) holding the cosine-weighted means "
+                "of those weights (listed in meta['approximations']). Material sweep: "
+                "benchmarks/results/material_sweep.md. Colour textures, vertex colours, roughness/metallic maps, "
                 "anisotropy: Mitsuba 'principled' (Disney diffuse, Schlick Fresnel; 3-13 % off on dielectrics)"
             ),
             "material.diffuse_only": _exact("Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
             "material.metallic": approximate(
-                "roughconductor whose complex IOR is fitted to the albedo curve of Cycles' F82-tint metal, scaled "
-                "to its albedo; white specular tint within 2 % of Cycles' sphere mean, a dark tint 2-4 % (its dip "
-                "at grazing angles has no conductor equivalent)"
+                "JIT variants: Cycles' F82-tint Fresnel (blendify_mitsuba/layered.py); scalar_rgb: a roughconductor "
+                "whose complex IOR is fitted to the albedo curve of Cycles' metal, scaled to its albedo (a dark "
+                "specular tint 2-4 % off there: its dip at grazing angles has no conductor equivalent)"
             ),
             "material.transmission": approximate(
-                "roughdielectric (a solid, one-sided, relative IOR 'ior'), transmittance sqrt(base colour) per "
-                "crossing, scaled so that a white glass sphere in a white furnace is as bright as Cycles' "
-                "MULTI_GGX glass (measured table); mixed with the opaque lobes by the layers' weight"
+                "a solid (one-sided, relative IOR 'ior'), transmittance sqrt(base colour) per crossing, mixed with "
+                "the opaque lobes by the layers' weight. JIT variants: rough GGX glass with Cycles' view-dependent "
+                "multiple-scattering compensation on each side (blendify_mitsuba/layered.py); scalar_rgb: "
+                "roughdielectric scaled so that a white glass sphere in a white furnace is as bright as Cycles' "
+                "MULTI_GGX glass (measured table)"
             ),
             "material.coat": approximate(
                 "a dielectric GGX lobe of coat_ior (as the specular layer) over the rest, which it attenuates"
             ),
             "material.sheen": approximate(
-                "a broad roughconductor whose albedo follows Cycles' sheen albedo (measured with Cycles, "
-                "benchmarks/measure_sheen_albedo.py), attenuating the layers below: not the microfiber lobe"
+                "a broad GGX lobe scaled to Cycles' sheen albedo (measured with Cycles, "
+                "benchmarks/measure_sheen_albedo.py; per viewing cosine in the JIT variants, a fitted roughconductor "
+                "in scalar_rgb), attenuating the layers below: not the microfiber lobe"
             ),
             "material.subsurface": unsupported("Mitsuba has no subsurface scattering in the principled BSDF"),
             "material.roughness_map": approximate(
