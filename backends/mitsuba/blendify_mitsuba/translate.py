@@ -74,7 +74,7 @@ from . import layered
 from .aniso import SquarePixelPlan, plan_square_pixels
 from .integrator import register as register_integrator
 from .layered import register as register_layered
-from .points import curve_points, curves_fit, point_bitmap
+from .points import capsule_length, curve_points, curves_fit, point_bitmap
 from .principled import glossy_scale, principled_bsdf, raw_rgb, with_bitmaps
 
 __all__ = [
@@ -302,11 +302,13 @@ def _emission(material: Any) -> np.ndarray | None:
 
 
 def _size_ratio(ctx: Any, centres: np.ndarray, radii: np.ndarray) -> float:
-    """The smallest radius over the largest distance from the camera to the points' bounding box."""
+    """The smallest radius over the scene's extent seen from the points: the largest distance from the camera
+    to the points' bounding box, or the largest coordinate (the float32 spacing of either limits Embree's
+    curves)."""
     cam = np.asarray(ctx.scene.camera.translation, dtype=np.float64)
     lo, hi = centres.min(axis=0), centres.max(axis=0)
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    far = float(np.linalg.norm(corners - cam, axis=1).max())
+    far = max(float(np.linalg.norm(corners - cam, axis=1).max()), float(np.abs(corners).max()))
     return float(np.min(radii)) / far if far > 0 else float("inf")
 
 
@@ -980,7 +982,8 @@ class MitsubaTranslator(Translator):
             return
         scale = float(np.linalg.svd(np.asarray(matrix)[:3, :3], compute_uv=False)[0])
         emissive = strength > 0 or _emission(mat) is not None
-        if curves_fit(mat, src.opacity(alpha)[1], emissive, matrix, _size_ratio(ctx, centres, radii * scale)) is None:
+        size_ratio = _size_ratio(ctx, centres, radii * scale)
+        if curves_fit(mat, src.opacity(alpha)[1], emissive, matrix, size_ratio) is None:
             key = f"{prefix}_curves"
             if per_point is not None:
                 tex = mi.load_dict(point_bitmap(per_point))
@@ -989,7 +992,7 @@ class MitsubaTranslator(Translator):
             else:
                 bsdf_d = self.dispatch(mat, ctx, _rgb(uniform))
                 ctx.shapes[key] = ShapeInfo(index, np.asarray(uniform, dtype=np.float64))
-            ctx.entries[key] = curve_points(centres, radii * scale, bsdf_d)
+            ctx.entries[key] = curve_points(centres, radii * scale, bsdf_d, capsule_length(size_ratio))
             return
         tm = r.to_mesh()
         # to_mesh works in object space around the raw vertices: move to world space

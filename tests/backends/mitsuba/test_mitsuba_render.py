@@ -495,6 +495,46 @@ def test_large_pointclouds_are_one_curve_shape_matching_the_spheres():
     assert same_colour > 0.97  # silhouettes of overlapping points may differ
 
 
+def _interior(result, margin: int = 2) -> np.ndarray:
+    """Hit pixels whose neighbours within ``margin`` pixels hit the same renderable."""
+    inst = result.instance
+    h, w = inst.shape
+    pad = np.pad(inst, margin, mode="constant", constant_values=-1)
+    ok = inst >= 0
+    for dy in range(-margin, margin + 1):
+        for dx in range(-margin, margin + 1):
+            ok &= pad[margin + dy : margin + dy + h, margin + dx : margin + dx + w] == inst
+    return ok
+
+
+@pytest.mark.parametrize(("point_size", "fov"), [(0.4, 45.0), (0.02, 1.5)])  # short and longest capsules
+def test_curve_points_have_the_spheres_depth_and_normals(point_size, fov):
+    """The capsules (blendify_mitsuba.points) keep the exactness bounds the path tracers' spheres are held to
+    (depth q99 <= 1e-4 relative, normals q99 <= 0.5 deg, 2 px inside the silhouettes): their length adapts to
+    the points' size for their distance."""
+    g = np.linspace(-0.6, 0.6, 3)
+    p = np.stack(np.meshgrid(g, g, [0.0]), axis=-1).reshape(-1, 3)
+    scene = bf.Scene()
+    scene.renderables.add_pointcloud(p, DiffuseMaterial(), VertexColors(p * 0.5 + 0.5), point_size=point_size)
+    testing.look_at_camera(scene, (64, 64), (1.2, -1.5, 1.6), (0, 0, 0), fov_x=np.deg2rad(fov))
+    scene.lights.add_sun(3.0, angular_diameter=0.0)
+    out = {}
+    for max_spheres in (1000, 0):
+        with MitsubaBackend(variant="scalar_rgb", max_analytic_spheres=max_spheres) as b:
+            out[max_spheres] = bf.render(scene, backend=b, samples=4, outputs=("depth", "normal", "instance"))
+            assert list(b.session._native.shapes)[0].endswith("_curves" if max_spheres == 0 else "_p0000000")
+    a, c = out[1000], out[0]
+    mask = _interior(a) & _interior(c)
+    assert mask.sum() > 50
+    depth = np.abs(c.depth[mask] / a.depth[mask] - 1.0)
+    cos = np.sum(a.normal[mask] * c.normal[mask], axis=1)
+    cos /= np.linalg.norm(a.normal[mask], axis=1) * np.linalg.norm(c.normal[mask], axis=1)
+    angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    print(f"depth q99 {np.quantile(depth, 0.99):.2e}, normal q99 {np.quantile(angle, 0.99):.3f} deg")
+    assert np.quantile(depth, 0.99) <= 1e-4
+    assert np.quantile(angle, 0.99) <= 0.5
+
+
 def test_every_feature_scene_renders(scalar_backend):
     scene = testing.every_feature_scene((48, 36))
     r = _render(scalar_backend, scene, samples=4, outputs=ALL)
