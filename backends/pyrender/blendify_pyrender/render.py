@@ -250,6 +250,31 @@ _PATCHES = (
         "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n" + _SPRITE_VERT_MAIN,
     ),
 )
+#: soft shadows (shaders/blendify_shadow.glsl): the shadow look-ups of suns and spot/area lights take the light's size
+_SUN_SHADOW = """        float shadow = shadow_calc(
+            directional_lights[i].light_matrix,
+            directional_lights[i].shadow_map,
+            nl
+        );"""
+_SPOT_SHADOW = """        float shadow = shadow_calc(
+            spot_lights[i].light_matrix,
+            spot_lights[i].shadow_map,
+            nl
+        );"""
+_SOFT_PATCHES = (
+    (
+        "mesh.frag",
+        _SUN_SHADOW,
+        """        float shadow = bf_soft_shadow(
+            directional_lights[i].light_matrix, directional_lights[i].shadow_map, nl, bf_dir_soft[i], false, n);""",
+    ),
+    (
+        "mesh.frag",
+        _SPOT_SHADOW,
+        """        float shadow = bf_soft_shadow(
+            spot_lights[i].light_matrix, spot_lights[i].shadow_map, nl, bf_spot_soft[i], true, n);""",
+    ),
+)
 _patched_dir: str | None = None
 _NO_GLASS = np.zeros(2, dtype=np.float32)
 
@@ -280,8 +305,11 @@ def _shader_dir() -> str:
     # the world's light: spherical harmonics (shaders/blendify_env.glsl) instead of the uniform ambient term
     env = (_SHADER_DIR / "blendify_env.glsl").read_text()
     text = text.replace(_MAIN_ANCHOR, env + _MAIN_ANCHOR, 1)
+    # soft shadows (shaders/blendify_shadow.glsl), after pyrender's shadow_calc
+    soft = (_SHADER_DIR / "blendify_shadow.glsl").read_text()
+    text = text.replace(_MAIN_ANCHOR, soft + _MAIN_ANCHOR, 1)
     mesh_frag.write_text(text)
-    for name, anchor, replacement in _PATCHES:
+    for name, anchor, replacement in _PATCHES + _SOFT_PATCHES:
         path = Path(dst) / name
         text = path.read_text()
         if anchor not in text:
@@ -314,6 +342,31 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
         if self.sprite and vertex_shader == "mesh.vert":
             defines = {**(defines or {}), "BLENDIFY_SPRITE": 1}
         return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
+
+
+def _set_optional(program: Any, name: str, value: Any) -> None:
+    """Set a uniform that this program may not use (the compiler drops unused ones)."""
+    try:
+        program.set_uniform(name, value)
+    except ValueError:
+        pass
+
+
+def _soft_params(light: Any, scene_scale: float) -> np.ndarray:
+    """The soft-shadow uniform of a light (shaders/blendify_shadow.glsl) for pyrender's shadow camera of a scene
+    of bounding-box diagonal ``scene_scale``: spot/area lights (emitter radius, near, far, tan(half fov)), suns
+    (tan(half angular diameter), near, far, half width); size 0 (``light.blendify_soft`` unset): hard shadows."""
+    out = np.zeros(4, dtype=np.float32)
+    size = float(getattr(light, "blendify_soft", 0.0))
+    if size <= 0.0:
+        return out
+    s = float(scene_scale)
+    out[:3] = (size, 0.01 * s, 10.0 * s)  # pyrender's shadow cameras (light.py: _get_shadow_camera)
+    if isinstance(light, pyrender.SpotLight):
+        out[3] = np.tan(0.5 * float(np.clip(2 * light.outerConeAngle + np.pi / 16.0, 0.0, np.pi)))
+    else:
+        out[3] = s
+    return out
 
 
 def _blend_func_alpha_over(sfactor: int, dfactor: int) -> None:
@@ -507,12 +560,17 @@ class FrameRenderer(pyrender.Renderer):
             or len(scene.point_light_nodes) > max_n[2]
         ):
             nodes = self._sorted_nodes_by_distance(scene, scene.light_nodes, node)
-        k = 0
+        k = d = 0
         for n in nodes:
+            if isinstance(n.light, pyrender.DirectionalLight):
+                if d < max_n[0]:
+                    _set_optional(program, f"bf_dir_soft[{d}]", _soft_params(n.light, scene.scale))
+                    d += 1
+                continue
             if not isinstance(n.light, pyrender.SpotLight):
                 continue
             if k == max_n[1]:
-                break
+                continue
             u = np.zeros(4, dtype=np.float32)
             v = np.zeros(4, dtype=np.float32)
             area = getattr(n.light, "blendify_area", None)
@@ -521,11 +579,9 @@ class FrameRenderer(pyrender.Renderer):
                 pose = scene.get_pose(n)
                 u[:3], u[3] = pose[:3, 0] * half_x, shape
                 v[:3] = pose[:3, 1] * half_y
-            for name, value in ((f"bf_area_u[{k}]", u), (f"bf_area_v[{k}]", v)):
-                try:
-                    program.set_uniform(name, value)
-                except ValueError:  # not used by this program
-                    pass
+            _set_optional(program, f"bf_area_u[{k}]", u)
+            _set_optional(program, f"bf_area_v[{k}]", v)
+            _set_optional(program, f"bf_spot_soft[{k}]", _soft_params(n.light, scene.scale))
             k += 1
         for i in range(9):  # the world's light (shaders/blendify_env.glsl)
             program.set_uniform(f"bf_env_sh[{i}]", self.env_sh[i])

@@ -358,6 +358,8 @@ class EnvironmentLight:
     sh: np.ndarray
     sun_direction: np.ndarray | None = None
     sun_irradiance: np.ndarray | None = None
+    #: the sun pixels' solid angle (sr): its angular size (soft shadows)
+    sun_solid_angle: float = 0.0
 
 
 def environment_light(env: EnvironmentMap, max_rows: int = 64) -> EnvironmentLight:
@@ -385,6 +387,7 @@ def environment_light(env: EnvironmentMap, max_rows: int = 64) -> EnvironmentLig
             direction = (d[peak] * power[peak, None]).sum(axis=0)
             out.sun_direction = direction / np.linalg.norm(direction)
             out.sun_irradiance = e
+            out.sun_solid_angle = float(d_omega[peak].sum())
             img = img.copy()
             img[peak] = 0.0
     out.sh = (sh_basis(d) * d_omega[:, None]).T @ img * _SH_BAND_FACTOR[:, None]
@@ -407,7 +410,8 @@ def environment_background(env: EnvironmentMap, camera: Any, uniform: np.ndarray
 
 
 def environment_sun(light: EnvironmentLight) -> SunLight | None:
-    """An IR sun light for the map's sun (None without one): irradiance = the sun pixels' integral."""
+    """An IR sun light for the map's sun (None without one): irradiance = the sun pixels' integral, angular
+    diameter = the disc of their solid angle."""
     if light.sun_direction is None or light.sun_irradiance is None:
         return None
     z = light.sun_direction  # a sun light shines along its local -Z: +Z points at the sun
@@ -417,8 +421,11 @@ def environment_sun(light: EnvironmentLight) -> SunLight | None:
     y = np.cross(z, x)
     e = np.asarray(light.sun_irradiance, dtype=np.float64)
     strength = min(float(e.max()), _MAX_POWER)
+    # the disc of the sun pixels' solid angle: omega = 2 pi (1 - cos(diameter / 2))
+    diameter = 2.0 * float(np.arccos(np.clip(1.0 - light.sun_solid_angle / (2.0 * np.pi), -1.0, 1.0)))
     return SunLight(
         strength=strength,
+        angular_diameter=diameter,
         color=tuple(e / float(e.max())),
         color_space="linear",
         rotation_mode="rotmat",
@@ -913,7 +920,10 @@ class PyrenderTranslator(Translator):
             "light.point": approximate(
                 "intensity P/(4 pi) W/sr exact, but no shadows (pyrender has no point-light shadow maps)"
             ),
-            "light.point.soft": approximate("radius ignored: hard light (spot shadows stay hard)"),
+            "light.point.soft": approximate(
+                "point lights: radius ignored (no shadows); spot lights: soft shadows of that radius from the one "
+                "shadow map (percentage-closer soft shadows: penumbra from the mean blocker depth)"
+            ),
         },
     )
     def point_light(self, light: PointLight, ctx: TranslationContext) -> LightBuild | None:
@@ -926,13 +936,17 @@ class PyrenderTranslator(Translator):
         SunLight,
         features={
             "light.sun": exact("irradiance exact; shadows shadow-mapped (2048^2 over the scene bounds, PCF)"),
-            "light.sun.soft": approximate("angular diameter ignored: hard shadows"),
+            "light.sun.soft": approximate(
+                "soft shadows of that angular size from the one shadow map (percentage-closer soft shadows: "
+                "penumbra from the mean blocker depth)"
+            ),
         },
     )
     def sun_light(self, light: SunLight, ctx: TranslationContext) -> LightBuild | None:
         if light.strength <= 0:
             return None
         pl = _pyrender().DirectionalLight(color=_light_color(light), intensity=float(light.strength))
+        pl.blendify_soft = float(np.tan(0.5 * light.angular_diameter))  # soft shadows (render.py)
         return LightBuild(pl, light.matrix_world, casts=bool(light.use_shadow))
 
     @handles(
@@ -956,6 +970,7 @@ class PyrenderTranslator(Translator):
             innerConeAngle=min(inner, half),
             outerConeAngle=half,
         )
+        pl.blendify_soft = float(light.shadow_soft_size)  # soft shadows (render.py)
         return LightBuild(pl, light.matrix_world, casts=_spot_casts(light, pl))
 
     @handles(
@@ -963,10 +978,11 @@ class PyrenderTranslator(Translator):
         features={
             "light.area": approximate(
                 "radiance P/(pi A) integrated over the rectangle in the shader (6 x 6 cosine emitters; within 2 % "
-                "of Cycles on a lit plane); hard shadows from one shadow map at the centre (80 deg cone)"
+                "of Cycles on a lit plane); soft shadows from one shadow map at the centre (80 deg cone; percentage-"
+                "closer soft shadows for the equal-area disc)"
             ),
             "light.area.disk": approximate(
-                "as light.area over the disk/ellipse (equal-area concentric cells); hard shadows from the centre"
+                "as light.area over the disk/ellipse (equal-area concentric cells); soft shadows as light.area"
             ),
         },
     )
@@ -984,6 +1000,7 @@ class PyrenderTranslator(Translator):
         )
         a, b = light.size
         pl.blendify_area = (2.0 if light.shape in ("circle", "ellipse") else 1.0, a / 2.0, b / 2.0)
+        pl.blendify_soft = float(np.sqrt(light.area / np.pi))  # soft shadows: the equal-area disc's radius
         return LightBuild(pl, light.matrix_world, casts=_spot_casts(light, pl))
 
     # -- the world: uniform ambient radiance (linear RGB) ------------------------------------------------
