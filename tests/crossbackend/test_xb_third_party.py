@@ -26,8 +26,9 @@ KNOWN_THIRD_PARTY: dict[str, str] = {
     "mitsuba_cbox": "colour agrees within noise; instance ids differ on ~37 of 4096 pixels, all on the seams where "
     "two walls meet (the symmetric box puts the shared edges exactly through pixel centres: a tie either engine "
     "may break)",
-    "blendify_nurbs_primitives": "normals 15 deg apart (median) on the NURBS curve only (its tube's shading "
-    "normals differ between the engines: geometry issue); the colour beyond the material margin in 14 of 84 tiles",
+    "blendify_nurbs_primitives": "the colour beyond the material margin in ~7 of 84 tiles, where the Principled "
+    "curve is seen at grazing angles (Mitsuba's Principled uses cosine-weighted means of Cycles' view-dependent "
+    "layer weights: material issue); with Lambertian materials the port passes",
     "blendify_readme_cube": "2-3 of 64 tiles beyond the material margin on a pure green Principled cube under a "
     "strong point light (specular highlight; material issue)",
 }

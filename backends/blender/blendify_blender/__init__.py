@@ -32,7 +32,8 @@ Translation (details in :mod:`.translate`, :mod:`.materials`, :mod:`.render`; fo
 Set Material, radius and colour as attributes); cubes/circles/cylinders/planes/spheres/ellipsoids from
 the IR's shared tessellation (one mesh per shape, shared by identical primitives); curves as the IR's
 tube mesh; one node-tree material per (object, slot) with the colour source feeding Base Color and the
-``bf_albedo`` AOV; lights in the IR's (Blender's) units with soft falloff off and area ``normalize`` on,
+``bf_albedo`` AOV, the shading normal feeding the ``bf_normal`` AOV (the normal output);
+lights in the IR's (Blender's) units with soft falloff off and area ``normalize`` on,
 invisible to camera rays; the world = background light + environment texture (nothing else);
 perspective cameras with ``HORIZONTAL`` sensor fit, lens from fx, principal point through the shift,
 fx != fy through the pixel aspect; orthographic cameras. Every Cycles setting is explicit (see

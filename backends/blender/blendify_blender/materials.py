@@ -3,7 +3,12 @@
 One bpy material per (renderable, material slot), since the base colour comes from the renderable's
 colour source (uniform value, a colour attribute, or an image texture through the ``UVMap`` layer);
 materials with a uniform colour are shared by every object using the same (material, colour). Every
-material also writes its colour input to the ``bf_albedo`` shader AOV (the albedo output).
+material also writes its colour input to the ``bf_albedo`` shader AOV (the albedo output) and its shading
+normal to the ``bf_normal`` AOV (the normal output): the interpolated normal (Geometry node, turned to the
+viewer on back faces), or the normal map's. Cycles' own Normal pass is the closure-weighted mean of the
+BSDFs' normals, and the Principled BSDF's glossy layers bend theirs where the interpolated normal faces away
+from the camera (grazing views of coarse smooth meshes, ``ensure_valid_specular_reflection``): the pass would
+then depend on the material and differ from the IR's normal, which the other backends report.
 
 The builder knows node trees, not IR types: the translator's handlers pick the pieces (a colour source's
 nodes, a Principled or Glossy BSDF, a wireframe overlay) and read the IR's attributes.
@@ -19,7 +24,7 @@ from blendify_core.errors import InvalidSceneError
 
 from .session import bpy_module
 
-__all__ = ["MaterialBuilder", "PRINCIPLED_INPUTS", "ALBEDO_AOV", "UV_LAYER"]
+__all__ = ["MaterialBuilder", "PRINCIPLED_INPUTS", "ALBEDO_AOV", "NORMAL_AOV", "UV_LAYER"]
 
 #: IR parameter name -> Principled BSDF input (Blender 4.x/5.x names)
 PRINCIPLED_INPUTS: dict[str, str] = {
@@ -51,6 +56,8 @@ PRINCIPLED_INPUTS: dict[str, str] = {
 }
 _COLOR_PARAMS = ("coat_tint", "emission_color", "sheen_tint", "specular_tint")
 ALBEDO_AOV = "bf_albedo"
+#: the shader AOV every IR material writes its shading normal to (the normal output)
+NORMAL_AOV = "bf_normal"
 UV_LAYER = "UVMap"
 
 
@@ -184,11 +191,17 @@ class MaterialBuilder:
         return mat, nt, out
 
     def finish(self, nt: Any, out: Any, surface: Any, albedo: Any) -> None:
-        """Connect ``surface`` to the output and ``albedo`` to the ``bf_albedo`` AOV."""
+        """Connect ``surface`` to the output, ``albedo`` to the ``bf_albedo`` AOV and the shading normal (the
+        normal map's when the tree has one, else the interpolated normal) to the ``bf_normal`` AOV."""
         nt.links.new(surface, out.inputs["Surface"])
         aov = nt.nodes.new("ShaderNodeOutputAOV")
         aov.aov_name = ALBEDO_AOV
         self._feed(nt, albedo, aov.inputs["Color"])
+        normal_aov = nt.nodes.new("ShaderNodeOutputAOV")
+        normal_aov.aov_name = NORMAL_AOV
+        maps = [n for n in nt.nodes if n.bl_idname == "ShaderNodeNormalMap"]
+        normal = maps[0].outputs["Normal"] if maps else nt.nodes.new("ShaderNodeNewGeometry").outputs["Normal"]
+        nt.links.new(normal, normal_aov.inputs["Color"])
 
     def glossy(self, nt: Any, material: Any, color: Any, alpha: Any, emission_from_color: float) -> Any:
         """A Glossy BSDF tinted by ``color`` (mixed with a transparent BSDF below alpha 1); returns the

@@ -20,7 +20,7 @@ from blendify_core.errors import RenderError
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import RenderSettings
 
-from .materials import ALBEDO_AOV
+from .materials import ALBEDO_AOV, NORMAL_AOV
 from .session import BuiltScene, bpy_module, capture_output, engine_errors
 
 __all__ = ["render_built", "PASSES"]
@@ -33,6 +33,9 @@ PASSES: dict[str, tuple[str | None, str, str, str]] = {
     "instance": ("use_pass_object_index", "Object Index", "instance", "FLOAT"),
     "albedo": (None, ALBEDO_AOV, "albedo", "RGBA"),
 }
+#: the IR materials' shading normal (materials.NORMAL_AOV), written beside Cycles' Normal pass: the pass
+#: fills the pixels of objects rendered from an attached file's own node trees, which write no such AOV
+_NORMAL_AOV_ITEM = ("normal_aov", "RGBA")
 _BACKGROUND_DEPTH = 1e9  # Cycles writes 1e10 where nothing was hit
 
 
@@ -46,10 +49,11 @@ def _setup_passes(built: BuiltScene, outputs: tuple[str, ...], directory: str) -
     vl.use_pass_object_index = "instance" in outputs
     for aov in list(vl.aovs):
         vl.aovs.remove(aov)
-    if "albedo" in outputs:
-        aov = vl.aovs.add()
-        aov.name = ALBEDO_AOV
-        aov.type = "COLOR"
+    for name, wanted in ((ALBEDO_AOV, "albedo"), (NORMAL_AOV, "normal")):
+        if wanted in outputs:
+            aov = vl.aovs.add()
+            aov.name = name
+            aov.type = "COLOR"
     built.compositor.remove()
     ng = built.compositor.add("node_groups", bpy.data.node_groups.new("bf_outputs", "CompositorNodeTree"))
     sc.compositing_node_group = ng
@@ -73,6 +77,10 @@ def _setup_passes(built: BuiltScene, outputs: tuple[str, ...], directory: str) -
         _, socket, item, stype = PASSES[out]
         fo.file_output_items.new(stype, item)
         ng.links.new(rl.outputs[socket], fo.inputs[item])
+    if "normal" in outputs:
+        item, stype = _NORMAL_AOV_ITEM
+        fo.file_output_items.new(stype, item)
+        ng.links.new(rl.outputs[NORMAL_AOV], fo.inputs[item])
     sc.render.filepath = os.path.join(directory, "unused_")
 
 
@@ -135,6 +143,10 @@ def render_built(built: BuiltScene, settings: RenderSettings, verbose: bool = Fa
         if "normal" in outputs:
             n = _read_exr(_find(directory, "normal"))
             nrm = np.stack([n["X"], n["Y"], n["Z"]], axis=-1)
+            a = _read_exr(_find(directory, _NORMAL_AOV_ITEM[0]))
+            aov = np.stack([a["R"], a["G"], a["B"]], axis=-1)
+            # the IR materials' normal AOV; Cycles' pass where no IR material wrote it (attached files)
+            nrm = np.where(np.linalg.norm(aov, axis=-1, keepdims=True) > 1e-6, aov, nrm)
             length = np.linalg.norm(nrm, axis=-1, keepdims=True)
             hit = (length > 1e-6) if miss is None else (length > 1e-6) & ~miss[..., None]
             result.normal = np.divide(nrm, length, out=np.zeros_like(nrm), where=hit).astype(np.float32)

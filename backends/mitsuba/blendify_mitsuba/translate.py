@@ -49,6 +49,7 @@ from blendify_core.ir.materials import (
 )
 from blendify_core.ir.physics import (
     blend_normal_map,
+    material_lobes,
     point_intensity,
     sphere_light_radiance,
     spot_cone,
@@ -76,6 +77,7 @@ from .integrator import register as register_integrator
 from .layered import register as register_layered
 from .points import capsule_length, curve_points, curves_fit, point_bitmap
 from .principled import glossy_scale, principled_bsdf, raw_rgb, with_bitmaps
+from .sided import register as register_sided
 
 __all__ = [
     "MitsubaContext",
@@ -867,10 +869,20 @@ class MitsubaTranslator(Translator):
             ctx.catchers.append(index)
         self._tessellated(plane, ctx, index)
 
-    @handles(CurveBezier, features={"primitive.curve": _exact("IR tessellation (tube along the polyline)")})
+    @handles(
+        CurveBezier,
+        features={
+            "primitive.curve": _exact(
+                "IR tessellation (tube along the polyline); its reflecting BSDFs decide the side by the geometric "
+                "normal, as Cycles does (blendify_mitsuba/sided.py)"
+            )
+        },
+    )
     def curve(self, curve: CurveBezier, ctx: MitsubaContext, index: int) -> None:
-        """A curve: the IR's tube along the polyline."""
-        self._tessellated(curve, ctx, index)
+        """A curve: the IR's tube along the polyline, with Cycles' sidedness rule (:mod:`.sided`): its
+        shading normals lean up to half a bend's angle off its faces, so the two engines' rules differ over
+        large parts of a tube seen at a grazing angle."""
+        self._tessellated(curve, ctx, index, geometric_sides=True)
 
     @handles(
         SphereNURBS,
@@ -885,9 +897,10 @@ class MitsubaTranslator(Translator):
         ``sphere`` would differ from it by up to 1.2e-3 of the radius in depth)."""
         self._tessellated(sphere, ctx, index)
 
-    def _tessellated(self, r: Any, ctx: MitsubaContext, index: int) -> None:
+    def _tessellated(self, r: Any, ctx: MitsubaContext, index: int, geometric_sides: bool = False) -> None:
         """Meshes, mesh primitives, ellipsoids and curves: the IR's tessellation in world space, one Mitsuba
-        mesh per material slot, plus the wireframe tubes of wireframe materials."""
+        mesh per material slot, plus the wireframe tubes of wireframe materials. ``geometric_sides``: wrap
+        reflecting BSDFs (no transmission, no alpha mask) in :data:`.sided.SIDED_BSDF` (Cycles' rule)."""
         mi = _mi()
         prefix = f"r{index:05d}"
         tm = r.to_mesh()
@@ -903,7 +916,11 @@ class MitsubaTranslator(Translator):
             refl, const, tex = src.reflectance()
             if src.needs_uv and part.uv is None:
                 raise InvalidSceneError(f"renderable {r.tag!r}: texture colours need a UV map")
-            bsdf = mi.load_dict(_with_mask(self.dispatch(mat, ctx, refl), *src.opacity(float(mat.alpha))))
+            opacity, masked = src.opacity(float(mat.alpha))
+            bsdf_d = _with_mask(self.dispatch(mat, ctx, refl), opacity, masked)
+            if geometric_sides and not masked and not material_lobes(mat).transmission:
+                bsdf_d = {"type": register_sided(), "bsdf": mi.load_dict(bsdf_d)}
+            bsdf = mi.load_dict(bsdf_d)
             em = _emission(mat)
             emitter = mi.load_dict({"type": "area", "radiance": _rgb(em)}) if em is not None else None
             attrs = src.vertex_attributes(part.source)

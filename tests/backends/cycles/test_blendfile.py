@@ -1019,3 +1019,20 @@ def test_attached_scene_renders_like_the_file(tmp_path: Path, blender_render):
     assert ref[..., :3].mean() > 0.05  # a lit scene, not a black frame
     assert np.abs(img - ref)[..., :3].mean() < 0.005 * ref[..., :3].mean()
     np.testing.assert_array_equal(img[..., 3], ref[..., 3])  # same silhouettes
+
+
+def test_attached_objects_rendered_from_the_file_have_normals(tmp_path: Path):
+    """Objects Cycles renders from an attached file's own node trees write no ``bf_normal`` AOV: the normal
+    output takes Cycles' Normal pass there (unit normals on every hit pixel, facing the camera)."""
+    import blendify_core as bf
+
+    path = tmp_path / "file.blend"
+    run_bpy_script(RENDER_FILE, str(path))
+    scene = Scene()
+    attach_blend(scene, path, with_camera=True)
+    r = bf.render(scene, backend="cycles", samples=4, outputs=("rgb", "depth", "normal"))
+    hit = np.isfinite(r.depth)
+    assert hit.mean() > 0.1
+    length = np.linalg.norm(r.normal, axis=-1)
+    assert np.all(np.abs(length[hit] - 1) < 1e-3)
+    assert np.all(length[~hit] == 0)

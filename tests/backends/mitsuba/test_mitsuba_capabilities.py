@@ -36,7 +36,11 @@ FROZEN: dict[str, tuple[str, str]] = {
         "the IR's shared tessellation (64x32 UV sphere, exact vertex normals), as in Cycles and pyrender",
     ),
     "primitive.ellipsoid": ("exact", "IR tessellation"),
-    "primitive.curve": ("exact", "IR tessellation (tube along the polyline)"),
+    "primitive.curve": (
+        "exact",
+        "IR tessellation (tube along the polyline); its reflecting BSDFs decide the side by the geometric normal,"
+        " as Cycles does (blendify_mitsuba/sided.py)",
+    ),
     "shadow_catcher": (
         "approximate",
         "emulated from two renders (with and without the other objects): where a pixel centre sees the "

@@ -1,0 +1,196 @@
+"""Cycles' sidedness rule for a surface whose shading normals lean far from its faces (the IR's curve tubes).
+
+Mitsuba's ``twosided`` BSDF decides which side of a surface the camera (or the previous path vertex) is on
+by the *shading* normal, and samples the next direction in the shading normal's hemisphere. Cycles decides
+by the *geometric* normal (turning both normals to the viewer on a back face), evaluates its diffuse lobe
+with the shading normal whatever side the viewer is on, and drops a sampled reflection that points below
+the geometric surface. The two rules agree wherever the viewer is on the same side of both normals; they
+differ where the view grazes a smooth surface between its face and its interpolated normal. On the IR's
+curve tubes that zone is large: 16 sides (11.25 deg between a face and its corner normals) and ring normals
+that bisect every bend of the polyline (up to half the bend angle off the faces). There Mitsuba turned the
+BSDF to the tube's inside, lit it through the wall and let sampled rays leak through it.
+
+This module registers the BSDF ``blendify_sided``, which wraps another BSDF and applies Cycles' rule: the
+shading frame turned with the geometric normal on back faces, the incident direction lifted onto the shading
+normal's horizon when it lies below it (so the wrapped BSDF evaluates as the front, as Cycles' diffuse
+does), and sampled directions below the geometric surface dropped. It is for reflecting BSDFs only (the
+translator does not wrap transmitting or masked ones: their pass-through must stay below the surface).
+
+It runs in Python (per call in the scalar variants), so the translator uses it only for the curve tubes;
+meshes keep Mitsuba's rule, where the two differ only in a sub-pixel band at smooth silhouettes (measured on
+the bunny: the same image mean at 22x the cost). Mitsuba is imported inside the functions; :func:`register`
+is called with the variant set (the session's engine lock held).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["SIDED_BSDF", "register"]
+
+#: the plugin name of the wrapper BSDF
+SIDED_BSDF = "blendify_sided"
+
+#: the smallest cosine the lifted incident direction keeps with the shading normal
+_HORIZON = 1e-4
+
+_REGISTERED: set[str] = set()
+
+
+def valid_reflection_normal(ng: Any, wi: Any, n: Any) -> Any:
+    """Cycles' shading normal for glossy reflection (its ``ensure_valid_specular_reflection``): ``n`` turned
+    towards the geometric normal ``ng`` just enough that the mirror direction of ``wi`` about it leaves the
+    surface at least min(0.9 cos(ng, wi), 0.01) above its tangent plane; ``n`` itself when it already does.
+    Unit vectors with ``wi`` on ``ng``'s side; Dr.Jit types of the current variant."""
+    import drjit as dr
+
+    r = 2 * dr.dot(n, wi) * n - wi
+    iz = dr.dot(wi, ng)
+    t = dr.minimum(0.9 * iz, 0.01)
+    x = n - dr.dot(n, ng) * ng  # the part of n along the surface: n' keeps its direction
+    x = x / dr.maximum(dr.norm(x), 1e-12)
+    ix = dr.dot(wi, x)
+    # 2 sqrt(1 - z^2) ix z = t + iz (1 - 2 z^2) for z = n'.ng: a quadratic in z^2 (its valid root by ix's sign)
+    a = dr.maximum(ix * ix + iz * iz, 1e-12)
+    b = 2 * (a + iz * t)
+    c = (t + iz) * (t + iz)
+    root = dr.safe_sqrt(b * b - 4 * a * c)
+    z2 = dr.clip(dr.select(ix < 0, 0.25 * (b + root) / a, 0.25 * (b - root) / a), 0.0, 1.0)
+    bent = dr.normalize(dr.sqrt(1 - z2) * x + dr.sqrt(z2) * ng)
+    return dr.select(dr.dot(ng, r) >= t, n, bent)
+
+
+def register() -> str:
+    """Register :data:`SIDED_BSDF` for the current Mitsuba variant (once per variant); its name."""
+    import mitsuba as mi
+
+    variant = mi.variant()
+    if variant not in _REGISTERED:
+        cls = _bsdf_class()
+        mi.register_bsdf(SIDED_BSDF, lambda props: cls(props))
+        _REGISTERED.add(variant)
+    return SIDED_BSDF
+
+
+def _bsdf_class() -> type:
+    """The wrapper class for the current variant (Mitsuba's base classes differ per variant)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    diffuse_mask = int(mi.BSDFFlags.Diffuse)
+    scalar = not dr.is_jit_v(mi.Float)
+
+    class GeometricSides(mi.BSDF):  # type: ignore[misc,name-defined]
+        """A BSDF evaluated with Cycles' sidedness rule (see the module's documentation)."""
+
+        def __init__(self, props: Any) -> None:
+            logger = mi.logger()
+            level = logger.log_level()
+            logger.set_log_level(mi.LogLevel.Error)  # the scalar-variant warning about Python plugins
+            try:
+                super().__init__(props)
+            finally:
+                logger.set_log_level(level)
+            self.inner = props["bsdf"]
+            self.m_flags = self.inner.flags()
+            self.m_components = [self.inner.flags(i) for i in range(self.inner.component_count())]
+
+        @staticmethod
+        def _lobes(ctx: Any) -> tuple[Any, Any]:
+            """``ctx`` restricted to the diffuse lobes, and to the others."""
+            d = mi.BSDFContext(ctx.mode, ctx.type_mask & diffuse_mask, ctx.component)
+            g = mi.BSDFContext(ctx.mode, ctx.type_mask & ~diffuse_mask, ctx.component)
+            return d, g
+
+        @staticmethod
+        def _agree(si: Any) -> bool:
+            """Scalar variants: whether both rules see the same thing at ``si`` (the viewer in front of the face
+            and of the shading normal, whose mirror direction already leaves the surface): then the wrapped
+            BSDF is evaluated as it is, without the Python-side frames (most calls)."""
+            iz = dr.dot(si.n, si.to_world(si.wi))
+            cos_n = si.wi.z
+            return bool(iz > 0 and cos_n > 0 and 2 * cos_n * dr.dot(si.sh_frame.n, si.n) - iz >= min(0.9 * iz, 0.01))
+
+        @staticmethod
+        def _frames(si: Any) -> tuple[Any, Any, Any, Any, Any]:
+            """The interactions the wrapped BSDF sees for its diffuse lobes (the shading normal) and for the
+            others (Cycles' valid-reflection normal), their frames, and the geometric normal on the
+            viewer's side."""
+            wi = si.to_world(si.wi)
+            front = dr.dot(si.n, wi) > 0
+            ng = dr.select(front, si.n, -si.n)
+            sh = si.sh_frame
+            # turned on a back face, as Cycles turns both normals (one tangent too: a right-handed frame)
+            n = dr.select(front, sh.n, -sh.n)
+            f_d = mi.Frame3f(sh.s, dr.select(front, sh.t, -sh.t), n)
+            n_g = valid_reflection_normal(ng, wi, n)
+            s_g = dr.normalize(sh.s - dr.dot(sh.s, n_g) * n_g)
+            f_g = mi.Frame3f(s_g, dr.cross(n_g, s_g), n_g)
+            out = []
+            for frame in (f_d, f_g):
+                local = frame.to_local(wi)
+                local.z = dr.maximum(local.z, _HORIZON)  # Cycles' diffuse ignores the viewer's side
+                inner_si = mi.SurfaceInteraction3f(si)
+                inner_si.sh_frame = frame
+                inner_si.wi = dr.normalize(local)
+                out.append(inner_si)
+            return out[0], f_d, out[1], f_g, ng
+
+        def sample(self, ctx: Any, si: Any, sample1: Any, sample2: Any, active: Any = True) -> Any:
+            if scalar and self._agree(si):
+                bs, weight = self.inner.sample(ctx, si, sample1, sample2, active)
+                if dr.dot(si.n, si.to_world(bs.wo)) <= 0:  # Cycles drops a reflection below the surface
+                    bs.pdf = 0.0
+                    weight = mi.Spectrum(0.0)
+                return bs, weight
+            si_d, f_d, si_g, f_g, ng = self._frames(si)
+            c_d, c_g = self._lobes(ctx)
+            # the wrapped BSDF picks its lobe from sample1 alone: the call whose mask allows it succeeds
+            bs_d, w_d = self.inner.sample(c_d, si_d, sample1, sample2, active)
+            bs_g, w_g = self.inner.sample(c_g, si_g, sample1, sample2, active)
+            use_d = bs_d.pdf > 0
+            bs = dr.select(use_d, bs_d, bs_g)
+            weight = dr.select(use_d, w_d, w_g)
+            wo = dr.select(use_d, f_d.to_world(bs_d.wo), f_g.to_world(bs_g.wo))
+            above = dr.dot(ng, wo) > 0  # Cycles drops a reflection below the geometric surface
+            bs.wo = si.to_local(wo)
+            bs.pdf = dr.select(above, bs.pdf, 0.0)
+            return bs, dr.select(above, weight, 0.0)
+
+        def eval(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
+            if scalar and self._agree(si):
+                return self.inner.eval(ctx, si, wo, active)
+            si_d, f_d, si_g, f_g, _ = self._frames(si)
+            c_d, c_g = self._lobes(ctx)
+            w = si.to_world(wo)
+            return self.inner.eval(c_d, si_d, f_d.to_local(w), active) + self.inner.eval(
+                c_g, si_g, f_g.to_local(w), active
+            )
+
+        def pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
+            if scalar and self._agree(si):
+                return self.inner.pdf(ctx, si, wo, active)
+            si_d, f_d, si_g, f_g, _ = self._frames(si)
+            c_d, c_g = self._lobes(ctx)
+            w = si.to_world(wo)
+            return self.inner.pdf(c_d, si_d, f_d.to_local(w), active) + self.inner.pdf(
+                c_g, si_g, f_g.to_local(w), active
+            )
+
+        def eval_pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
+            if scalar and self._agree(si):
+                return self.inner.eval_pdf(ctx, si, wo, active)
+            si_d, f_d, si_g, f_g, _ = self._frames(si)
+            c_d, c_g = self._lobes(ctx)
+            w = si.to_world(wo)
+            v_d, p_d = self.inner.eval_pdf(c_d, si_d, f_d.to_local(w), active)
+            v_g, p_g = self.inner.eval_pdf(c_g, si_g, f_g.to_local(w), active)
+            return v_d + v_g, p_d + p_g
+
+        def traverse(self, callback: Any) -> None:
+            pass
+
+        def to_string(self) -> str:
+            return f"GeometricSides[{self.inner}]"
+
+    return GeometricSides
