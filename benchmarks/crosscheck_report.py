@@ -428,6 +428,16 @@ def main(argv: list[str] | None = None) -> int:
         "[--passes 4]` "
         "(exit code 0 when every pair passes, 1 otherwise).",
         "",
+        "Pairs that cannot be judged are reported apart (`xc.limited`: pair -> the list; their comparisons in "
+        "`xc.limited_reports`), neither passed nor failed: **limited by the IR** when one backend renders an "
+        "attached `.blend` itself and the other its IR parse (what the parse could not carry, `IR parse of ...`), "
+        "**limited by the engine** when a render setting is applied by one engine only: a biased setting the other "
+        "cannot apply (`bf.crosscheck(scene, clamp_indirect=10, filter_glossy=1, diffuse_bounces=4)`: Mitsuba has "
+        "no clamp, no Filter Glossy and one depth for every kind of bounce, pyrender traces no paths; "
+        "`Backend.unapplied_settings`, listed as `setting the engine cannot apply: ...` in its "
+        "`meta[\"approximations\"]`) or a setting of one engine's own (Cycles' `cycles_settings`, "
+        '`meta["engine_only_settings"]`).',
+        "",
     ]
     notes = [f"- `{t}`: {why}" for t, why in TIER_NOTES.items()]
     doc += [
