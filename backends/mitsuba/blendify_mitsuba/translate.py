@@ -525,10 +525,16 @@ def _split(tm: TriMesh, matrix: np.ndarray, faces_material: np.ndarray | None, n
     return parts
 
 
+#: the wire bands' lift over their triangle, relative to 1 + the largest coordinate: a quarter of Mitsuba's
+#: ray offset (``RayEpsilon`` = 1500 * 2^-24 of the same scale), about 180 float steps
+WIRE_LIFT = 0.25 * 1500.0 * 2.0**-24
+
+
 def wire_bands(vertices: np.ndarray, faces: np.ndarray, thickness: float) -> tuple[np.ndarray, np.ndarray]:
     """The points Cycles' Wireframe shader marks, as geometry: inside every triangle, a band of width
     ``thickness / 2`` along each of its edges (the neighbour draws the other half, so an edge's line is
-    ``thickness`` wide), in the triangle's plane lifted by 2 % of the thickness along its normal:
+    ``thickness`` wide), in the triangle's plane lifted along its normal by :data:`WIRE_LIFT` of the
+    coordinates' scale (at most 2 % of the thickness):
     (V, 3) vertices and (F, 3) triangles. Flat, so it neither protrudes nor casts shadows; every triangle
     edge is drawn, the diagonals of triangulated polygons too (as Cycles does)."""
     v = np.asarray(vertices, dtype=np.float64)
@@ -545,7 +551,12 @@ def wire_bands(vertices: np.ndarray, faces: np.ndarray, thickness: float) -> tup
     axis /= length[:, None]
     inward = np.cross(n, axis)
     inward *= np.where(np.einsum("ij,ij->i", opposite - p0, inward) < 0, -1.0, 1.0)[:, None]
-    lift = n * (0.02 * thickness)
+    # below the offset Mitsuba gives rays leaving the surface underneath ((1 + max |p|) RayEpsilon along the
+    # normal), so the bands never shadow it (lifted by 2 % of the thickness they did: the wireframe presets
+    # of the material sweep were 6-8 % darker than Cycles), and far above float precision there
+    reach = 1.0 + np.abs(np.stack([a, b, c], axis=1)).max(axis=(1, 2))
+    reach = np.concatenate([reach, reach, reach])[ok]
+    lift = n * np.minimum(0.02 * thickness, WIRE_LIFT * reach)[:, None]
     width = inward * (thickness / 2.0)
     seam = -0.05 * width  # the two bands of an edge overlap a little, so no ray slips between them
     verts = np.stack([p0 + seam + lift, p1 + seam + lift, p1 + width + lift, p0 + width + lift], axis=1)
@@ -1107,8 +1118,10 @@ class MitsubaTranslator(Translator):
             "material.alpha": _exact("mask BSDF with the material x colour alpha"),
             "material.wireframe": approximate(
                 "the points Blender's Wireframe shader marks (within wireframe_thickness / 2 of a triangle edge, "
-                "world units) as flat bands on each triangle, lifted by 2 % of the thickness, with the surface's "
-                "BSDF in the wireframe colour (material sweep: sphere mean within about 6 % of Cycles)"
+                "world units) as flat bands on each triangle with the surface's BSDF in the wireframe colour, lifted "
+                "less than Mitsuba's ray offset so that they cast no shadow on the surface beneath; flat-shaded "
+                "(Cycles shades the wire with the surface's smooth normals). Material sweep: sphere mean within 0.5 %"
+                " of Cycles"
             ),
         },
     )

@@ -99,8 +99,10 @@ FROZEN: dict[str, tuple[str, str]] = {
     "material.wireframe": (
         "approximate",
         "the points Blender's Wireframe shader marks (within wireframe_thickness / 2 of a triangle edge, "
-        "world units) as flat bands on each triangle, lifted by 2 % of the thickness, with the surface's BSDF"
-        " in the wireframe colour (material sweep: sphere mean within about 6 % of Cycles)",
+        "world units) as flat bands on each triangle with the surface's BSDF in the wireframe colour, lifted "
+        "less than Mitsuba's ray offset so that they cast no shadow on the surface beneath; flat-shaded "
+        "(Cycles shades the wire with the surface's smooth normals). Material sweep: sphere mean within 0.5 %"
+        " of Cycles",
     ),
     "material.roughness_map": (
         "approximate",
