@@ -84,7 +84,9 @@ def compare(
     tier_name, thresholds = _resolve_tier(tier, a, b, scene)
     ma, mb = hit_mask(a), hit_mask(b)
     wanted = _wanted_outputs(a, b, ma, mb, outputs)
-    metrics, diffs, legends = _measure(a, b, ma, mb, wanted)
+    depth_limits = thresholds.get("depth", {})
+    tie_tol = depth_limits.get("rel_diff_q99", depth_limits.get("rel_diff_max"))
+    metrics, diffs, legends = _measure(a, b, ma, mb, wanted, None if tie_tol is None else float(tie_tol))
     nt = _noise_verdict(a, b, tier_name, noise) if "rgb" in wanted else None
     if nt is not None:
         metrics["rgb"]["noise_tiles_rejected"] = float(nt.n_tile_reject)
@@ -209,9 +211,15 @@ def _wanted_outputs(
 
 
 def _measure(
-    a: RenderResult, b: RenderResult, ma: BoolArray | None, mb: BoolArray | None, wanted: list[str]
+    a: RenderResult,
+    b: RenderResult,
+    ma: BoolArray | None,
+    mb: BoolArray | None,
+    wanted: list[str],
+    depth_tol: float | None = None,
 ) -> tuple[dict[str, dict[str, float]], dict[str, AnyArray], dict[str, str]]:
-    """Metrics, heat-map diff image and its legend per output."""
+    """Metrics, heat-map diff image and its legend per output (``depth_tol``: the tier's relative depth
+    threshold, within which two different instance ids at one pixel are a tie)."""
     both = (ma & mb) if (ma is not None and mb is not None) else None
     if both is None:
         width, height = a.resolution or (0, 0)
@@ -231,7 +239,7 @@ def _measure(
         elif o == "normal":
             res = _normal_metrics(a, b, both, interior)
         elif o == "instance":
-            res = _instance_metrics(a, b)
+            res = _instance_metrics(a, b, depth_tol)
         else:
             res = _albedo_metrics(a, b, both, interior)
         metrics[o], diffs[o], legends[o] = res

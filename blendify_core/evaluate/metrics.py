@@ -18,7 +18,8 @@ Metrics (``report.metrics[output][metric]``):
   ``angle_q999_deg``, ``angle_max_deg``; over every pixel both hit: ``angle_q99_deg_all``,
   ``angle_max_deg_all``, ``flipped_fraction`` (angle > 90 degrees: opposite sidedness conventions).
 - ``instance`` (where both hit, ids matched by tag name through ``instance_tags``): ``agreement``,
-  ``n_disagree``.
+  ``n_disagree``, ``n_tie`` (different ids at the same depth on the border of the same two objects in both
+  results: a pixel-centre ray through a seam, which either engine may break; counted as agreeing).
 - ``albedo``: ``mean_rel_error``, ``max_rel_error`` (interior pixels), ``*_all`` (every pixel both hit).
 
 *Interior* pixels (:func:`interior_mask`) have a 3x3 neighbourhood that is one surface in both results (no
@@ -335,7 +336,15 @@ def _normal_metrics(
     return m, img, f"angular error, 0..{_ANGLE_RANGE_DEG:g} degrees"
 
 
-def _instance_metrics(a: RenderResult, b: RenderResult) -> tuple[dict[str, float], np.ndarray, str]:
+def _instance_metrics(
+    a: RenderResult, b: RenderResult, depth_tol: float | None = None
+) -> tuple[dict[str, float], np.ndarray, str]:
+    """Instance agreement where both hit (ids matched by tag). A pixel whose ids differ is a *tie*, not a
+    disagreement, when the pixel-centre ray met two objects at the same place: both results have depth, the
+    depths agree within ``depth_tol`` (relative; the tier's depth threshold), and each result's id appears in
+    the other's 3x3 neighbourhood (the pixel lies on the border between the same two objects in both, e.g. a
+    seam where two walls meet exactly through the pixel centre). ``agreement`` counts ties as agreeing;
+    ``n_disagree`` counts the rest, ``n_tie`` the ties. Without depth or ``depth_tol`` nothing is a tie."""
     ia, ib = a.instance, b.instance
     names: dict[str, int] = {}
     for t in list(a.instance_tags) + list(b.instance_tags):
@@ -355,16 +364,42 @@ def _instance_metrics(a: RenderResult, b: RenderResult) -> tuple[dict[str, float
     gb = remap(ib, b.instance_tags)  # type: ignore[arg-type]
     both = (ga >= 0) & (gb >= 0)
     agree = both & (ga == gb)
+    tie = _instance_ties(ga, gb, a.depth, b.depth, depth_tol, both & ~agree)
     n = int(both.sum())
+    n_tie = int(tie.sum())
     m = {
-        "agreement": float(agree.sum() / n) if n else 1.0,
-        "n_disagree": float(n - agree.sum()),
+        "agreement": float((agree.sum() + n_tie) / n) if n else 1.0,
+        "n_disagree": float(n - agree.sum() - n_tie),
+        "n_tie": float(n_tie),
         "n_both": float(n),
     }
     img = np.zeros(ga.shape + (3,), dtype=np.uint8)
     img[agree] = (110, 110, 110)
     img[both & ~agree] = (255, 40, 40)
-    return m, img, "grey same instance, red different instance"
+    img[tie] = (255, 200, 0)
+    return m, img, "grey same instance, red different instance, yellow a tie (two objects at the same depth)"
+
+
+def _instance_ties(
+    ga: np.ndarray,
+    gb: np.ndarray,
+    da: np.ndarray | None,
+    db: np.ndarray | None,
+    depth_tol: float | None,
+    differ: np.ndarray,
+) -> np.ndarray:
+    """Of the pixels ``differ``, those that are ties (see :func:`_instance_metrics`)."""
+    if da is None or db is None or depth_tol is None or not differ.any():
+        return np.zeros(ga.shape, dtype=bool)
+    za, zb = da.astype(np.float64), db.astype(np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        same_depth = np.isfinite(za) & np.isfinite(zb) & (np.abs(za - zb) <= depth_tol * np.abs(zb))
+    a_near_b = np.zeros(ga.shape, dtype=bool)  # a's id among b's neighbours
+    b_near_a = np.zeros(ga.shape, dtype=bool)
+    for nb_a, nb_b in zip(_neighbours(ga), _neighbours(gb), strict=True):
+        a_near_b |= nb_b == ga
+        b_near_a |= nb_a == gb
+    return differ & same_depth & a_near_b & b_near_a
 
 
 def _albedo_metrics(

@@ -156,6 +156,56 @@ def test_instance_ids_matched_by_tag():
         bf.compare(a, ref)
 
 
+def _two_walls(seam_owner: int = 0) -> bf.RenderResult:
+    """Two walls meeting in a corner along column 24 (a seam exactly through the pixel centres: both walls
+    are at the same depth there); ``seam_owner`` decides which wall the seam's pixels belong to."""
+    r = make_result()
+    r.instance_tags = ["left", "right"]
+    hit = r.instance >= 0
+    r.instance[hit] = 0
+    r.instance[:, 25:][hit[:, 25:]] = 1
+    r.instance[:, 24][hit[:, 24]] = seam_owner
+    cols = np.arange(W, dtype=np.float32)
+    r.depth[hit] = np.broadcast_to(3.0 + 0.01 * np.abs(cols - 24), (H, W))[hit]  # a V-shaped corner
+    return r
+
+
+def test_instance_tie_on_a_seam_is_not_a_defect():
+    """Ties: the pixel-centre ray of the seam meets both walls at the same depth; each engine may pick
+    either. Those pixels count as agreeing (``n_tie``), the tier passes."""
+    a, ref = _two_walls(seam_owner=0), _two_walls(seam_owner=1)
+    rep = bf.compare(a, ref, tier="geometry", outputs=("depth", "instance"))
+    m = rep.metrics["instance"]
+    assert m["n_tie"] == 20 and m["n_disagree"] == 0 and m["agreement"] == 1.0
+    assert rep.passed, rep.failures
+    # without depth (nothing to tell a tie by) every differing id counts
+    a.depth = ref.depth = None
+    m = bf.compare(a, ref, tier="geometry", outputs=("instance",)).metrics["instance"]
+    assert m["n_tie"] == 0 and m["n_disagree"] == 20
+
+
+@pytest.mark.parametrize("defect", ["interior", "deeper", "third_object"])
+def test_instance_swap_still_fails(defect):
+    """Injected defects that are not ties: ids swapped inside a wall, a seam pixel that one engine sees at
+    another depth (it hit the wall behind), a seam labelled with an object that is not beside it."""
+    a, ref = _two_walls(seam_owner=0), _two_walls(seam_owner=1)
+    if defect == "interior":
+        a.instance[14:18, 12:16] = 1  # inside the left wall (same depth: only the id is wrong)
+        expected = 16
+    elif defect == "deeper":
+        a.depth[10:30, 24] += 0.05  # the seam's rays went past the corner: 1.7 % deeper
+        expected = 20
+    else:
+        a.instance_tags = ["left", "right", "lamp"]
+        a.instance[10:30, 24] = 2
+        expected = 20
+    rep = bf.compare(a, ref, tier="geometry", outputs=("depth", "instance"))
+    m = rep.metrics["instance"]
+    assert m["n_disagree"] == expected and m["n_tie"] == (20 if defect == "interior" else 0)
+    assert not rep.passed
+    assert any(f.startswith("instance.agreement") for f in rep.failures)
+
+
 def test_albedo_relative_error():
     ref = make_result(value=(0.4, 0.4, 0.4))
     a = make_result(value=(0.4, 0.4, 0.4))

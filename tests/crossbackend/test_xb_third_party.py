@@ -23,9 +23,6 @@ from ports import PORTS  # noqa: E402
 
 #: port -> why Cycles and Mitsuba disagree on it (measured by benchmarks/crosscheck_report.py)
 KNOWN_THIRD_PARTY: dict[str, str] = {
-    "mitsuba_cbox": "colour agrees within noise; instance ids differ on ~37 of 4096 pixels, all on the seams where "
-    "two walls meet (the symmetric box puts the shared edges exactly through pixel centres: a tie either engine "
-    "may break)",
     "blendify_nurbs_primitives": "the colour beyond the material margin in ~7 of 84 tiles, where the Principled "
     "curve is seen at grazing angles (Mitsuba's Principled uses cosine-weighted means of Cycles' view-dependent "
     "layer weights: material issue); with Lambertian materials the port passes",
