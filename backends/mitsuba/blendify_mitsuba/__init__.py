@@ -32,14 +32,20 @@ from blendify_core.registry import BackendStatus
 from . import capabilities as _capabilities
 from . import variant as _variant
 from .render import render_native
-from .session import DEFAULT_MAX_ANALYTIC_SPHERES, MitsubaNative, MitsubaSession
+from .session import DEFAULT_MAX_ANALYTIC_OPAQUE, DEFAULT_MAX_ANALYTIC_SPHERES, MitsubaNative, MitsubaSession
 from .translate import DEFAULT_SAMPLER, MitsubaTranslator
 from .variant import KNOWN_VARIANTS, VariantChoice, describe
 
 # a library logs, the application decides where to: no "No handlers could be found" output by default
 logging.getLogger("blendify_mitsuba").addHandler(logging.NullHandler())
 
-__all__ = ["MitsubaBackend", "MitsubaNative", "MitsubaTranslator", "DEFAULT_MAX_ANALYTIC_SPHERES"]
+__all__ = [
+    "MitsubaBackend",
+    "MitsubaNative",
+    "MitsubaTranslator",
+    "DEFAULT_MAX_ANALYTIC_OPAQUE",
+    "DEFAULT_MAX_ANALYTIC_SPHERES",
+]
 
 
 #: ``device=`` -> the variant asked for ("cpu": the fastest CPU variant, llvm_ad_rgb else scalar_rgb)
@@ -75,8 +81,10 @@ class MitsubaBackend(Backend):
     Options: ``variant`` (None = the fastest variant that passes a subprocess probe, else
     ``scalar_rgb``; or a variant name such as "scalar_rgb", "llvm_ad_rgb"; an unusable JIT variant falls
     back to ``scalar_rgb`` with the reason in ``result.meta["variant_reason"]``),
-    ``max_analytic_spheres`` (point clouds up to this size are analytic spheres, larger ones the IR's merged
-    icosphere mesh; None = the measured default of the variant, see DEFAULT_MAX_ANALYTIC_SPHERES) and
+    ``max_analytic_spheres`` (point clouds up to this size are analytic spheres, larger ones one shape of
+    capsules when they are opaque and not emissive, else the IR's merged icosphere mesh; None = the measured
+    defaults: DEFAULT_MAX_ANALYTIC_OPAQUE for clouds that can be capsules, DEFAULT_MAX_ANALYTIC_SPHERES of the
+    variant for the others) and
     ``device`` (None: as ``variant``; "cpu": llvm_ad_rgb when its probe passes, else scalar_rgb; "gpu" or
     "cuda": cuda_ad_rgb; "llvm" / "scalar": that variant; without the device ``bf.render`` warns and renders
     on the variant that works, or raises ``BackendUnavailableError`` with ``strict=True``, as it does for an

@@ -160,7 +160,10 @@ def export_mitsuba(
     render_settings = resolve_settings(**settings)
     session = MitsubaSession(variant, max_analytic_spheres, sampler)
     translator = MitsubaTranslator(
-        render_settings, max_analytic_spheres=session.max_analytic_spheres, sampler=session.sampler
+        render_settings,
+        max_analytic_spheres=session.max_analytic_spheres,
+        max_analytic_opaque=session.max_analytic_opaque,
+        sampler=session.sampler,
     )
     with session.engine() as mi:
         token = _translate.ENGINE.set(_DictEngine(mi))

@@ -35,14 +35,19 @@ from .aniso import SquarePixelPlan
 from .translate import MitsubaContext, MitsubaTranslator, ShapeInfo
 from .variant import VariantChoice, before_engine_import, choose_variant, quiet_engine_import
 
-__all__ = ["DEFAULT_MAX_ANALYTIC_SPHERES", "MitsubaNative", "MitsubaSession"]
+__all__ = ["DEFAULT_MAX_ANALYTIC_OPAQUE", "DEFAULT_MAX_ANALYTIC_SPHERES", "MitsubaNative", "MitsubaSession"]
 
-#: point clouds up to this many points become analytic spheres (exact), larger ones one shape of capsules
-#: (blendify_mitsuba.points; the merged icosphere mesh when the points are emissive or partly transparent).
-#: Measured (benchmarks/results/mitsuba_pointcloud_*.md): in scalar_rgb analytic spheres load and render
-#: fast up to ~100k points; in the JIT variants one BSDF per sphere makes rendering slow (20k spheres: 22 s
-#: vs 1.2 s), one shape wins from ~1000 points on.
+#: point clouds up to this many points become analytic spheres (exact), larger ones the merged icosphere mesh
+#: when they cannot be capsules (emissive, partly transparent, too small for their distance: see
+#: blendify_mitsuba.points.curves_fit). Measured (benchmarks/results/mitsuba_pointcloud_*.md): in scalar_rgb
+#: analytic spheres load and render faster than the merged mesh up to ~100k points; in the JIT variants one
+#: BSDF per sphere makes rendering slow (5k spheres: 5.5 s vs 0.6 s).
 DEFAULT_MAX_ANALYTIC_SPHERES = {"scalar": 100_000, "jit": 500}
+#: clouds that can be one shape of capsules (blendify_mitsuba.points) are analytic spheres only up to this
+#: many points, in every variant: the capsules keep the spheres' depth and normals within the exactness
+#: bounds and load faster from a few hundred points on (scalar_rgb, 128x128: 1000 points 0.32 s vs 0.16 s,
+#: 20k points 3.6 s vs 0.4 s). An explicit ``max_analytic_spheres`` applies to every cloud.
+DEFAULT_MAX_ANALYTIC_OPAQUE = 500
 
 # mi.set_variant is process-global: every use of the engine holds this lock and sets its variant
 _ENGINE_LOCK = threading.RLock()
@@ -103,6 +108,14 @@ class MitsubaSession:
         if self._max_analytic_spheres is not None:
             return self._max_analytic_spheres
         return DEFAULT_MAX_ANALYTIC_SPHERES["scalar" if self.variant.startswith("scalar") else "jit"]
+
+    @property
+    def max_analytic_opaque(self) -> int:
+        """Clouds that can be one shape of capsules are analytic spheres up to this size (an explicit
+        ``max_analytic_spheres``, else :data:`DEFAULT_MAX_ANALYTIC_OPAQUE` within the variant's limit)."""
+        if self._max_analytic_spheres is not None:
+            return self._max_analytic_spheres
+        return min(DEFAULT_MAX_ANALYTIC_OPAQUE, self.max_analytic_spheres)
 
     def set_variant(self) -> Any:
         """Import mitsuba (the first import chooses Dr.Jit's libLLVM) and set this session's variant."""
@@ -166,7 +179,12 @@ class MitsubaSession:
         return native
 
     def _translator(self, settings: RenderSettings) -> MitsubaTranslator:
-        return MitsubaTranslator(settings, max_analytic_spheres=self.max_analytic_spheres, sampler=self.sampler)
+        return MitsubaTranslator(
+            settings,
+            max_analytic_spheres=self.max_analytic_spheres,
+            max_analytic_opaque=self.max_analytic_opaque,
+            sampler=self.sampler,
+        )
 
     def _same_sensor(self, native: MitsubaNative, scene: Scene, settings: RenderSettings) -> bool:
         """Whether the camera of ``scene`` translates to the sensor ``native`` was loaded with."""

@@ -618,7 +618,9 @@ class MitsubaTranslator(Translator):
     """The IR as a Mitsuba scene dictionary: one handler per IR type, capabilities declared beside them.
 
     ``settings`` give the film (pixel filter), the samples and the integrator; ``max_analytic_spheres``
-    the largest point cloud made of analytic spheres; ``sampler`` Mitsuba's sampler plugin."""
+    the largest point cloud made of analytic spheres, ``max_analytic_opaque`` (None: the same) the largest
+    one that could be one shape of capsules (:func:`~blendify_mitsuba.points.curves_fit`); ``sampler``
+    Mitsuba's sampler plugin."""
 
     backend = "mitsuba"
 
@@ -642,10 +644,13 @@ class MitsubaTranslator(Translator):
         settings: RenderSettings | None = None,
         *,
         max_analytic_spheres: int = 100_000,
+        max_analytic_opaque: int | None = None,
         sampler: str = DEFAULT_SAMPLER,
     ) -> None:
         self.settings = resolve_settings() if settings is None else settings
         self.max_analytic_spheres = int(max_analytic_spheres)
+        opaque = self.max_analytic_spheres if max_analytic_opaque is None else max_analytic_opaque
+        self.max_analytic_opaque = int(opaque)
         self.sampler = sampler
 
     # -- the walk ---------------------------------------------------------------------------------------
@@ -961,19 +966,20 @@ class MitsubaTranslator(Translator):
         PointCloud,
         features={
             "pointcloud": _exact(
-                "analytic spheres up to max_analytic_spheres points; beyond that one shape of sphere-capped "
-                "capsules (Embree round curves 1 % of the radius long) for opaque, non-emissive clouds, else the "
-                "IR's merged icosphere mesh"
+                "analytic spheres up to max_analytic_opaque points for opaque, non-emissive clouds, beyond that "
+                "one shape of sphere-capped capsules (Embree round curves, depth and normals within the exactness "
+                "bounds); other clouds analytic spheres up to max_analytic_spheres points, else the IR's merged "
+                "icosphere mesh"
             ),
             "pointcloud.vertex_colors": EXACT,
             "pointcloud.emission": approximate("area emitter on the spheres, front (outer) side only"),
         },
     )
     def pointcloud(self, r: PointCloud, ctx: MitsubaContext, index: int) -> None:
-        """Analytic spheres (one shape and BSDF per point) up to ``max_analytic_spheres`` points; beyond that
-        one ``linearcurve`` shape of capsules (:mod:`blendify_mitsuba.points`) for opaque, non-emissive,
-        non-transmissive clouds under a similarity transform, else one merged icosphere mesh with per-vertex
-        colours."""
+        """Analytic spheres (one shape and BSDF per point) up to ``max_analytic_opaque`` points for opaque,
+        non-emissive, non-transmissive clouds under a similarity transform, beyond that one ``linearcurve``
+        shape of capsules (:mod:`blendify_mitsuba.points`); other clouds analytic spheres up to
+        ``max_analytic_spheres`` points, beyond that one merged icosphere mesh with per-vertex colours."""
         mi = _mi()
         prefix = f"r{index:05d}"
         matrix = r.matrix_world
@@ -988,7 +994,11 @@ class MitsubaTranslator(Translator):
         uniform = None if per_point is not None else src.constant[:3]
         strength = r.particle_emission_strength
         alpha = float(mat.alpha)
-        if n <= self.max_analytic_spheres:
+        scale = float(np.linalg.svd(np.asarray(matrix)[:3, :3], compute_uv=False)[0])
+        emissive = strength > 0 or _emission(mat) is not None
+        size_ratio = _size_ratio(ctx, centres, radii * scale)
+        capsules = curves_fit(mat, src.opacity(alpha)[1], emissive, matrix, size_ratio) is None
+        if n <= (self.max_analytic_opaque if capsules else self.max_analytic_spheres):
             for i in range(n):
                 c = per_point[i] if per_point is not None else uniform
                 bsdf = self.dispatch(mat, ctx, _rgb(c))
@@ -1008,10 +1018,7 @@ class MitsubaTranslator(Translator):
                 ctx.shapes[key] = ShapeInfo(index, np.asarray(c, dtype=np.float64))
             ctx.n_analytic_spheres += n
             return
-        scale = float(np.linalg.svd(np.asarray(matrix)[:3, :3], compute_uv=False)[0])
-        emissive = strength > 0 or _emission(mat) is not None
-        size_ratio = _size_ratio(ctx, centres, radii * scale)
-        if curves_fit(mat, src.opacity(alpha)[1], emissive, matrix, size_ratio) is None:
+        if capsules:
             key = f"{prefix}_curves"
             if per_point is not None:
                 tex = mi.load_dict(point_bitmap(per_point))

@@ -21,10 +21,11 @@ FROZEN: dict[str, tuple[str, str]] = {
     "mesh.smooth": ("exact", "vertex normals"),
     "pointcloud": (
         "exact",
-        "analytic spheres up to max_analytic_spheres points; beyond that one shape of sphere-capped "
-        "capsules (Embree round curves 1 % of the radius long) for opaque, non-emissive clouds, else the "
-        "IR's merged icosphere mesh",
-    ),  # issue 17: the capsules replaced the mesh for opaque clouds
+        "analytic spheres up to max_analytic_opaque points for opaque, non-emissive clouds, beyond that "
+        "one shape of sphere-capped capsules (Embree round curves, depth and normals within the exactness "
+        "bounds); other clouds analytic spheres up to max_analytic_spheres points, else the IR's merged "
+        "icosphere mesh",
+    ),  # issue 17: the capsules replaced the mesh for opaque clouds, and the analytic spheres beyond 500 points
     "pointcloud.vertex_colors": ("exact", ""),
     "pointcloud.emission": ("approximate", "area emitter on the spheres, front (outer) side only"),
     "primitive.cube": ("exact", "IR tessellation"),

@@ -280,6 +280,24 @@ def test_pointcloud_analytic_then_merged(mi_scalar):
     assert tr.scene_dict["r00000_mesh"].face_count() == len(pc.to_mesh().faces)
 
 
+def test_pointcloud_opaque_limit(mi_scalar):
+    """Clouds that can be capsules leave the analytic spheres at max_analytic_opaque points, the others at
+    max_analytic_spheres; the backend's defaults are 500 and the variant's limit, an explicit value is both."""
+    from blendify_mitsuba import DEFAULT_MAX_ANALYTIC_OPAQUE, DEFAULT_MAX_ANALYTIC_SPHERES, MitsubaBackend
+
+    scene = testing.pointcloud_scene(n=50)
+    tr = MitsubaTranslator(SETTINGS, max_analytic_spheres=1000, max_analytic_opaque=10).translate(scene)
+    assert [k for k in tr.scene_dict if k.startswith("r")] == ["r00000_curves"]
+    scene.renderables["points"].materials[0].alpha = 0.5  # no capsules: analytic spheres up to 1000
+    tr = MitsubaTranslator(SETTINGS, max_analytic_spheres=1000, max_analytic_opaque=10).translate(scene)
+    assert tr.n_analytic_spheres == 50
+    session = MitsubaBackend(variant="scalar_rgb").session
+    assert session.max_analytic_opaque == DEFAULT_MAX_ANALYTIC_OPAQUE == 500
+    assert session.max_analytic_spheres == DEFAULT_MAX_ANALYTIC_SPHERES["scalar"]
+    explicit = MitsubaBackend(variant="scalar_rgb", max_analytic_spheres=2000).session
+    assert explicit.max_analytic_opaque == explicit.max_analytic_spheres == 2000
+
+
 def test_emission_builds_an_emitter_and_compositing_scenes(mi_scalar):
     scene = bf.Scene()
     scene.renderables.add_sphere_nurbs(
