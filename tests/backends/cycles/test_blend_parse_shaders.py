@@ -258,7 +258,11 @@ if mode == "floats":  # no bump; Coat Weight from a Checker, IOR from a Value no
     nt.links.new(val.outputs[0], p.inputs["IOR"])
     grad = nt.nodes.new("ShaderNodeTexGradient")
     nt.links.new(grad.outputs["Fac"], p.inputs["Emission Strength"])
-    p.inputs["Emission Color"].default_value = (1, 1, 1, 1)
+    rgb = nt.nodes.new("ShaderNodeRGB"); rgb.outputs[0].default_value = (2.0, 1.0, 0.5, 1.0)
+    nt.links.new(rgb.outputs[0], p.inputs["Emission Color"])
+    tint = nt.nodes.new("ShaderNodeTexChecker"); tint.inputs["Scale"].default_value = 2.0
+    tint.inputs["Color1"].default_value = (1, 0, 0, 1); tint.inputs["Color2"].default_value = (0, 0, 1, 1)
+    nt.links.new(tint.outputs["Color"], p.inputs["Sheen Tint"])
 sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
 sun.data.energy = 3.0
 sun.rotation_euler = (math.radians(60), 0, math.radians(90))
@@ -340,9 +344,10 @@ def test_object_and_world_space_normal_maps_are_baked(space, tmp_path: Path, bpy
 
 
 def test_procedural_float_inputs_without_an_ir_map_take_the_baked_mean(tmp_path: Path, bpy_script, cycles):
-    """Float inputs the IR holds as one value (Coat Weight from a Checker, IOR from a Value node, Emission
-    Strength from a Gradient) are baked through the same path as the maps: the IR takes the bake's mean over
-    the surface, named in the warning; without a baker their default values (noted as before)."""
+    """Inputs the IR holds as one value (Coat Weight from a Checker, IOR from a Value node, Emission Strength
+    from a Gradient; the colours Emission Color from an RGB node brighter than 1 and Sheen Tint from a Checker)
+    are baked through the same path as the maps: the IR takes the bake's mean over the surface, named in the
+    warning; without a baker their default values (noted as before)."""
     path = tmp_path / "floats.blend"
     bpy_script(BUMP_WRITE, str(path), "floats")
     scene = Scene()
@@ -353,7 +358,11 @@ def test_procedural_float_inputs_without_an_ir_map_take_the_baked_mean(tmp_path:
     m = scene.renderables["Bumpy"].material
     assert m.ior == pytest.approx(1.8, abs=1e-4)
     assert m.coat_weight == pytest.approx(0.5, abs=0.05)  # a 2x2 checker: half the surface
-    assert m.emission_strength == pytest.approx(0.5, abs=0.05)  # a linear ramp across the plane
+    # a linear ramp across the plane (0.5), times 2: the baked emission colour (2, 1, 0.5) as a [0, 1] colour
+    assert m.emission_strength == pytest.approx(1.0, abs=0.1)
+    assert m.emission_color == pytest.approx((1.0, 0.5, 0.25, 1.0), abs=1e-3)
+    assert m.sheen_tint == pytest.approx((0.5, 0.0, 0.5, 1.0), abs=0.05)  # half red, half blue
+    assert "sheen_tint from a ShaderNodeTexChecker node baked" in msg
     for param, node in (("ior", "ShaderNodeValue"), ("coat_weight", "ShaderNodeTexChecker")):
         assert f"{param} from a {node} node baked with Cycles' baker (32x32); the IR holds one value" in msg
     assert "mean over the surface, 1.8, used" in msg

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from blendify_blender.blendfile.common import Notes
+from blendify_blender.blendfile.common import Notes, rgb01
 from blendify_core.ir.colors import NormalMap, TextureColors, TextureMap
 
 __all__ = ["DEFAULT_BAKE_RESOLUTION", "Baker"]
@@ -200,16 +200,15 @@ class Baker:
             for i, m in enumerate(mats):
                 params = self.baked_params.get(id(m))
                 if params:
-                    changes = {}
-                    for p, (px, req) in params.items():
+                    changes: dict[str, Any] = {}
+                    # floats first: a baked emission colour brighter than 1 scales the (baked) strength
+                    for p, (px, req) in sorted(params.items(), key=lambda kv: _param(m, kv[0]).kind == "color"):
                         if p == "normal_map":
                             changes[p] = NormalMap(np.clip(px, 0.0, 1.0))
                         elif _has_map(m, p):
                             changes[f"{p}_map"] = TextureMap(np.clip(px, 0.0, 1.0))
                         else:
-                            mean = self._scalar(m, p, px, spec, i if len(mats) > 1 else None, req)
-                            if mean is not None:
-                                changes[p] = mean
+                            changes.update(self._mean(m, p, px, spec, i if len(mats) > 1 else None, req, changes))
                     mats[i] = m.copy(**changes)
             spec["material"] = mats if isinstance(spec["material"], list) else mats[0]
             cols = spec["colors"] if isinstance(spec["colors"], list) else [spec["colors"]]
@@ -223,26 +222,46 @@ class Baker:
             if changed:
                 spec["colors"] = cols if isinstance(spec["colors"], list) else cols[0]
 
-    def _scalar(self, m: Any, param: str, px: np.ndarray, spec: dict[str, Any], slot: int | None, req: Any) -> Any:
-        """The IR's one value for a baked float ``param`` the IR holds as a scalar: the bake's mean over the
-        surface of the object's faces using material ``slot`` (clipped to the parameter's range; noted)."""
-        mean = _surface_mean(px[..., 0], spec, slot)
+    def _mean(
+        self, m: Any, param: str, px: np.ndarray, spec: dict[str, Any], slot: int | None, req: Any, done: dict[str, Any]
+    ) -> dict[str, Any]:
+        """The IR's one value for a baked ``param`` the IR holds as a scalar or a single colour: the bake's mean
+        over the surface of the object's faces using material ``slot`` (clipped to the parameter's range; a
+        colour in [0, 1], an emission colour brighter than 1 scaling the emission strength); noted."""
+        p = _param(m, param)
+        colour = p.kind == "color"
+        mean = _surface_mean(px[..., :3] if colour else px[..., 0], spec, slot)
         if mean is None:
             self.notes.add(
                 f"{req.where}: {param} from a {req.node_type} node baked, but the object has no UVs to "
                 "average it over; its default value used"
             )
-            return None
-        p = next(q for q in type(m)._params if q.name == param)
-        lo = -np.inf if p.min_value is None else p.min_value
-        hi = np.inf if p.max_value is None else p.max_value
-        value = float(np.clip(mean, lo, hi))
+            return {}
+        out: dict[str, Any] = {}
+        if colour:
+            c, k = rgb01(mean)
+            out[param] = (float(c[0]), float(c[1]), float(c[2]), 1.0)
+            shown = ", ".join(f"{x:.3g}" for x in np.asarray(mean)[:3])
+            if k > 1.0 and param == "emission_color":
+                out["emission_strength"] = float(done.get("emission_strength", m.emission_strength)) * k
+            elif k > 1.0:
+                shown += " normalised to [0, 1]"
+        else:
+            lo = -np.inf if p.min_value is None else p.min_value
+            hi = np.inf if p.max_value is None else p.max_value
+            out[param] = float(np.clip(mean, lo, hi))
+            shown = f"{out[param]:.4g}"
         self.notes.add(
             f"{req.where}: {param} from a {req.node_type} node baked with Cycles' baker ({self.resolution}x"
-            f"{self.resolution}); the IR holds one value for it: the mean over the surface, {value:.4g}, used "
+            f"{self.resolution}); the IR holds one value for it: the mean over the surface, {shown}, used "
             "(an approximation: the variation across the surface is lost)"
         )
-        return value
+        return out
+
+
+def _param(m: Any, name: str) -> Any:
+    """The declaration of the IR material ``m``'s parameter ``name`` (``normal_map`` included)."""
+    return next(q for q in type(m)._params if q.name == name)
 
 
 def _has_map(m: Any, param: str) -> bool:
@@ -250,8 +269,9 @@ def _has_map(m: Any, param: str) -> bool:
     return param != "normal_map" and f"{param}_map" in m.parameter_names()
 
 
-def _surface_mean(values: np.ndarray, spec: dict[str, Any], slot: int | None) -> float | None:
-    """Area-weighted mean of a baked (n, n) image (row 0 at the top) over a mesh spec's triangles (those of
+def _surface_mean(values: np.ndarray, spec: dict[str, Any], slot: int | None) -> Any:
+    """Area-weighted mean of a baked (n, n) or (n, n, c) image (row 0 at the top; a float or a (c,) array) over
+    a mesh spec's triangles (those of
     material ``slot``): each triangle is split into s x s equal parts (s from its size in texels, the same
     for all, at most 4M samples) read at their UV centroids; None without per-corner or per-vertex UVs."""
     uv, faces, verts = spec.get("uv_map"), np.asarray(spec["faces"]), np.asarray(spec["vertices"], np.float64)
@@ -268,14 +288,16 @@ def _surface_mean(values: np.ndarray, spec: dict[str, Any], slot: int | None) ->
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     if not len(area) or area.sum() <= 0:
         return None
-    n_y, n_x = values.shape
+    n_y, n_x = values.shape[:2]
     edge = np.abs(corners - np.roll(corners, 1, axis=1)).max(axis=(1, 2)) * max(n_x, n_y)  # longest edge, texels
     budget = max(int(np.sqrt(4e6 / len(area))), 1)
     bary = _subdivision_centroids(int(np.clip(np.ceil(edge.max()), 1, min(budget, 256))))
     pts = np.einsum("kb,mbd->mkd", bary, corners)  # (M, K, 2) UVs
     x = np.floor(np.mod(pts[..., 0], 1.0) * n_x).astype(int).clip(0, n_x - 1)
     y = np.floor((1.0 - np.mod(pts[..., 1], 1.0)) * n_y).astype(int).clip(0, n_y - 1)
-    return float(np.sum(values[y, x].mean(axis=1) * area) / area.sum())
+    per_tri = values[y, x].mean(axis=1)  # (M,) or (M, c)
+    mean = np.tensordot(area, per_tri, axes=(0, 0)) / area.sum()
+    return float(mean) if np.ndim(mean) == 0 else np.asarray(mean, np.float64)
 
 
 def _subdivision_centroids(s: int) -> np.ndarray:

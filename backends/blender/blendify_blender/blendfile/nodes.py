@@ -9,9 +9,10 @@
 - texture-driven Roughness / Metallic -> ``roughness_map`` / ``metallic_map``, a tangent-space Normal Map
   node fed by an image -> ``normal_map`` (with a baker, any other shading normal: Bump, procedural or
   object/world-space Normal Map -> a baked tangent-space ``normal_map``);
-- with a baker (:mod:`.bake`), every other float input driven by nodes (procedural Roughness / Metallic,
-  IOR, Coat Weight, Transmission, Emission Strength, Alpha, ...) is baked per object: into the IR's texture
-  map where it has one, else the bake's surface mean (named in the warning).
+- with a baker (:mod:`.bake`), every other float or colour input driven by nodes (procedural Roughness /
+  Metallic, IOR, Coat Weight, Transmission, Emission Strength, Alpha, Emission Color, Coat / Sheen / Specular
+  Tint, ...) is baked per object: into the IR's texture map where it has one, else the bake's surface mean
+  (named in the warning).
 
 Anything else that drives a socket (procedural nodes, volumes, displacement) is noted and its default
 value used. :func:`link_from` (the node feeding a socket, through reroutes) is shared with the light and
@@ -555,7 +556,10 @@ class MaterialReader:
                     emission_from_color = float(params.get("emission_strength", 0.0))
                     params["emission_strength"] = 0.0
                     continue
-            if sock.is_linked:
+            src = link_from(sock) if sock.is_linked else None
+            if src is not None and self.baker is not None:  # baked per object (blendfile.bake): its mean colour
+                self._maps_to_bake.append((ir_name, (str(src[0].name), str(src[0].bl_idname), str(src[1].identifier))))
+            elif sock.is_linked:
                 self.notes.add(f"{where}: Principled input {bl_name!r} is driven by nodes, used its default value")
             c, k = rgb01(sock.default_value)
             if k > 1.0:
