@@ -27,7 +27,9 @@ KNOWN_THIRD_PARTY: dict[str, str] = {
     "curve is seen at grazing angles (Mitsuba's Principled uses cosine-weighted means of Cycles' view-dependent "
     "layer weights: material issue); with Lambertian materials the port passes",
     "blendify_readme_cube": "2-3 of 64 tiles beyond the material margin on a pure green Principled cube under a "
-    "strong point light (specular highlight; material issue)",
+    "strong point light (specular highlight) in scalar_rgb, whose Principled is the lobe sum with cosine-weighted "
+    "means of Cycles' view-dependent layer weights; passes in llvm_ad_rgb (blendify_mitsuba.layered, "
+    "tests/backends/mitsuba/test_mitsuba_layered.py)",
 }
 
 #: public .blend files kept only in the local cache (licence unknown or file too large to commit)

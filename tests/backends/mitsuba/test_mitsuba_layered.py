@@ -228,3 +228,29 @@ def test_glass_sampled_weight_is_eval_over_pdf(mi_layered):
 
 def test_smooth_glass_keeps_the_exact_dielectric():
     assert P.glass_layered(PrincipledBSDFMaterial(roughness=0.0, transmission_weight=1.0), BASE) is None
+
+
+@pytest.mark.slow
+def test_readme_cube_port_passes_the_crosscheck_in_llvm():
+    """The third-party port blendify_readme_cube (a green Principled cube's specular highlight) fails the
+    Cycles/Mitsuba crosscheck with the lobe sum of scalar_rgb (3 of 64 tiles) and passes with the layered BSDF."""
+    import sys
+    from pathlib import Path
+
+    import blendify_core as bf
+
+    pytest.importorskip("bpy", reason="Cycles (bpy) is not installed")
+    if MitsubaBackend(variant="llvm_ad_rgb").variant != "llvm_ad_rgb":
+        pytest.skip("llvm_ad_rgb is not available here")
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "third_party" / "scenes"))
+    from ports import PORTS
+
+    rep = bf.crosscheck(
+        PORTS["blendify_readme_cube"].build(),
+        backends=("cycles", "mitsuba"),
+        outputs=("rgb",),
+        samples=64,
+        backend_options={"mitsuba": {"variant": "llvm_ad_rgb"}},
+        progress=False,
+    )
+    assert rep.passed, rep.summary()
