@@ -131,6 +131,8 @@ POINTS_PER_PIXEL = 8
 POINTS_MIN_DRAWN = 100_000
 #: clouds of sub-pixel spheres are thinned to spheres of about this diameter (pixels) of the same summed area
 SUBPIXEL_DRAWN_DIAMETER = 0.7
+#: indirect light from a light probe (probe.py)
+PROBE = True
 #: the coverage pass of the "coverage" anti-aliasing is rendered at 3x the resolution (9 samples/pixel)
 COVERAGE_SUPERSAMPLE = 3
 _LIN8 = ((np.arange(256, dtype=np.float64) / 255.0) ** _GAMMA).astype(np.float32)
@@ -232,7 +234,17 @@ _GLASS_OPACITY = """    if (bf_glass.x > 0.0) {
 #: (file, anchor, replacement) applied to pyrender's shaders after the patches above: the world's light from
 #: spherical harmonics (diffuse and glossy, shaders/blendify_env.glsl), glass, sphere impostors
 _PATCHES = (
-    ("mesh.frag", "uniform vec3 ambient_light;\n", "uniform vec3 ambient_light;\nuniform vec2 bf_glass;\n"),
+    (
+        "mesh.frag",
+        "uniform vec3 ambient_light;\n",
+        "uniform vec3 ambient_light;\nuniform vec2 bf_glass;\nuniform float bf_emission;\n",
+    ),
+    # emission off while the indirect-light probe is rendered (probe.py: emitters already light as lights)
+    (
+        "mesh.frag",
+        "    color.xyz += emissive * material.emissive_factor;\n",
+        "    color.xyz += bf_emission * emissive * material.emissive_factor;\n",
+    ),
     ("mesh.frag", _GLASS_DIFFUSE, _GLASS_DIFFUSE + "    c_diff *= 1.0 - bf_glass.x;\n"),
     ("mesh.frag", _GLASS_ALPHA, _GLASS_OPACITY + _GLASS_ALPHA),
     (
@@ -449,6 +461,12 @@ class FrameRenderer(pyrender.Renderer):
         self.sprite_conservative = False
         #: the world's light as 9 SH coefficients (A_l / pi) L_lm, linear RGB (translate.environment_sh)
         self.env_sh = np.zeros((9, 3), dtype=np.float32)
+        #: the light glossy and metal surfaces reflect (the world's; env_sh may be the indirect-light probe's)
+        self.spec_sh = np.zeros((9, 3), dtype=np.float32)
+        #: emission scale (0 while the indirect-light probe is rendered)
+        self.emission_scale = 1.0
+        #: the indirect-light probe of the last frame: (key, coefficients, note) (probe.py)
+        self.probe_cache: tuple[Any, np.ndarray, str] | None = None
 
     # -- framebuffers ----------------------------------------------------------------------------
     def _framebuffer(self, kind: str, width: int, height: int, samples: int) -> dict[str, Any]:
@@ -585,6 +603,7 @@ class FrameRenderer(pyrender.Renderer):
             k += 1
         for i in range(9):  # the world's light (shaders/blendify_env.glsl)
             program.set_uniform(f"bf_env_sh[{i}]", self.env_sh[i])
+            program.set_uniform(f"bf_spec_sh[{i}]", self.spec_sh[i])
 
     # -- sphere impostors -------------------------------------------------------------------------
     def _get_primitive_program(self, primitive: Any, flags: int, program_flags: int) -> Any:
@@ -597,6 +616,7 @@ class FrameRenderer(pyrender.Renderer):
     def _bind_and_draw_primitive(self, primitive: Any, pose: Any, program: Any, flags: int) -> None:
         glass = getattr(primitive.material, "blendify_glass", None)
         program.set_uniform("bf_glass", _NO_GLASS if glass is None else glass)
+        program.set_uniform("bf_emission", float(self.emission_scale))
         if is_sprite(primitive):
             program.set_uniform("sprite_viewport", float(self.viewport_width))
             program.set_uniform("sprite_diameter_scale", float(getattr(primitive, "sprite_scale", 1.0)))
@@ -611,7 +631,7 @@ class FrameRenderer(pyrender.Renderer):
             return  # the map of this light is still valid (only the camera moved)
         self._shadow_light = light_node
         try:
-            if self._sorted_mesh_nodes(scene):
+            if any(n.mesh.is_visible for n in self._sorted_mesh_nodes(scene)):
                 super()._shadow_mapping_pass(scene, light_node, flags)
             else:
                 # nothing casts a shadow from this light: a cleared map (pyrender's pass draws nothing and
@@ -945,6 +965,23 @@ def _color(engine: Engine, frame: Frame, w: int, h: int, aa: AntiAliasing, flags
     return box_downsample(linearise_rgba8(r.render_color(scene, w * k, h * k, 0, flags)), k)
 
 
+def _indirect_probe(engine: Engine, frame: Frame, flags: int) -> tuple[np.ndarray, str]:
+    """The indirect-light probe's coefficients (probe.py) for this frame's scene, cached while the geometry,
+    lights and world stay the same."""
+    from .probe import probe_sh
+
+    r = engine.renderer
+    key = (frame.shadow_key, r.env_sh.tobytes())
+    if r.probe_cache is None or r.probe_cache[0] != key:
+
+        def render_rgba(width: int, height: int) -> np.ndarray:
+            return linearise_rgba8(r.render_color(engine.pscene, width, height, 0, flags))
+
+        sh, note = probe_sh(engine, frame, flags, render_rgba)
+        r.probe_cache = (key, sh.astype(np.float32), note)
+    return r.probe_cache[1], r.probe_cache[2]
+
+
 def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: AntiAliasing) -> RenderResult:
     """Render the frame the session translated (``frame``) with the anti-aliasing ``aa``."""
     w, h = frame.camera.width, frame.camera.height
@@ -981,13 +1018,24 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
             gbuf = renderer.render_gbuffer(scene, w, h, ids)
             timings["gbuffer"] = time.perf_counter() - t0
         if "rgb" in want:
-            t0 = time.perf_counter()
-            rgba = _color(engine, frame, w, h, aa, flags)
-            timings["color"] = time.perf_counter() - t0
-            if catchers:
+            world_sh = renderer.env_sh
+            renderer.spec_sh = world_sh
+            if PROBE:
                 t0 = time.perf_counter()
-                rgba = _apply_catchers(engine, frame, rgba, gbuf, catchers, w, h, aa, flags)
-                timings["shadow_catcher"] = time.perf_counter() - t0
+                renderer.env_sh, note = _indirect_probe(engine, frame, flags)
+                if note:
+                    approximations.append(note)
+                timings["probe"] = time.perf_counter() - t0
+            try:
+                t0 = time.perf_counter()
+                rgba = _color(engine, frame, w, h, aa, flags)
+                timings["color"] = time.perf_counter() - t0
+                if catchers:
+                    t0 = time.perf_counter()
+                    rgba = _apply_catchers(engine, frame, rgba, gbuf, catchers, w, h, aa, flags)
+                    timings["shadow_catcher"] = time.perf_counter() - t0
+            finally:
+                renderer.env_sh = world_sh
             if not settings.transparent_background:
                 bg = np.clip(frame.ambient, 0, None).astype(np.float32)
                 if frame.background is not None:  # an environment map, seen through each pixel

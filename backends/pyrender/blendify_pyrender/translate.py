@@ -1008,8 +1008,10 @@ class PyrenderTranslator(Translator):
         BackgroundLight,
         features={
             "light.background": approximate(
-                "unshadowed uniform light: diffuse albedo x radiance, glossy and metal surfaces reflect it "
-                "(split-sum environment BRDF), no occlusion; not visible (transparent film)"
+                "uniform light: diffuse albedo x radiance, glossy and metal surfaces reflect it (split-sum "
+                "environment BRDF); with solid objects the diffuse term takes it through one light probe (half "
+                "its occlusion there, plus one bounce of light: blendify_pyrender.probe); not visible "
+                "(transparent film)"
             )
         },
     )
@@ -1020,11 +1022,11 @@ class PyrenderTranslator(Translator):
         EnvironmentMap,
         features={
             "light.environment": approximate(
-                "unshadowed image-based light from the map's 9 spherical-harmonic coefficients: diffuse "
+                "image-based light from the map's 9 spherical-harmonic coefficients: diffuse "
                 "irradiance, and a glossy term (the SH radiance in the mirror direction, blurred toward the "
                 "irradiance with roughness; split-sum environment BRDF) and its sun (pixels above 10 % of the "
-                "peak) as a shadowing directional light; no other occlusion; seen behind the objects on an "
-                "opaque film (nearest texel)"
+                "peak) as a directional light with soft shadows of its size; diffuse light through one light "
+                "probe as light.background; seen behind the objects on an opaque film (nearest texel)"
             )
         },
     )

@@ -2,16 +2,23 @@
 // pyrender's uniform ambient term). bf_env_sh[k] = (A_l / pi) x L_lm, the cosine-convolved radiance
 // coefficients (A_0 = pi, A_1 = 2 pi / 3, A_2 = pi / 4): their sum with the basis is irradiance / pi.
 uniform vec3 bf_env_sh[9];
+// the world's light alone for the glossy term (bf_env_sh may hold the indirect-light probe's, probe.py)
+uniform vec3 bf_spec_sh[9];
+
+vec3 bf_sh_of(vec3 s[9], vec3 d, vec3 band)
+{
+    // band: scale of bands 0, 1, 2 (1, 1, 1: irradiance / pi; 1, 1.5, 4: the radiance itself)
+    vec3 c = s[0] * (0.282095 * band.x);
+    c += (s[1] * d.y + s[2] * d.z + s[3] * d.x) * (0.488603 * band.y);
+    c += (s[4] * (1.092548 * d.x * d.y) + s[5] * (1.092548 * d.y * d.z)
+          + s[6] * (0.315392 * (3.0 * d.z * d.z - 1.0)) + s[7] * (1.092548 * d.x * d.z)
+          + s[8] * (0.546274 * (d.x * d.x - d.y * d.y))) * band.z;
+    return max(c, vec3(0.0));
+}
 
 vec3 bf_sh(vec3 d, vec3 band)
 {
-    // band: scale of bands 0, 1, 2 (1, 1, 1: irradiance / pi; 1, 1.5, 4: the radiance itself)
-    vec3 c = bf_env_sh[0] * (0.282095 * band.x);
-    c += (bf_env_sh[1] * d.y + bf_env_sh[2] * d.z + bf_env_sh[3] * d.x) * (0.488603 * band.y);
-    c += (bf_env_sh[4] * (1.092548 * d.x * d.y) + bf_env_sh[5] * (1.092548 * d.y * d.z)
-          + bf_env_sh[6] * (0.315392 * (3.0 * d.z * d.z - 1.0)) + bf_env_sh[7] * (1.092548 * d.x * d.z)
-          + bf_env_sh[8] * (0.546274 * (d.x * d.x - d.y * d.y))) * band.z;
-    return max(c, vec3(0.0));
+    return bf_sh_of(bf_env_sh, d, band);
 }
 
 vec3 bf_environment(vec3 n, vec3 v, float roughness, float metallic, vec3 f0, vec3 c_diff)
@@ -26,7 +33,7 @@ vec3 bf_environment(vec3 n, vec3 v, float roughness, float metallic, vec3 f0, ve
         vec4 rc = roughness * vec4(-1.0, -0.0275, -0.572, 0.022) + vec4(1.0, 0.0425, 1.04, -0.04);
         float a004 = min(rc.x * rc.x, exp2(-9.28 * nv)) * rc.x + rc.y;
         vec2 ab = vec2(-1.04, 1.04) * a004 + rc.zw;
-        light += bf_sh(r, band) * (f0 * ab.x + ab.y);
+        light += bf_sh_of(bf_spec_sh, r, band) * (f0 * ab.x + ab.y);
     }
     return light;
 }

@@ -1,0 +1,163 @@
+"""Indirect light for the preview: one light probe.
+
+The preview shades with direct light and the world's light (9 spherical-harmonic coefficients, shaders/
+blendify_env.glsl). Light that bounces off other surfaces is missing: a closed room is black where no lamp
+shines, the underside of an object on a lit floor gets only the sky. The probe adds it: a small cube map
+(6 faces of ``PROBE_SIZE``^2 texels) rendered by the preview itself from one point of the scene, emission
+left out (the emitters already light the scene as lights), the world's radiance where a texel sees nothing,
+projected onto the same 9 coefficients. Those replace the world's coefficients for the frame: surfaces are
+lit by what the probe sees (walls, the floor, the sky where it is not hidden), the glossy term reflects it.
+Rendering the probe again lit by its own coefficients adds a bounce (``PROBE_BOUNCES``).
+
+It is one probe for the whole scene (distant lighting: no contact shadows, no occlusion nearer than the
+probe's surroundings) at a point chosen from the scene's bounds (:func:`probe_point`); objects whose bounds
+hold that point are hidden from it. The probe depends on the scene, not on the camera: it is cached for as
+long as the geometry, lights and world stay the same (the frame's shadow key), so a moving camera pays
+nothing.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .translate import sh_basis
+
+if TYPE_CHECKING:
+    from .session import Engine, Frame
+
+__all__ = ["PROBE_SIZE", "PROBE_BOUNCES", "probe_point", "cube_directions", "world_radiance", "probe_sh"]
+
+#: texels per cube face edge
+PROBE_SIZE = 16
+#: renders of the probe: 1 = one bounce of light, each more adds one
+PROBE_BOUNCES = 1
+#: how much of the world's light the probe sees hidden is taken away (1 = all of it): one point's view stands
+#: for every surface's, so it hides too much for some and too little for others; half measured best (SSIM
+#: against Cycles over benchmarks/preview_look.py, within 0.002 of 0 and 1 on the means)
+PROBE_OCCLUSION = 0.5
+#: objects thinner than this fraction of the scene's diagonal along some axis are "flat" (walls, floors): the
+#: probe's point is chosen among the others
+FLAT_FRACTION = 0.01
+#: the cosine lobe's band factors A_l / pi (shaders/blendify_env.glsl, translate._SH_BAND_FACTOR)
+_BAND = np.array([1.0, 2 / 3, 2 / 3, 2 / 3, 0.25, 0.25, 0.25, 0.25, 0.25])
+#: camera-to-world rotations of the six faces: columns (right, up, backward); OpenGL cameras look along -Z
+_FACES = []
+for _fwd, _up in (
+    ((1, 0, 0), (0, 0, 1)),
+    ((-1, 0, 0), (0, 0, 1)),
+    ((0, 1, 0), (0, 0, 1)),
+    ((0, -1, 0), (0, 0, 1)),
+    ((0, 0, 1), (0, 1, 0)),
+    ((0, 0, -1), (0, 1, 0)),
+):
+    _f, _u = np.array(_fwd, dtype=np.float64), np.array(_up, dtype=np.float64)
+    _FACES.append(np.stack([np.cross(_f, _u), _u, -_f], axis=1))
+
+
+def cube_directions(n: int) -> tuple[list[np.ndarray], np.ndarray]:
+    """Per face the (n*n, 3) unit world directions through the texel centres (rows top to bottom, as the
+    colour pass returns them), and the (n*n,) solid angle of each texel (the same on every face)."""
+    c = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+    x, y = np.meshgrid(c, -c)  # image rows go down, y up
+    x, y = x.reshape(-1), y.reshape(-1)
+    r2 = 1.0 + x * x + y * y
+    d_omega = (2.0 / n) ** 2 / r2**1.5
+    d_omega *= 4.0 * np.pi / (6.0 * d_omega.sum())  # the midpoint rule's 0.4 % (n = 8) off the sphere
+    dirs = []
+    for rot in _FACES:
+        d = x[:, None] * rot[:, 0] + y[:, None] * rot[:, 1] - rot[:, 2]
+        dirs.append(d / np.sqrt(r2)[:, None])
+    return dirs, d_omega
+
+
+def world_radiance(sh: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(N, 3) radiance of the world in directions ``d`` from its coefficients (A_l / pi) L_lm."""
+    return np.clip(sh_basis(d) @ (np.asarray(sh, dtype=np.float64) / _BAND[:, None]), 0.0, None)
+
+
+def probe_point(boxes: list[tuple[Any, np.ndarray, np.ndarray]], diagonal: float) -> tuple[np.ndarray, list[Any]]:
+    """Where the probe is rendered from and which objects it does not see. ``boxes``: (node, world min, world
+    max) of the visible objects. The point: the centre of the bounds of the objects that are not flat; the
+    objects whose bounds (grown by 0.1 % of the diagonal) hold it are hidden (the probe would be inside them,
+    or on their surface). When every object is flat, every object is hidden (no probe: the world's light)."""
+    solid = [b for b in boxes if float(np.min(b[2] - b[1])) > FLAT_FRACTION * diagonal]
+    if not solid:  # only flat objects (stacked planes, a lone wall): no point between them is better
+        return np.zeros(3), [node for node, _, _ in boxes]
+    lo = np.min([b[1] for b in solid], axis=0)
+    hi = np.max([b[2] for b in solid], axis=0)
+    point = 0.5 * (lo + hi)
+    eps = 1e-3 * diagonal
+    hidden = [node for node, mn, mx in boxes if np.all(point >= mn - eps) and np.all(point <= mx + eps)]
+    return point, hidden
+
+
+def _node_box(scene: Any, node: Any) -> tuple[np.ndarray, np.ndarray]:
+    b = np.asarray(node.mesh.bounds, dtype=np.float64)
+    corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    pose = scene.get_pose(node)
+    w = corners @ pose[:3, :3].T + pose[:3, 3]
+    return w.min(axis=0), w.max(axis=0)
+
+
+def probe_sh(engine: Engine, frame: Frame, flags: int, render_rgba: Any) -> tuple[np.ndarray, str]:
+    """The probe's 9 coefficients (A_l / pi) L_lm (linear RGB) and a note on where it was rendered (the
+    world's coefficients and no note when the probe would see no object).
+    ``render_rgba(width, height)`` renders the colour pass of the current camera as linear premultiplied
+    RGBA. The renderer's camera, visibility, shadow key, emission and world coefficients are restored."""
+    from .render import FrameRenderer
+
+    r: FrameRenderer = engine.renderer
+    scene = engine.pscene
+    nodes = [n for n in frame.nodes if n is not None and n.mesh.is_visible]
+    diagonal = float(scene.scale) if nodes else 1.0
+    point, hidden = probe_point([(n, *_node_box(scene, n)) for n in nodes], diagonal)
+    world = np.asarray(r.env_sh, dtype=np.float64).copy()
+    if len(hidden) == len(nodes):  # nothing left to see: the world's light
+        return world, ""
+    cam_node = scene.main_camera_node
+    cam = cam_node.camera
+    saved = (cam.projection, cam.znear, cam.zfar, scene.get_pose(cam_node).copy())
+    near, far = 1e-3 * diagonal, 4.0 * diagonal
+    proj = np.zeros((4, 4))
+    proj[0, 0] = proj[1, 1] = 1.0  # 90 degrees
+    proj[2, 2], proj[2, 3] = -(far + near) / (far - near), -2.0 * far * near / (far - near)
+    proj[3, 2] = -1.0
+    dirs, d_omega = cube_directions(PROBE_SIZE)
+    basis = [sh_basis(d) * d_omega[:, None] for d in dirs]
+    background = [world_radiance(world, d) for d in dirs]
+    key, emission = r.shadow_key, r.emission_scale
+    for n in hidden:
+        n.mesh.is_visible = False
+    r.shadow_key = (key, "probe")  # its shadow maps leave the hidden objects out: not the frame's
+    r.emission_scale = 0.0
+    cam.projection, cam.znear, cam.zfar = proj, near, far
+    sh = world
+    try:
+        for _ in range(PROBE_BOUNCES):
+            r.env_sh = r.spec_sh = sh.astype(np.float32)
+            acc = np.zeros((9, 3))
+            for rot, b, bg in zip(_FACES, basis, background):
+                pose = np.eye(4)
+                pose[:3, :3], pose[:3, 3] = rot, point
+                scene.set_pose(cam_node, pose)
+                rgba = render_rgba(PROBE_SIZE, PROBE_SIZE).reshape(-1, 4).astype(np.float64)
+                radiance = rgba[:, :3] + (1.0 - PROBE_OCCLUSION * rgba[:, 3:4]) * bg
+                acc += b.T @ radiance
+            sh = acc * _BAND[:, None]
+    finally:
+        for n in hidden:
+            n.mesh.is_visible = True
+        r.shadow_key, r.emission_scale = key, emission
+        r.env_sh = r.spec_sh = world.astype(np.float32)
+        cam.projection, cam.znear, cam.zfar = saved[0], saved[1], saved[2]
+        scene.set_pose(cam_node, saved[3])
+    where = ", ".join(f"{v:.3g}" for v in point)
+    note = (
+        f"indirect light: one light probe at ({where}) ({PROBE_BOUNCES} bounces, a cube of 6 x {PROBE_SIZE}^2 "
+        "texels rendered by the preview, emission left out) replaces the world's light as 9 spherical-harmonic "
+        f"coefficients; {len(hidden)} object(s) holding that point hidden from it; no occlusion nearer than the "
+        "probe's surroundings (no contact shadows)"
+    )
+    return sh, note

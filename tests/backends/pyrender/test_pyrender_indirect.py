@@ -1,0 +1,88 @@
+"""Indirect light in the preview: one light probe (blendify_pyrender.probe) rendered from the scene replaces the
+world's light for the diffuse term. Tiny renders."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from blendify_core import DiffuseMaterial, PrincipledBSDFMaterial, Scene, UniformColors, render
+
+pytestmark = pytest.mark.pyrender
+
+ALBEDO = 0.6
+SUN = 3.0
+
+
+def _between_planes() -> Scene:
+    """A floor lit by a sun through a ceiling 1 m above it that casts no shadow (both 12 m wide, albedo 0.6) and
+    a small box between them; the camera between them looks straight up at the ceiling's underside, which no
+    light reaches directly."""
+    scene = Scene()
+    grey = UniformColors((ALBEDO,) * 3, color_space="linear")
+    scene.renderables.add_plane_mesh(12.0, DiffuseMaterial(), grey, tag="floor")
+    ceiling = scene.renderables.add_plane_mesh(12.0, DiffuseMaterial(), grey, translation=(0, 0, 1.0), tag="ceiling")
+    ceiling.emit_shadows = False
+    # a small box off to the side: the probe is rendered from its centre (only flat objects: no probe)
+    scene.renderables.add_cube_mesh(0.2, DiffuseMaterial(), grey, translation=(3.0, 3.0, 0.5), tag="box")
+    scene.lights.add_sun(SUN, rotation_mode="eulerXYZ", rotation=(0, 0, 0))
+    scene.set_perspective_camera((16, 16), fov_x=np.deg2rad(30), translation=(0, 0, 0.2), rotation=(0, 1, 0, 0))
+    return scene
+
+
+def test_light_bounces_off_the_floor_onto_the_ceiling(pyr, monkeypatch):
+    from blendify_pyrender import render as rmod
+
+    res = render(_between_planes(), backend=pyr, quality="preview")
+    ceiling = float(res.rgba[..., :3].mean())
+    # one bounce between large parallel planes: the ceiling sees the lit floor (radiance rho E / pi) over most
+    # of its hemisphere: radiance up to rho^2 E / pi
+    bound = ALBEDO**2 * SUN / np.pi
+    print(f"ceiling {ceiling:.4f}, one-bounce bound {bound:.4f}")
+    assert 0.6 * bound <= ceiling <= 1.05 * bound
+    assert any(a.startswith("indirect light: one light probe") for a in res.meta["approximations"])
+    monkeypatch.setattr(rmod, "PROBE", False)
+    dark = render(_between_planes(), backend=pyr, quality="preview")
+    assert float(dark.rgba[..., :3].max()) < 0.01  # without the probe: no light reaches it
+
+
+def test_probe_math():
+    from blendify_pyrender.probe import cube_directions, probe_point, world_radiance
+    from blendify_pyrender.translate import sh_basis, uniform_sh
+
+    dirs, d_omega = cube_directions(8)
+    assert 6 * d_omega.sum() == pytest.approx(4 * np.pi, rel=1e-3)
+    assert all(np.allclose(np.linalg.norm(d, axis=1), 1.0) for d in dirs)
+    # a uniform world projected from the cube's texels gives back its coefficients
+    sh = uniform_sh(np.array([0.2, 0.5, 1.0]))
+    acc = sum((sh_basis(d) * d_omega[:, None]).T @ world_radiance(sh, d) for d in dirs)
+    band = np.array([1.0, 2 / 3, 2 / 3, 2 / 3, 0.25, 0.25, 0.25, 0.25, 0.25])
+    assert np.allclose(acc * band[:, None], sh, atol=1e-3)
+    # the point: the centre of the solid objects' bounds; objects holding it are hidden from the probe
+    floor = ("floor", np.array([-5.0, -5, 0]), np.array([5.0, 5, 0]))
+    ball = ("ball", np.array([-1.0, -1, 0]), np.array([1.0, 1, 2]))
+    box = ("box", np.array([2.0, 2, 0]), np.array([3.0, 3, 1]))
+    point, hidden = probe_point([floor, ball, box], diagonal=14.0)
+    assert np.allclose(point, [1.0, 1.0, 1.0])
+    assert hidden == ["ball"]
+    _, hidden = probe_point([floor, ("wall", np.array([-5.0, 5, 0]), np.array([5.0, 5, 3]))], diagonal=14.0)
+    assert hidden == ["floor", "wall"]  # only flat objects: no probe
+
+
+def test_emission_is_left_out_of_the_probe(pyr):
+    """The probe renders with emission off (emitters light the scene as lights already): the emissive panel's
+    own glow does not light the scene twice."""
+    scene = Scene()
+    scene.set_orthographic_camera((8, 8), ortho_scale=1.0, translation=(0, 0, 3.0))
+    scene.renderables.add_plane_mesh(
+        1.0, PrincipledBSDFMaterial(emission_color=(1, 1, 1), emission_strength=0.5), UniformColors((0, 0, 0))
+    )
+    lit = render(scene, backend=pyr, quality="preview").rgba[..., :3].mean()
+    assert lit == pytest.approx(0.5, rel=0.05)
+    engine = pyr.engine_instance
+    engine.renderer.emission_scale = 0.0
+    try:
+        dark = render(scene, backend=pyr, quality="preview").rgba[..., :3].mean()
+    finally:
+        engine.renderer.emission_scale = 1.0
+    assert dark < 0.01
