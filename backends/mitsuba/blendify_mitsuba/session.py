@@ -41,12 +41,12 @@ __all__ = ["DEFAULT_MAX_ANALYTIC_OPAQUE", "DEFAULT_MAX_ANALYTIC_SPHERES", "Mitsu
 #: when they cannot be capsules (emissive, partly transparent, too small for their distance: see
 #: blendify_mitsuba.points.curves_fit). Measured (benchmarks/results/mitsuba_pointcloud_*.md): in scalar_rgb
 #: analytic spheres load and render faster than the merged mesh up to ~100k points; in the JIT variants one
-#: BSDF per sphere makes rendering slow (5k spheres: 5.5 s vs 0.6 s).
+#: BSDF per sphere makes rendering slow (llvm_ad_rgb, 5k points: 9.2 s vs 0.35 s as capsules).
 DEFAULT_MAX_ANALYTIC_SPHERES = {"scalar": 100_000, "jit": 500}
 #: clouds that can be one shape of capsules (blendify_mitsuba.points) are analytic spheres only up to this
 #: many points, in every variant: the capsules keep the spheres' depth and normals within the exactness
-#: bounds and load faster from a few hundred points on (scalar_rgb, 128x128: 1000 points 0.32 s vs 0.16 s,
-#: 20k points 3.6 s vs 0.4 s). An explicit ``max_analytic_spheres`` applies to every cloud.
+#: bounds and load faster from a few hundred points on (scalar_rgb, 128x128, load + render: 1000 points
+#: 0.75 s vs 0.29 s, 20k points 5.0 s vs 0.47 s). An explicit ``max_analytic_spheres`` applies to every cloud.
 DEFAULT_MAX_ANALYTIC_OPAQUE = 500
 
 # mi.set_variant is process-global: every use of the engine holds this lock and sets its variant
