@@ -124,7 +124,8 @@ class RenderMeta(TypedDict, total=False):
     stopped: str
     #: (core, ``target_error`` with ``effects=True``) the pilot deciding whether direct light alone reaches the
     #: target sooner: ``dropped``, ``why``, ``indirect_error`` (relative RMS of the indirect light, 90 % upper
-    #: bound), the samples each choice needs
+    #: bound; ``indirect_error_low`` the lower), ``passes`` (direct-light passes rendered), the samples each
+    #: choice needs
     indirect_pilot: dict[str, Any]
     #: (``bf.crosscheck`` with ``repeats``) renders averaged into the colour image
     repeats: int

@@ -626,6 +626,15 @@ def _add_timings(total: dict[str, float], more: dict[str, float]) -> None:
 #: full passes: the same first samples, so their difference is mostly the indirect light; measured: half the
 #: samples loosened the estimate's upper bound 3.5x on a ball over a dark floor)
 PILOT_PASSES = 2
+#: ... and up to this many (one more per round, paired with the next full pass) while its 90 % interval still
+#: straddles the threshold: an engine whose same-seed passes share fewer random numbers leaves a noisier
+#: difference. Measured on a dark ball over a 3 % floor (16 spp, true indirect light 0.0016): rel. RMS of
+#: full - direct per pass 0.001 in Cycles (2 passes decide), 0.025 in Mitsuba ``scalar_rgb`` (its samplers'
+#: jitter comes from one random stream per pixel, so a longer path shifts the next sample's numbers; its
+#: ``llvm_ad_rgb`` gives each sample its own stream and decides with 2): upper bound 0.0081 with 2 passes,
+#: 0.0031 with 3, 0.0014 with 4. (Mitsuba's ``ldsampler`` shares the numbers, 0.0011, but has 1.0-1.5x the
+#: noise of the default ``multijitter`` on every benchmark scene: not worth it for a pilot.)
+PILOT_MAX_PASSES = FIRST_PASSES
 #: ... and only when the full passes still need this many times the pilot's samples (it costs <= 1/16 of them;
 #: measured at 4x: 10-15 % slower on a floating bunny, whose indirect light it rightly kept; Mitsuba also
 #: loads the direct-light scene once more)
@@ -636,6 +645,21 @@ PILOT_MIN_GAIN = 16.0
 DIRECT_SAMPLES_SLACK = 1.0
 #: indirect light may be left out when its estimated relative RMS (90 % upper bound) is <= this x target
 INDIRECT_SHARE = 0.5
+
+
+def _indirect_bounds(colours: list[FloatArray], direct: list[FloatArray]) -> tuple[float, float]:
+    """The 90 % upper and lower bounds of the indirect light's relative RMS from the direct-light passes
+    ``direct`` and the full passes of the same seeds (``colours[: len(direct)]``): the squared mean of their
+    difference less its noise (the variance of the mean between the pairs), averaged over pixel-channels."""
+    k = len(direct)
+    diff = np.stack(colours[:k]) - np.stack(direct)
+    dbar = diff.mean(axis=0)
+    var_mean = ((diff - dbar) ** 2).sum(axis=0) / (k - 1) / k
+    ref = np.stack(colours).mean(axis=0)
+    term = (dbar * dbar - var_mean) / (ref * ref + 1e-2)
+    half = 1.645 * float(term.std()) / np.sqrt(term.size)
+    mean = float(term.mean())
+    return float(np.sqrt(max(mean + half, 0.0))), float(np.sqrt(max(mean - half, 0.0)))
 
 
 def _indirect_pilot(
@@ -652,7 +676,9 @@ def _indirect_pilot(
     Renders ``PILOT_PASSES`` passes without bounces (``max_bounces=0``) with the seeds and samples of the first
     full passes (the same first samples: the difference is mostly the indirect light),
     estimates the relative RMS of the indirect light (full - direct; its squared mean less its noise, 90 %
-    upper bound over pixel-channels) and the samples direct light needs for the rest of the error budget.
+    interval over pixel-channels) and the samples direct light needs for the rest of the error budget. While
+    the interval straddles the threshold, one more pass is paired with the next full pass, up to
+    ``PILOT_MAX_PASSES`` and as long as the pilot costs at most 1/``PILOT_MIN_GAIN`` of the full passes' samples.
     Direct light is chosen when the indirect light is <= ``INDIRECT_SHARE`` x target and it needs at most
     ``DIRECT_SAMPLES_SLACK`` x the full settings' samples (a direct sample never costs more than a full one). Stopping
     depends only on pixels, so a seed still gives the same picture. Returns the decision and its numbers
@@ -681,25 +707,33 @@ def _indirect_pilot(
     direct: list[FloatArray] = []
     alphas: list[FloatArray] = []
     timings: dict[str, float] = {}
-    for i in range(PILOT_PASSES):
+    threshold = INDIRECT_SHARE * target
+    max_passes = min(PILOT_MAX_PASSES, len(colours))
+    while True:
+        i = len(direct)
         r = inst.render_scene(scene, direct_settings.replace(seed=pass_seed(settings.seed, i), samples=pilot_spp))
         if r.rgba is None:
             raise RenderError(f"backend {inst.name!r} returned no 'rgb' output for the indirect-light pilot")
         direct.append(r.rgba[..., :3].astype(np.float64))
         alphas.append(r.rgba[..., 3:4].astype(np.float64))
         _add_timings(timings, r.meta.get("timings", {}))
-    k = PILOT_PASSES
-    diff = np.stack(colours[:k]) - np.stack(direct)
-    dbar = diff.mean(axis=0)
-    var_mean = ((diff - dbar) ** 2).sum(axis=0) / (k - 1) / k
-    ref = np.stack(colours).mean(axis=0)
-    term = (dbar * dbar - var_mean) / (ref * ref + 1e-2)
-    b2 = float(term.mean()) + 1.645 * float(term.std()) / np.sqrt(term.size)
-    bias = float(np.sqrt(max(b2, 0.0)))
+        k = len(direct)
+        if k < PILOT_PASSES:
+            continue
+        bias, low = _indirect_bounds(colours, direct)
+        undecided = low <= threshold < bias
+        if not undecided or k >= max_passes or need_full < PILOT_MIN_GAIN * (k + 1) * pilot_spp:
+            break
     counts_d = [pilot_spp] * k
     est_d = relative_error_estimate(np.stack(direct), np.array(counts_d, dtype=np.float64))
-    out.update(indirect_error=bias, full_samples_needed=int(total + need_full), timings=timings)
-    if bias > INDIRECT_SHARE * target:
+    out.update(
+        indirect_error=bias,
+        indirect_error_low=low,
+        passes=k,
+        full_samples_needed=int(total + need_full),
+        timings=timings,
+    )
+    if bias > threshold:
         out["why"] = f"kept: indirect light {bias:.3g} relative RMS > {INDIRECT_SHARE:g} x target {target:g}"
         return out
     noise_target = float(np.sqrt(target**2 - bias**2))

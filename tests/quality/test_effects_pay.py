@@ -66,7 +66,11 @@ def _rel_rms(a: np.ndarray, b: np.ndarray) -> float:
 @pytest.mark.parametrize("backend", ["cycles", "mitsuba"])
 def test_indirect_light_dropped_only_when_below_target(request, monkeypatch, backend):
     """The drop path itself: the cost rule is opened up (direct light may need 2x the samples) so that the pilot
-    drops the indirect light it measured below half the target; the picture must still equal the full one."""
+    drops the indirect light it measured below half the target; the picture must still equal the full one.
+    Cycles' direct and full passes of a seed share their random numbers (rel. RMS of full - direct 0.001 per
+    16-spp pass here): two pilot passes decide. Mitsuba's ``scalar_rgb`` shares fewer (0.025: its samplers draw
+    the jitter of every sample of a pixel from one stream, so a longer full path shifts the next sample's
+    numbers): two passes leave the bound at 0.008, so the pilot pairs a third (0.003)."""
     request.getfixturevalue(backend)
     from blendify_core.pipeline import render as render_module
 
@@ -79,6 +83,9 @@ def test_indirect_light_dropped_only_when_below_target(request, monkeypatch, bac
     print(f"\n{backend}: {pilot}; samples {eff.meta['samples']} vs {full.meta['samples']}")
     assert pilot["dropped"], pilot
     assert pilot["indirect_error"] <= 0.5 * bf.FINAL_TARGET_ERROR
+    if backend == "cycles":
+        assert pilot["passes"] == render_module.PILOT_PASSES, pilot
+    assert pilot["passes"] <= render_module.PILOT_MAX_PASSES
     assert "indirect light" in eff.meta["simulated"]["dropped"]
     assert "indirect_diffuse" not in eff.meta["simulated"]["effects"]
     assert eff.meta["estimated_error"] <= bf.FINAL_TARGET_ERROR

@@ -1,0 +1,113 @@
+"""The indirect-light pilot of ``target_error`` on a stand-in engine whose passes are drawn from known numbers:
+the full pass of a seed is picture + indirect light + noise, the direct pass of the same seed shares that noise
+up to an engine-dependent remainder (how much of the same random numbers the two use). Where the remainder is
+small two pilot passes decide; where it is large the pilot pairs more passes with the full ones (never more than
+the full passes there are, never costing more than 1/PILOT_MIN_GAIN of the full samples) instead of keeping
+light it cannot tell from noise; clear cases stop at two either way."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+import blendify_core as bf
+from blendify_core.pipeline import render as render_module
+from blendify_core.pipeline.render import FIRST_PASSES, PILOT_PASSES, _indirect_pilot, pass_seed
+from blendify_core.pipeline.result import RenderResult
+from blendify_core.pipeline.settings import resolve_settings
+
+SHAPE = (24, 32, 3)
+#: per-pass relative noise of a 16-spp pass (about the dark-floor scene's in both engines)
+NOISE = 0.04
+
+
+def _scene() -> bf.Scene:
+    """A diffuse ball on a diffuse floor under an area light: the effect analysis finds indirect light."""
+    s = bf.Scene()
+    s.renderables.add_sphere_nurbs(0.3, bf.DiffuseMaterial(), bf.UniformColors((0.5, 0.3, 0.2)), tag="ball")
+    s.renderables.add_plane_mesh(4.0, bf.DiffuseMaterial(), bf.UniformColors((0.5,) * 3), tag="floor")
+    s.lights.add_area("square", 1.0, strength=100.0, translation=(0, 0, 2))
+    return s
+
+
+class _Engine:
+    """Passes of a known picture: full = picture x (1 + indirect) + noise(seed); direct = picture + noise(seed)
+    + remainder x fresh noise (0: the same random numbers, 1: as many again of its own)."""
+
+    name = "stand-in"
+
+    def __init__(self, indirect: float, remainder: float) -> None:
+        self.indirect, self.remainder = indirect, remainder
+        self.picture = 0.2 + 0.6 * np.random.default_rng(0).random(SHAPE)
+        self.direct_seeds: list[int] = []
+
+    def render_scene(self, scene: Any, settings: Any) -> RenderResult:
+        noise = NOISE * self.picture * np.random.default_rng(settings.seed).standard_normal(SHAPE)
+        if settings.max_bounces == 0:
+            self.direct_seeds.append(settings.seed)
+            own = np.random.default_rng(settings.seed + 10**6).standard_normal(SHAPE)
+            rgb = self.picture + noise + self.remainder * NOISE * self.picture * own
+        else:
+            rgb = self.picture * (1.0 + self.indirect) + noise
+        rgba = np.concatenate([rgb, np.ones(SHAPE[:2] + (1,))], axis=-1).astype(np.float32)
+        return RenderResult(rgba=rgba)
+
+
+def _pilot(engine: _Engine, estimate_over_target: float = 4.0) -> dict[str, Any]:
+    settings = resolve_settings(quality="final", seed=3)
+    passes = settings.replace(target_error=None, time_limit=None, denoise=False)
+    colours = [
+        engine.render_scene(None, passes.replace(seed=pass_seed(3, i))).rgba[..., :3].astype(np.float64)  # type: ignore[index]
+        for i in range(FIRST_PASSES)
+    ]
+    counts = [settings.samples] * FIRST_PASSES
+    target = float(settings.target_error)  # type: ignore[arg-type]
+    return _indirect_pilot(engine, _scene(), settings, passes, colours, counts, estimate_over_target * target)
+
+
+def test_same_random_numbers_two_passes_decide():
+    engine = _Engine(indirect=0.0, remainder=0.02)
+    pilot = _pilot(engine)
+    assert pilot["dropped"], pilot
+    assert pilot["passes"] == PILOT_PASSES
+    # the pilot's passes have the seeds of the first full passes
+    assert engine.direct_seeds == [pass_seed(3, i) for i in range(PILOT_PASSES)]
+
+
+def test_weakly_shared_random_numbers_more_passes_until_decided():
+    """Mitsuba scalar_rgb's case: two pairs leave the bound above half the target though the light is absent."""
+    # the full passes need ~600 more samples: a third pilot pass (48) would cost more than 1/16 of them
+    two = _pilot(_Engine(indirect=0.0, remainder=1.0), estimate_over_target=3.07)
+    assert two["passes"] == PILOT_PASSES and not two["dropped"], two
+    assert two["indirect_error_low"] <= 0.5 * bf.FINAL_TARGET_ERROR < two["indirect_error"], two
+    engine = _Engine(indirect=0.0, remainder=1.0)
+    pilot = _pilot(engine, estimate_over_target=4.0)
+    assert PILOT_PASSES < pilot["passes"] <= FIRST_PASSES, pilot
+    assert pilot["dropped"], pilot
+    assert pilot["indirect_error"] < two["indirect_error"]
+    assert engine.direct_seeds == [pass_seed(3, i) for i in range(pilot["passes"])]
+
+
+@pytest.mark.parametrize("remainder", [0.02, 1.0])
+def test_clear_indirect_light_kept_after_two_passes(remainder):
+    pilot = _pilot(_Engine(indirect=0.05, remainder=remainder))
+    assert not pilot["dropped"], pilot
+    assert pilot["passes"] == PILOT_PASSES
+    assert pilot["indirect_error_low"] > 0.5 * bf.FINAL_TARGET_ERROR
+
+
+def test_too_weakly_shared_keeps_the_light_after_every_pair():
+    """When even all first full passes paired leave the bound above half the target, the light is kept."""
+    pilot = _pilot(_Engine(indirect=0.0, remainder=2.0))
+    assert pilot["passes"] == FIRST_PASSES, pilot
+    assert not pilot["dropped"] and pilot["why"].startswith("kept: indirect light"), pilot
+
+
+def test_pilot_never_costs_more_than_its_share(monkeypatch):
+    """With the full passes needing little more, the undecided pilot stops instead of adding passes."""
+    monkeypatch.setattr(render_module, "PILOT_MIN_GAIN", 16.0)
+    # need_full = 64 x (2.2^2 x 1.1 - 1) = 277 samples: 2 x 16 x 16 = 512 > 277, the pilot is not even tried
+    pilot = _pilot(_Engine(indirect=0.0, remainder=1.0), estimate_over_target=2.2)
+    assert "passes" not in pilot and pilot["why"].startswith("not tried"), pilot
