@@ -314,6 +314,14 @@ def _size_ratio(ctx: Any, centres: np.ndarray, radii: np.ndarray) -> float:
     return float(np.min(radii)) / far if far > 0 else float("inf")
 
 
+#: a sun's disk lies this many scene radii away (:meth:`MitsubaTranslator._sun_disk`) ...
+SUN_DISK_DISTANCE = 1e4
+#: ... but at most this many metres (float32 precision of Mitsuba's emitter sampling) ...
+SUN_DISK_MAX_DISTANCE = 2e5
+#: ... and at least this many scene radii (else the sun stays a delta light)
+SUN_DISK_MIN_DISTANCE = 1e3
+
+
 def _with_mask(bsdf: dict[str, Any], opacity: Any, needed: bool) -> dict[str, Any]:
     """``bsdf`` wrapped in a ``mask`` of ``opacity`` when ``needed`` (alpha < 1 somewhere)."""
     if not needed:
@@ -1287,17 +1295,69 @@ class MitsubaTranslator(Translator):
         SunLight,
         features={
             "light.sun": _exact("directional, irradiance = strength"),
-            "light.sun.soft": approximate("delta directional light (angular diameter ignored: hard shadows)"),
+            "light.sun.soft": _exact(
+                "a distant disk emitter subtending the angular diameter, radiance = strength / (pi sin^2(d/2)), "
+                f"{SUN_DISK_DISTANCE:g}x the scene's radius away (at most {SUN_DISK_MAX_DISTANCE:g} m), unseen by "
+                "camera rays; scenes over "
+                f"{SUN_DISK_MAX_DISTANCE / SUN_DISK_MIN_DISTANCE:g} m in radius keep a delta sun (listed in meta)"
+            ),
         },
     )
     def sun_light(self, light: SunLight, ctx: MitsubaContext) -> dict[str, Any] | None:
-        """A ``directional`` emitter of irradiance = strength."""
+        """A sun with an angular diameter: a distant disk (:meth:`_sun_disk`); without one (or in scenes too
+        large for the disk), a ``directional`` emitter of irradiance = strength."""
         if light.strength <= 0:
             return None
+        disk = self._sun_disk(light, ctx)
+        if disk is not None:
+            return disk
         return {
             "type": "directional",
             "irradiance": _rgb(light.linear_color * light.strength),
             "direction": [float(x) for x in light.direction],
+        }
+
+    def _sun_disk(self, light: SunLight, ctx: MitsubaContext) -> dict[str, Any] | None:
+        """The sun as Cycles samples it: a disk of uniform radiance L subtending the angular diameter d, with
+        L pi sin^2(d/2) = strength (the irradiance on a surface facing it), emitting towards the scene from
+        :data:`SUN_DISK_DISTANCE` times the radius of the scene (renderables and camera) away, at most
+        :data:`SUN_DISK_MAX_DISTANCE` m (Mitsuba's float32 emitter sampling lost 0.6 % of the light at 3e6 m,
+        none at 3e5 m): its direction varies by at most 1e-4 rad across the scene (1e-3 rad for radii up to
+        200 m), its irradiance by 2e-4. Like the area lights, the disk is a null surface: camera rays do not
+        see it (as Cycles' sun), reflections do. None: keep the delta sun (no angular
+        diameter, no renderables, or a scene so large that the disk would come nearer than
+        :data:`SUN_DISK_MIN_DISTANCE` radii: listed in meta)."""
+        half = 0.5 * float(light.angular_diameter)
+        if half <= 0 or ctx.bounds is None:
+            return None
+        lo, hi = ctx.bounds
+        camera = ctx.scene.camera if ctx.scene is not None else None
+        if camera is not None:
+            lo, hi = np.minimum(lo, camera.translation), np.maximum(hi, camera.translation)
+        centre = 0.5 * (lo + hi)
+        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-6)
+        dist = min(SUN_DISK_DISTANCE * radius, SUN_DISK_MAX_DISTANCE)
+        if dist < SUN_DISK_MIN_DISTANCE * radius:
+            ctx.approximate(
+                f"light.sun.soft: sun {light.tag!r}: a delta directional light (hard shadows) in a scene of radius "
+                f"{radius:.3g} m (the distant disk needs <= {SUN_DISK_MAX_DISTANCE / SUN_DISK_MIN_DISTANCE:g} m)"
+            )
+            return None
+        d = np.asarray(light.direction, dtype=np.float64)
+        helper = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        x = np.cross(helper, d)
+        x /= np.linalg.norm(x)
+        y = np.cross(d, x)
+        r = dist * math.tan(half)
+        m = np.eye(4)
+        m[:3, 0], m[:3, 1], m[:3, 2] = x * r, y * r, d  # the disk's normal (+z: its emitting side) along d
+        m[:3, 3] = centre - dist * d
+        radiance = light.linear_color * (light.strength / (math.pi * math.sin(half) ** 2))
+        return {
+            "type": "disk",
+            "to_world": _mat(m),
+            "bsdf": {"type": "null"},
+            "emitter": {"type": "area", "radiance": _rgb(radiance)},
         }
 
     @handles(

@@ -125,7 +125,12 @@ FROZEN: dict[str, tuple[str, str]] = {
         "lights' shadow rays",
     ),
     "light.sun": ("exact", "directional, irradiance = strength"),
-    "light.sun.soft": ("approximate", "delta directional light (angular diameter ignored: hard shadows)"),
+    "light.sun.soft": (
+        "exact",
+        "a distant disk emitter subtending the angular diameter, radiance = strength / (pi sin^2(d/2)), 10000x the"
+        " scene's radius away (at most 200000 m), unseen by camera rays; scenes over 200 m in radius keep a delta sun"
+        " (listed in meta)",
+    ),
     "light.spot": ("exact", "spot, intensity = P / (4 pi), cutoff = spot_size / 2"),
     "light.spot.blend": (
         "exact",
