@@ -75,6 +75,10 @@ def _bsdf_class() -> type:
         def __init__(self, props: Any) -> None:
             mi.BSDF.__init__(self, props)
             spec = json.loads(props["spec"])
+            #: the base colour as a texture (vertex colours, image textures), else None (folded into tables)
+            self.base = props["base_color"] if "base_color" in props else None
+            if self.base is not None and not isinstance(self.base, mi.Texture):  # a constant colour
+                self.base = mi.load_dict({"type": "srgb", "color": self.base})
             self.lobes = spec["lobes"]
             self.n_mu = len(self.lobes[0]["table"]) // 3
             total = sum(max(float(lb["p"]), 0.0) for lb in self.lobes) or 1.0
@@ -82,6 +86,9 @@ def _bsdf_class() -> type:
             self.jit = dr.is_jit_v(mi.Float)
             tables = [[float(v) for v in lb["table"]] for lb in self.lobes]
             self.tables = [mi.Float(t) for t in tables] if self.jit else tables
+            # E(mu) of the lobes whose compensation depends on the textured base colour (F82 metal)
+            e = {k: [float(v) for v in lb["e"] for _ in range(3)] for k, lb in enumerate(self.lobes) if "e" in lb}
+            self.e_tables = {k: (mi.Float(t) if self.jit else t) for k, t in e.items()}
             self.ggx = [i for i, lb in enumerate(self.lobes) if lb["kind"] == "ggx"]
             self.diffuse = [i for i, lb in enumerate(self.lobes) if lb["kind"] == "diffuse"]
             flags = mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
@@ -94,22 +101,45 @@ def _bsdf_class() -> type:
             self.m_flags = flags
 
         # -- pieces -------------------------------------------------------------------------------------
-        def _table(self, k: int, mu: Any) -> Any:
+        def _table(self, k: int, mu: Any, tables: Any = None) -> Any:
+            table = (self.tables if tables is None else tables)[k]
             x = dr.clip(mu * self.n_mu - 0.5, 0.0, self.n_mu - 1.0)
             i0 = dr.minimum(mi.UInt32(dr.floor(x)), self.n_mu - 2)
             t = x - mi.Float(i0)
             if self.jit:
-                a = dr.gather(mi.Color3f, self.tables[k], i0)
-                b = dr.gather(mi.Color3f, self.tables[k], i0 + 1)
+                a = dr.gather(mi.Color3f, table, i0)
+                b = dr.gather(mi.Color3f, table, i0 + 1)
             else:  # scalar_rgb: one sample at a time
                 j = 3 * int(i0)
-                a, b = mi.Color3f(*self.tables[k][j : j + 3]), mi.Color3f(*self.tables[k][j + 3 : j + 6])
+                a, b = mi.Color3f(*table[j : j + 3]), mi.Color3f(*table[j + 3 : j + 6])
             return dr.lerp(a, b, t)
 
         @staticmethod
         def _lambda(cos_t: Any, alpha: float) -> Any:
             c2 = dr.maximum(cos_t * cos_t, 1e-12)
             return 0.5 * (dr.sqrt(1.0 + alpha * alpha * dr.maximum(1.0 - c2, 0.0) / c2) - 1.0)
+
+        @staticmethod
+        def _f82_b(f0: Any, tint: Any) -> Any:
+            """Cycles' F82-tint factor b: the value at cos = 1/7 is Schlick's times ``tint``."""
+            c82 = 1.0 / 7.0
+            s82 = f0 + (1.0 - f0) * (1.0 - c82) ** 5
+            return s82 * (1.0 - tint) / (c82 * (1.0 - c82) ** 6)
+
+        def _metal_tex(self, k: int, lb: dict[str, Any], base: Any, c: Any, mu: Any) -> Any:
+            """F82-tint Fresnel times the compensation of a metal whose F0 is the textured base colour."""
+            f0 = base
+            b = self._f82_b(f0, mi.Color3f(*lb["tint"]))
+            m = dr.clip(1.0 - c, 0.0, 1.0)
+            m5 = dr.square(dr.square(m)) * m
+            f = dr.clip(f0 + (1.0 - f0) * m5 - b * c * m5 * m, 0.0, 1.0)
+            if k not in self.e_tables:
+                return f
+            e = dr.maximum(self._table(k, mu, self.e_tables), 1e-6)
+            e_avg = float(lb["e_avg"])
+            f_ss = dr.clip(f0 + (1.0 - f0) / 21.0 - b / 126.0, 0.0, 1.0)  # Cycles' mean F82-tint Fresnel
+            f_ms = f_ss * e_avg / (1.0 - f_ss * (1.0 - e_avg))
+            return f * (1.0 + f_ms * (1.0 - e) / e)
 
         @staticmethod
         def _fresnel(lb: dict[str, Any], c: Any) -> Any:
@@ -129,9 +159,10 @@ def _bsdf_class() -> type:
             m5 = dr.square(dr.square(m)) * m
             return dr.clip(f0 + (1.0 - f0) * m5 - b * c * m5 * m, 0.0, 1.0)
 
-        def _eval_pdf(self, wi: Any, wo: Any, active: Any) -> tuple[Any, Any]:
+        def _eval_pdf(self, si: Any, wi: Any, wo: Any, active: Any) -> tuple[Any, Any]:
             cos_i, cos_o = wi.z, wo.z
             active = active & (cos_i > 0) & (cos_o > 0)
+            base = self.base.eval(si, active) if self.base is not None else None
             value = mi.Color3f(0.0)
             pdf = mi.Float(0.0)
             h = dr.normalize(wi + wo)
@@ -143,10 +174,15 @@ def _bsdf_class() -> type:
                 d = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, alpha, True).eval(h)
                 lam_i, lam_o = self._lambda(cos_i, alpha), self._lambda(cos_o, alpha)
                 g2 = dr.rcp(1.0 + lam_i + lam_o)
-                value += self._table(k, cos_i) * self._fresnel(lb, ih) * (d * g2 * inv4)
+                if lb["fresnel"] == "f82_texture":
+                    fresnel = self._metal_tex(k, lb, base, ih, cos_i)
+                else:
+                    fresnel = self._fresnel(lb, ih)
+                value += self._table(k, cos_i) * fresnel * (d * g2 * inv4)
                 pdf += self.odds[k] * d * inv4 / (1.0 + lam_i)
             for k in self.diffuse:
-                value += self._table(k, cos_i) * (cos_o * dr.inv_pi)
+                tint = base if self.lobes[k].get("base") else 1.0
+                value += self._table(k, cos_i) * tint * (cos_o * dr.inv_pi)
                 pdf += self.odds[k] * cos_o * dr.inv_pi
             value = dr.select(active, value, 0.0)
             pdf = dr.select(active, pdf, 0.0)
@@ -163,15 +199,15 @@ def _bsdf_class() -> type:
         # -- the BSDF interface -------------------------------------------------------------------------
         def eval(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             wi, wo, _ = self._front(si, wo)
-            return self._eval_pdf(wi, wo, mi.Bool(active))[0]
+            return self._eval_pdf(si, wi, wo, mi.Bool(active))[0]
 
         def pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             wi, wo, _ = self._front(si, wo)
-            return self._eval_pdf(wi, wo, mi.Bool(active))[1]
+            return self._eval_pdf(si, wi, wo, mi.Bool(active))[1]
 
         def eval_pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             wi, wo, _ = self._front(si, wo)
-            return self._eval_pdf(wi, wo, mi.Bool(active))
+            return self._eval_pdf(si, wi, wo, mi.Bool(active))
 
         def sample(self, ctx: Any, si: Any, sample1: Any, sample2: Any, active: Any = True) -> Any:
             active = mi.Bool(active)
@@ -193,7 +229,7 @@ def _bsdf_class() -> type:
             wo_ggx = mi.reflect(wi, m)
             wo_dif = mi.warp.square_to_cosine_hemisphere(sample2)
             wo = dr.select(is_diffuse, wo_dif, wo_ggx)
-            value, pdf = self._eval_pdf(wi, wo, active)
+            value, pdf = self._eval_pdf(si, wi, wo, active)
             bs = dr.zeros(mi.BSDFSample3f)
             bs.wo = mi.Vector3f(wo.x, wo.y, dr.select(back, -wo.z, wo.z))
             bs.pdf = pdf
@@ -209,7 +245,8 @@ def _bsdf_class() -> type:
         def eval_diffuse_reflectance(self, si: Any, active: Any = True) -> Any:
             value = mi.Color3f(0.0)
             for k in self.diffuse:
-                value += self._table(k, dr.abs(si.wi.z))
+                tint = self.base.eval(si, active) if self.lobes[k].get("base") and self.base is not None else 1.0
+                value += self._table(k, dr.abs(si.wi.z)) * tint
             return value
 
         def traverse(self, callback: Any) -> None:

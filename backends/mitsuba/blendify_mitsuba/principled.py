@@ -440,7 +440,13 @@ def principled_lobes(material: Any, base: np.ndarray) -> list[Lobe]:
             "f0": [float(x) for x in base],
             "b": [float(x) for x in s82 * (1.0 - spec_tint) / (c82 * (1.0 - c82) ** 6)],
             "table": w * metal * comp,
+            # for a textured base colour: the tint, and E(mu) for the compensation computed per point
+            "tint": [float(x) for x in spec_tint],
+            "table_textured": w * metal,
         }
+        if multi:
+            e = ggx_albedo(alpha, None, correlated=True)[:, 0]
+            jit["e"], jit["e_avg"] = [float(x) for x in e], float(cos_mean(e[:, None])[0])
         lobes.append(
             Lobe(
                 _ggx_lobe(alpha, n, k),
@@ -653,9 +659,11 @@ LAYERED_MIN_ALPHA = 1e-3
 LAYERED_MIN_ODDS = 0.05
 
 
-def layered_bsdf(lobes: list[Lobe], factor: float = 1.0) -> dict[str, Any] | None:
+def layered_bsdf(lobes: list[Lobe], factor: float = 1.0, textured: bool = False) -> dict[str, Any] | None:
     """The opaque lobes as one :data:`blendify_mitsuba.layered.PLUGIN` BSDF (two-sided; its tables times
-    ``factor``), or None when a lobe is nearly a mirror (see :data:`LAYERED_MIN_ALPHA`)."""
+    ``factor``), or None when a lobe is nearly a mirror (see :data:`LAYERED_MIN_ALPHA`). ``textured``: the
+    lobes were made with a white base colour and the plugin gets the real one as its ``base_color`` texture
+    (the diffuse lobe takes it as colour, the metal as its F82-tint F0, compensation computed per point)."""
     from .layered import PLUGIN, spec_json
 
     live = [lb for lb in lobes if lb.jit is not None and float(np.max(lb.jit["table"])) > 0]
@@ -668,6 +676,14 @@ def layered_bsdf(lobes: list[Lobe], factor: float = 1.0) -> dict[str, Any] | Non
     out = []
     for lb, p in zip(live, odds / odds.sum(), strict=True):
         d = dict(lb.jit or {})
+        if textured and d["kind"] == "diffuse":
+            d["base"] = True
+        if textured and d.get("fresnel") == "f82":
+            d["fresnel"], d["table"] = "f82_texture", d["table_textured"]
+        else:
+            d.pop("e", None)
+        for key in ("table_textured", "f0", "b") if d.get("fresnel") == "f82_texture" else ("table_textured",):
+            d.pop(key, None)
         table = np.broadcast_to(np.asarray(d["table"], dtype=np.float64) * factor, (N_MU, 3))
         d["table"] = [float(v) for v in np.float32(table).ravel()]
         d["p"] = float(p)

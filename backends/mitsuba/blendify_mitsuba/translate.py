@@ -76,7 +76,7 @@ from .aniso import SquarePixelPlan, plan_square_pixels
 from .integrator import register as register_integrator
 from .layered import register as register_layered
 from .points import capsule_length, curve_points, curves_fit, point_bitmap
-from .principled import glossy_scale, principled_bsdf, raw_rgb, with_bitmaps
+from .principled import glossy_scale, layered_bsdf, principled_bsdf, principled_lobes, raw_rgb, with_bitmaps
 from .sided import register as register_sided
 
 __all__ = [
@@ -1085,12 +1085,14 @@ class MitsubaTranslator(Translator):
             "material.principled": approximate(
                 "uniform colours, isotropic: Cycles' layer model (docs/conventions.md). JIT variants: "
                 "blendify_mitsuba/layered.py, a Dr.Jit BSDF with each GGX lobe's own Fresnel, height-correlated "
-                "shadowing and Cycles' view-dependent layer weights (tables per viewing cosine); scalar_rgb and "
-                "exported scene files: a sum of Mitsuba's built-in lobes (blendify_mitsuba/principled.py, each GGX "
-                "lobe a roughconductor fitted to the albedo curve of Cycles' lobe) holding the cosine-weighted means "
-                "of those weights (listed in meta['approximations']). Material sweep: "
-                "benchmarks/results/material_sweep.md. Colour textures, vertex colours, roughness/metallic maps, "
-                "anisotropy: Mitsuba 'principled' (Disney diffuse, Schlick Fresnel; 3-13 % off on dielectrics)"
+                "shadowing and Cycles' view-dependent layer weights (tables per viewing cosine), also for opaque "
+                "materials with colour textures or vertex colours (the base colour evaluated per point); scalar_rgb "
+                "and exported scene files: a sum of Mitsuba's built-in lobes (blendify_mitsuba/principled.py, each "
+                "GGX lobe a roughconductor fitted to the albedo curve of Cycles' lobe) holding the cosine-weighted "
+                "means of those weights (listed in meta['approximations']). Material sweep: "
+                "benchmarks/results/material_sweep.md. Roughness/metallic maps, anisotropy, textured glass, and "
+                "textures in scalar_rgb: Mitsuba 'principled' (Disney diffuse, Schlick Fresnel; 3-13 % off on "
+                "dielectrics)"
             ),
             "material.diffuse_only": _exact("Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
             "material.metallic": approximate(
@@ -1159,6 +1161,10 @@ class MitsubaTranslator(Translator):
                     "exactly with blendify_mitsuba.layered, which scalar_rgb would call once per sample)"
                 )
             return dict(with_bitmaps(bsdf, _mi().Bitmap))
+        if not maps and not material.is_diffuse_only and float(material.anisotropic) == 0:
+            textured = self._layered_textured(material, color)
+            if textured is not None:
+                return textured
         if material.is_diffuse_only:
             inner: dict[str, Any] = {"type": "diffuse", "reflectance": color}
         else:
@@ -1185,6 +1191,20 @@ class MitsubaTranslator(Translator):
         if float(material.transmission_weight) > 0:
             return inner  # transmission needs both sides to be distinct
         return {"type": "twosided", "bsdf": inner}
+
+    @staticmethod
+    def _layered_textured(material: PrincipledBSDFMaterial, color: Any) -> dict[str, Any] | None:
+        """An opaque Principled material with a textured base colour (vertex colours, image textures) as the
+        layered BSDF with ``color`` as its ``base_color`` (JIT variants only); None where that does not apply
+        (transmission, mirror-like lobes, ``scalar_rgb``, export)."""
+        if float(material.transmission_weight) > 0 or not _layered_variant():
+            return None
+        lay = layered_bsdf(principled_lobes(material, np.ones(3)), textured=True)
+        if lay is None:
+            return None
+        register_layered()
+        lay["base_color"] = color
+        return {**_with_normal_map(lay, material)}
 
     @handles(
         GlossyBSDFMaterial,

@@ -53,12 +53,14 @@ FROZEN: dict[str, tuple[str, str]] = {
         "approximate",
         "uniform colours, isotropic: Cycles' layer model (docs/conventions.md). JIT variants: "
         "blendify_mitsuba/layered.py, a Dr.Jit BSDF with each GGX lobe's own Fresnel, height-correlated "
-        "shadowing and Cycles' view-dependent layer weights (tables per viewing cosine); scalar_rgb and "
-        "exported scene files: a sum of Mitsuba's built-in lobes (blendify_mitsuba/principled.py, each GGX "
-        "lobe a roughconductor fitted to the albedo curve of Cycles' lobe) holding the cosine-weighted means "
-        "of those weights (listed in meta['approximations']). Material sweep: "
-        "benchmarks/results/material_sweep.md. Colour textures, vertex colours, roughness/metallic maps, "
-        "anisotropy: Mitsuba 'principled' (Disney diffuse, Schlick Fresnel; 3-13 % off on dielectrics)",
+        "shadowing and Cycles' view-dependent layer weights (tables per viewing cosine), also for opaque "
+        "materials with colour textures or vertex colours (the base colour evaluated per point); scalar_rgb "
+        "and exported scene files: a sum of Mitsuba's built-in lobes (blendify_mitsuba/principled.py, each "
+        "GGX lobe a roughconductor fitted to the albedo curve of Cycles' lobe) holding the cosine-weighted "
+        "means of those weights (listed in meta['approximations']). Material sweep: "
+        "benchmarks/results/material_sweep.md. Roughness/metallic maps, anisotropy, textured glass, and "
+        "textures in scalar_rgb: Mitsuba 'principled' (Disney diffuse, Schlick Fresnel; 3-13 % off on "
+        "dielectrics)",
     ),
     "material.diffuse_only": ("exact", "Lambertian 'diffuse' (matches Cycles within 0.1 %)"),
     "material.metallic": (
