@@ -215,20 +215,35 @@ _SPRITE_FRAG_MAIN = """
 """
 _GLASS_DIFFUSE = "    vec3 c_diff = mix(vec3(0.0), base_color.rgb * (1 - min_roughness), 1.0 - metallic);\n"
 _GLASS_ALPHA = "    frag_color = clamp(vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a), 0.0, 1.0);\n"
-#: glass (bf_glass = (transmission weight w, F0)): no diffuse for the transmitted share T = w (1 - F), F Schlick's
-#: Fresnel at the viewing angle. What is behind should show through as T x tint x behind (the base colour
-#: tints it); alpha blending gives alpha C + (1 - alpha) behind, so 1 - alpha = T x max(tint) and the other
-#: channels' tint is added with the world's radiance straight behind (the SH) standing in for "behind"
+#: glass (bf_glass = (transmission weight w, F0, IOR, solid)): no diffuse for the transmitted share T = w (1 - F),
+#: F Schlick's Fresnel at the viewing angle.
+#: - solid glass (a closed object, not flat): opaque; the transmitted share shows the light of the world (the SH:
+#:   the indirect-light probe's when there is one) along the ray refracted in and out as through a sphere (the
+#:   exit direction of a sphere depends only on the entry angle: t1 = refract(d, n), exit normal
+#:   n - 2 (t1.n) t1), tinted by the base colour at both interfaces (tint^2): the inverted view through a ball;
+#: - flat glass (a pane: the exit ray is the entry ray): see-through. Alpha blending gives alpha C + (1 - alpha)
+#:   behind, so 1 - alpha = T x max(tint) and the other channels' tint is added with the world's radiance
+#:   straight behind (the SH) standing in for "behind".
 _GLASS_OPACITY = """    if (bf_glass.x > 0.0) {
         vec3 bf_v = normalize(cam_pos - frag_position);
         float bf_nv = clamp(dot(n, bf_v), 0.0, 1.0);
         float bf_t = bf_glass.x * (1.0 - (bf_glass.y + (1.0 - bf_glass.y) * pow(1.0 - bf_nv, 5.0)));
         vec3 bf_tint = clamp(base_color.rgb * (1.0 - min_roughness), 0.0, 1.0);
-        float bf_m = max(max(bf_tint.r, bf_tint.g), bf_tint.b);
-        float bf_opacity = max(1.0 - bf_t * bf_m, 1e-3);
-        vec3 bf_behind = bf_sh(-bf_v, vec3(1.0, 1.5, 4.0));
-        color.xyz = max(color.xyz + bf_t * (bf_tint - bf_m) * bf_behind, 0.0) / bf_opacity;
-        color.a *= bf_opacity;
+        if (bf_glass.w > 0.5) {
+            vec3 bf_t1 = refract(-bf_v, n, 1.0 / bf_glass.z);
+            vec3 bf_n2 = n - 2.0 * dot(bf_t1, n) * bf_t1;
+            vec3 bf_t2 = refract(bf_t1, -bf_n2, bf_glass.z);
+            if (dot(bf_t2, bf_t2) < 0.5) {
+                bf_t2 = reflect(bf_t1, -bf_n2);  // total internal reflection
+            }
+            color.xyz += bf_t * bf_tint * bf_tint * bf_sh(bf_t2, vec3(1.0, 1.5, 4.0));
+        } else {
+            float bf_m = max(max(bf_tint.r, bf_tint.g), bf_tint.b);
+            float bf_opacity = max(1.0 - bf_t * bf_m, 1e-3);
+            vec3 bf_behind = bf_sh(-bf_v, vec3(1.0, 1.5, 4.0));
+            color.xyz = max(color.xyz + bf_t * (bf_tint - bf_m) * bf_behind, 0.0) / bf_opacity;
+            color.a *= bf_opacity;
+        }
     }
 """
 #: (file, anchor, replacement) applied to pyrender's shaders after the patches above: the world's light from
@@ -237,7 +252,7 @@ _PATCHES = (
     (
         "mesh.frag",
         "uniform vec3 ambient_light;\n",
-        "uniform vec3 ambient_light;\nuniform vec2 bf_glass;\nuniform float bf_emission;\n",
+        "uniform vec3 ambient_light;\nuniform vec4 bf_glass;\nuniform float bf_emission;\n",
     ),
     # emission off while the indirect-light probe is rendered (probe.py: emitters already light as lights)
     (
@@ -288,7 +303,7 @@ _SOFT_PATCHES = (
     ),
 )
 _patched_dir: str | None = None
-_NO_GLASS = np.zeros(2, dtype=np.float32)
+_NO_GLASS = np.zeros(4, dtype=np.float32)
 
 
 def _shader_dir() -> str:
@@ -354,6 +369,16 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
         if self.sprite and vertex_shader == "mesh.vert":
             defines = {**(defines or {}), "BLENDIFY_SPRITE": 1}
         return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
+
+
+def _is_solid(primitive: Any) -> bool:
+    """Whether a primitive is a solid (not flat: thicker than 1 % of its extent along every axis), cached."""
+    solid = getattr(primitive, "blendify_solid", None)
+    if solid is None:
+        extent = np.ptp(np.asarray(primitive.positions, dtype=np.float64), axis=0)
+        solid = bool(extent.min() > 0.01 * extent.max())
+        primitive.blendify_solid = solid
+    return bool(solid)
 
 
 def _set_optional(program: Any, name: str, value: Any) -> None:
@@ -615,6 +640,9 @@ class FrameRenderer(pyrender.Renderer):
 
     def _bind_and_draw_primitive(self, primitive: Any, pose: Any, program: Any, flags: int) -> None:
         glass = getattr(primitive.material, "blendify_glass", None)
+        if glass is not None:
+            glass = glass.copy()
+            glass[3] = 1.0 if _is_solid(primitive) else 0.0
         program.set_uniform("bf_glass", _NO_GLASS if glass is None else glass)
         program.set_uniform("bf_emission", float(self.emission_scale))
         if is_sprite(primitive):

@@ -792,10 +792,12 @@ class PyrenderTranslator(Translator):
             ),
             "material.metallic": approximate("GGX metal lit by the lights only (no reflections); highlights clip at 1"),
             "material.transmission": approximate(
-                "no refraction: see-through with a Fresnel-weighted opacity (Schlick, F0 from the IOR): the "
-                "transmitted share weight x (1 - F) shows what is behind, unrefracted, tinted by the base colour "
-                "(its largest channel through the blend, the others against the world's radiance behind); the "
-                "diffuse part scaled by 1 - weight; shadows stay opaque"
+                "the transmitted share weight x (1 - F) (Schlick, F0 from the IOR): solid objects are opaque "
+                "and show the world's light (the indirect-light probe's) along the ray refracted in and out as "
+                "through a sphere, tinted by the base colour twice; flat ones are see-through with a "
+                "Fresnel-weighted opacity, unrefracted, tinted by the base colour (its largest channel through "
+                "the blend, the others against the world's radiance behind); the diffuse part scaled by "
+                "1 - weight; shadows stay opaque"
             ),
             "material.coat": approximate("coat layer ignored"),
             "material.sheen": approximate("sheen ignored"),
@@ -907,9 +909,10 @@ class PyrenderTranslator(Translator):
             alphaMode="BLEND" if translucent else "OPAQUE",
             doubleSided=True,
         )
-        if pbr.transmission > 0:  # see-through with a Fresnel-weighted opacity (render.py's glass patch)
+        if pbr.transmission > 0:  # render.py's glass patch: refracted world (solid) or see-through (flat)
             f0 = ((pbr.ior - 1.0) / (pbr.ior + 1.0)) ** 2
-            pm.blendify_glass = np.array([min(pbr.transmission, 1.0), f0], dtype=np.float32)
+            glass = [min(pbr.transmission, 1.0), f0, max(pbr.ior, 1.0), 0.0]  # [3]: solid, set per primitive
+            pm.blendify_glass = np.array(glass, dtype=np.float32)
         albedo_factor = np.array([albedo[0], albedo[1], albedo[2], 1.0])
         return pm, albedo_factor
 

@@ -265,3 +265,31 @@ def test_glass_shows_what_is_behind_tinted(pyr):
     assert 0.0 < alone[16, 16, 3] < 0.1  # on a transparent film: opacity = the reflected share (F0 = 0.04)
     res = render(_glass_scene(), backend=pyr, quality="preview")
     assert any("Fresnel-weighted opacity" in a for a in res.meta["approximations"])
+
+
+def test_solid_glass_shows_the_world_refracted_upside_down(pyr):
+    """A glass ball over a black floor under a white sky: rays through its upper part leave it going down (the
+    floor: dark), through its lower part going up (the sky: bright), as through a ball lens; it is opaque (no
+    blending of its front and back faces)."""
+    scene = Scene()
+    scene.set_orthographic_camera(
+        (32, 32), ortho_scale=2.4, translation=(0, -5.0, 1.0), rotation=(0.7071068, 0.7071068, 0, 0)
+    )
+    scene.renderables.add_plane_mesh(10.0, DiffuseMaterial(), UniformColors((0.0, 0.0, 0.0)), tag="floor")
+    scene.renderables.add_sphere_nurbs(
+        1.0,
+        PrincipledBSDFMaterial(transmission_weight=1.0, roughness=0.0, ior=1.5),
+        UniformColors((1.0, 1.0, 1.0)),
+        translation=(0, 0, 1.0),
+        tag="ball",
+    )
+    scene.lights.set_background_light(1.0)
+    res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))
+    ball = res.instance == 1
+    rows = np.nonzero(ball.any(axis=1))[0]
+    top, bottom = rows.min(), rows.max()
+    upper = res.rgba[top + 3 : top + 8, 14:18, 1].mean()
+    lower = res.rgba[bottom - 7 : bottom - 2, 14:18, 1].mean()
+    print(f"upper part {upper:.3f}, lower part {lower:.3f}")
+    assert lower > 0.5 and upper < 0.8 * lower  # straight see-through would give the reverse
+    assert np.all(res.rgba[top + 2 : bottom - 1, 12:20, 3] == 1.0)  # inside the silhouette
