@@ -1,18 +1,20 @@
 """Large point clouds as one Mitsuba ``linearcurve`` shape: every point an Embree round linear curve of one
-short segment (a sphere-capped capsule 1 % of the radius long, centred on the point), all in one shape with
-one BSDF, its buffers set in memory (no curve file is written or parsed).
+short segment (a sphere-capped capsule centred on the point, 1e-4..1e-2 of the radius long: see
+:func:`capsule_length`), all in one shape with one BSDF, its buffers set in memory (Mitsuba 3.9's curve
+plugins read only text files: a two-line placeholder is loaded and its buffers replaced through
+``mi.traverse``, so no curve file of the points is written or parsed).
 
 Measured on ``testing.pointcloud_scene(1_000_000)`` at 128x128, 16 spp
 (``benchmarks/results/mitsuba_pointcloud_options.md``): the IR's merged icosphere mesh (80 million triangles)
 took 198 s and ~11 GB for the first render; one curve shape takes a few seconds and under 0.5 GB, most of it
 Embree's BVH build inside ``mi.load_dict``. Geometric accuracy, against exact spheres, for camera rays aimed
-at points of radius 0.015 seen from 4 units: 0.3 % of the rays hit where a sphere is missed or the other way
-round (the capsule's extra length and Embree's single-precision curve intersector), about as often as with
-the icosphere mesh, whose faces lie up to 5 % of the radius inside the sphere. Shorter capsules are not more
-exact: at 0.1 % of that radius a third of such hits are more than 5 % of the radius off (Embree's precision).
-Mitsuba 3.9.1's ``ellipsoids`` shape, the other one-shape option, hits small spheres at the wrong distance
-(its intersection starts the quadratic from a point off the ray's closest approach by the factor 1/scale,
-so in single precision it loses the small sphere), so it is not used.
+near points of radius 0.015 seen from 4 units: no ray hits where a sphere is missed or the other way round,
+0.15 % of the hits are more than 5 % of the radius off (the icosphere mesh, whose faces lie up to 5 % of the
+radius inside the sphere: 80 %). Shorter capsules are not more exact there: at 0.1 % of that radius a third
+of such hits are more than 5 % of the radius off (Embree's single precision). Mitsuba 3.9.1's
+``ellipsoids`` shape, the other one-shape option, hits small spheres at the wrong distance (its
+intersection starts the quadratic from a point off the ray's closest approach by the factor 1/scale, so in
+single precision it loses the small sphere; instancing scales the ray the same way), so it is not used.
 
 Per-point colours (and alphas) are a 1 x N bitmap read at the curve's v = (v_local + segment) / segments:
 every point's capsule is followed by a spacer segment so that v stays inside the point's own texel row
