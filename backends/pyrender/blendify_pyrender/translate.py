@@ -395,17 +395,25 @@ def environment_light(env: EnvironmentMap, max_rows: int = 64) -> EnvironmentLig
 
 
 def environment_background(env: EnvironmentMap, camera: Any, uniform: np.ndarray) -> np.ndarray:
-    """(H, W, 3) float32 film background: the map seen through each pixel centre of ``camera`` (nearest
-    texel, times its strength) plus a ``uniform`` radiance (the background light)."""
+    """(H, W, 3) float32 film background: the map seen through each pixel centre of ``camera`` (bilinear
+    between texel centres as Cycles' "Linear" environment texture, wrapping around in u; times its strength)
+    plus a ``uniform`` radiance (the background light)."""
     from blendify_core.ir.lights import equirect_uv
 
     _, dirs = camera.pixel_rays()
     uv = equirect_uv(dirs @ env.rotation_matrix)  # the map's frame: R^-1 d
-    img = env.linear_rgb_image()
+    img = env.linear_rgb_image().astype(np.float64)
     h, w = img.shape[:2]
-    rows = np.clip(((1.0 - uv[:, 1]) * h).astype(np.int64), 0, h - 1)
-    cols = np.clip((uv[:, 0] * w).astype(np.int64), 0, w - 1)
-    bg = img[rows, cols].astype(np.float64) * float(env.strength) + np.asarray(uniform, dtype=np.float64)
+    y = np.clip((1.0 - uv[:, 1]) * h - 0.5, 0.0, h - 1.0)
+    x = uv[:, 0] * w - 0.5
+    y0, x0 = np.floor(y).astype(np.int64), np.floor(x).astype(np.int64)
+    fy, fx = (y - y0)[:, None], (x - x0)[:, None]
+    y1 = np.minimum(y0 + 1, h - 1)
+    x0, x1 = x0 % w, (x0 + 1) % w
+    top = img[y0, x0] * (1.0 - fx) + img[y0, x1] * fx
+    bottom = img[y1, x0] * (1.0 - fx) + img[y1, x1] * fx
+    texel = top * (1.0 - fy) + bottom * fy
+    bg = texel * float(env.strength) + np.asarray(uniform, dtype=np.float64)
     return bg.reshape(camera.height, camera.width, 3).astype(np.float32)
 
 
@@ -1029,7 +1037,7 @@ class PyrenderTranslator(Translator):
                 "irradiance, and a glossy term (the SH radiance in the mirror direction, blurred toward the "
                 "irradiance with roughness; split-sum environment BRDF) and its sun (pixels above 10 % of the "
                 "peak) as a directional light with soft shadows of its size; diffuse light through one light "
-                "probe as light.background; seen behind the objects on an opaque film (nearest texel)"
+                "probe as light.background; seen behind the objects on an opaque film (bilinear, as Cycles)"
             )
         },
     )

@@ -293,3 +293,27 @@ def test_solid_glass_shows_the_world_refracted_upside_down(pyr):
     print(f"upper part {upper:.3f}, lower part {lower:.3f}")
     assert lower > 0.5 and upper < 0.8 * lower  # straight see-through would give the reverse
     assert np.all(res.rgba[top + 2 : bottom - 1, 12:20, 3] == 1.0)  # inside the silhouette
+
+
+def test_environment_background_is_bilinear():
+    """The map behind the objects is interpolated between texel centres (Cycles' "Linear"), wrapping in u."""
+    from types import SimpleNamespace
+
+    from blendify_pyrender.translate import environment_background
+
+    from blendify_core.ir.lights import EnvironmentMap
+
+    img = np.zeros((2, 4, 3), dtype=np.float32)
+    img[0, :, 0] = [1.0, 3.0, 5.0, 7.0]  # top row
+    env = EnvironmentMap(img, color_space="linear")
+    lat = np.pi / 4  # v = 0.75: the top row's centre
+    dirs = np.array(
+        [
+            [0.0, np.cos(lat), np.sin(lat)],  # u = 0.25: halfway between the first two texel centres
+            [1.0, 0.0, 0.0],  # u = 0.5, v = 0.5: between columns 1 and 2 and between the rows
+            [-np.cos(lat), -1e-9, np.sin(lat)],  # u = 1 - tiny: between the last column and the first (wrap)
+        ]
+    )
+    camera = SimpleNamespace(pixel_rays=lambda: (np.zeros((3, 3)), dirs), width=3, height=1)
+    bg = environment_background(env, camera, np.zeros(3))[0, :, 0]
+    np.testing.assert_allclose(bg, [2.0, 2.0, 4.0], atol=1e-4)
