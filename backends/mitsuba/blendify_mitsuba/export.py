@@ -4,7 +4,8 @@ backend does.
 The scene is translated by the backend's own translator (:class:`blendify_mitsuba.translate.MitsubaTranslator`,
 the same translation the renders use) with a stand-in engine (:data:`blendify_mitsuba.translate.ENGINE`) that
 keeps the plain dictionaries, mesh buffers and bitmaps instead of loading them. Meshes are then written as
-binary ``.ply`` files (with their ``vertex_color`` / ``vertex_alpha`` attributes) and bitmaps as float32
+binary ``.ply`` files (with their ``vertex_color`` / ``vertex_alpha`` attributes), point clouds of capsules
+(:mod:`blendify_mitsuba.points`) as ``linearcurve`` text files, and bitmaps as float32
 ``.exr`` files into the folder ``<name>_files`` beside the XML, and the dictionary becomes XML through
 Mitsuba's own scene writer (``mitsuba.parser.write_file``). Every file is written atomically.
 
@@ -29,6 +30,7 @@ from blendify_core.ir.scene import Scene
 from blendify_core.pipeline.settings import resolve_settings
 
 from . import translate as _translate
+from .points import curve_file_text
 from .session import MitsubaSession
 from .translate import DEFAULT_SAMPLER, MitsubaTranslator
 
@@ -56,6 +58,17 @@ class _MeshData:
     emitter: Any
 
 
+@dataclass
+class _CurveData:
+    """The points :func:`blendify_mitsuba.translate.build_curves` would have made a capsule shape of."""
+
+    name: str
+    centres: np.ndarray
+    radii: np.ndarray
+    bsdf: Any
+    length: float
+
+
 class _DictEngine:
     """Stands in for the mitsuba module while the exporter translates: ``load_dict`` returns the dictionary,
     ``TensorXf`` / ``Bitmap`` the array, ``build_mesh`` the buffers; anything else is the real module's."""
@@ -81,6 +94,10 @@ class _DictEngine:
     @staticmethod
     def build_mesh(*args: Any) -> _MeshData:
         return _MeshData(*args)
+
+    @staticmethod
+    def build_curves(*args: Any) -> _CurveData:
+        return _CurveData(*args)
 
 
 class _Writer:
@@ -110,6 +127,15 @@ class _Writer:
             out["emitter"] = self.plain(m.emitter, f"{m.name}_emitter")
         return out
 
+    def curves(self, c: _CurveData) -> dict[str, Any]:
+        path, rel = self._target(c.name, ".txt")
+        text = curve_file_text(c.centres, c.radii, c.length)
+        atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="ascii"))
+        out: dict[str, Any] = {"type": "linearcurve", "filename": rel}
+        if c.bsdf is not None:
+            out["bsdf"] = self.plain(c.bsdf, f"{c.name}_bsdf")
+        return out
+
     def bitmap(self, a: _Array, stem: str) -> str:
         path, rel = self._target(stem, ".exr")
         bitmap = self.mi.Bitmap(np.ascontiguousarray(a.data, dtype=np.float32))
@@ -119,6 +145,8 @@ class _Writer:
     def plain(self, value: Any, stem: str = "") -> Any:
         if isinstance(value, _MeshData):
             return self.mesh(value)
+        if isinstance(value, _CurveData):
+            return self.curves(value)
         if isinstance(value, dict):
             out: dict[str, Any] = {}
             for key, item in value.items():
@@ -145,8 +173,8 @@ def export_mitsuba(
     """Write ``scene`` as a Mitsuba 3 XML file that ``mitsuba.load_file`` loads and renders as the ``mitsuba``
     backend does (the same translation: integrator, sensor with film and sampler, shapes, BSDFs, emitters).
 
-    Meshes go to ``.ply`` and bitmaps to ``.exr`` files in ``<name>_files/`` beside the XML, referenced by
-    relative paths. ``settings`` are render settings (:func:`blendify_core.pipeline.settings.resolve_settings`
+    Meshes go to ``.ply``, capsule point clouds to ``.txt`` and bitmaps to ``.exr`` files in ``<name>_files/``
+    beside the XML, referenced by relative paths. ``settings`` are render settings (:func:`blendify_core.pipeline.settings.resolve_settings`
     keywords, e.g. ``quality="final", samples=64``) that fix the integrator and the sampler; ``variant``,
     ``max_analytic_spheres`` and ``sampler`` are the backend's options (the variant decides only how point
     clouds are translated: the XML loads in any RGB variant). Returns the written path."""

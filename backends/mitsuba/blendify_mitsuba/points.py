@@ -45,7 +45,9 @@ __all__ = [
     "MIN_CAPSULE_LENGTH",
     "MIN_SIZE_RATIO",
     "SPACER_RADIUS",
+    "capsule_buffers",
     "capsule_length",
+    "curve_file_text",
     "curves_fit",
     "curve_points",
     "point_bitmap",
@@ -99,37 +101,31 @@ def capsule_length(size_ratio: float) -> float:
     return float(np.clip(CAPSULE_SPACINGS * 2.0**-23 / size_ratio, MIN_CAPSULE_LENGTH, CAPSULE_LENGTH))
 
 
-def point_bitmap(values: np.ndarray) -> dict[str, Any]:
-    """A ``bitmap`` of one texel row per point ((N, C) linear values), read by :func:`curve_points`'s v."""
-    import mitsuba as mi
+def point_bitmap(values: np.ndarray, tensor: Any = None) -> dict[str, Any]:
+    """A ``bitmap`` of one texel row per point ((N, C) linear values), read by :func:`curve_points`'s v.
+    ``tensor``: what makes the texel array (None: ``mi.TensorXf``; the exporter passes its stand-in)."""
+    if tensor is None:
+        import mitsuba as mi
 
+        tensor = mi.TensorXf
     data = np.ascontiguousarray(np.asarray(values, dtype=np.float32).reshape(len(values), 1, -1))
-    return {"type": "bitmap", "data": mi.TensorXf(data), "raw": True, "filter_type": "nearest", "wrap_mode": "clamp"}
+    return {"type": "bitmap", "data": tensor(data), "raw": True, "filter_type": "nearest", "wrap_mode": "clamp"}
 
 
-def curve_points(centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: float = CAPSULE_LENGTH) -> Any:
-    """A loaded ``linearcurve`` shape of one capsule per point (world ``centres``, world ``radii``; ``length``:
-    the segment relative to the radius, see :func:`capsule_length`).
+def capsule_buffers(
+    centres: np.ndarray, radii: np.ndarray, length: float = CAPSULE_LENGTH
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``linearcurve`` buffers of one capsule per point: (2N + 2, 4) float32 control points (x, y, z,
+    radius) and (2N,) uint32 segment starts.
 
-    Layout (see the module docstring): control points ``2i`` and ``2i + 1`` are point ``i``'s capsule, centred
-    on the point along z; the last two control points are one shared spacer segment of negative radius, which
-    Embree leaves out of its BVH (an invalid curve), so the spacers cost no build time (measured at 1M points:
-    half the ``mi.load_dict`` time of spacers of radius 0). Segment ``2i`` is point ``i``'s capsule, segment
-    ``2i + 1`` the shared spacer."""
-    import mitsuba as mi
-
-    n = len(centres)
-    fd, path = tempfile.mkstemp(prefix="blendify-curves-", suffix=".txt")
-    try:
-        os.write(fd, b"0 0 0 1\n0 0 1 1\n")  # a placeholder curve: the real buffers are set below
-        os.close(fd)
-        shape = mi.load_dict({"type": "linearcurve", "filename": path, "bsdf": bsdf})
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(path)
+    Control points ``2i`` and ``2i + 1`` are point ``i``'s capsule, centred on the point along z (radius
+    shrunk so that the capsule's surface, hence its mean projected area, is the sphere's:
+    4 pi r'^2 (1 + L/2) = 4 pi r^2); the last two are one shared spacer segment of negative radius at the first
+    point, which Embree leaves out of its BVH (an invalid curve), so the spacers cost no build time (measured
+    at 1M points: half the ``mi.load_dict`` time of a spacer of radius 0 per point). Segment ``2i`` is point
+    ``i``'s capsule, segment ``2i + 1`` the shared spacer."""
     centres = np.asarray(centres, dtype=np.float64)
-    # the capsule's surface (so its mean projected area, the coverage of a point seen from anywhere) is
-    # the sphere's: 4 pi r'^2 (1 + L/2) = 4 pi r^2
+    n = len(centres)
     r = np.asarray(radii, dtype=np.float64) / np.sqrt(1.0 + length / 2.0)
     cp = np.empty((n + 1, 2, 4), np.float32)
     cp[:n, :, :3] = centres[:, None, :]
@@ -143,12 +139,29 @@ def curve_points(centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: floa
     segments = np.empty((n, 2), np.uint32)
     segments[:, 0] = np.arange(0, 2 * n, 2, dtype=np.uint32)
     segments[:, 1] = 2 * n
+    return cp.reshape(-1, 4), segments.ravel()
+
+
+def curve_points(centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: float = CAPSULE_LENGTH) -> Any:
+    """A loaded ``linearcurve`` shape of one capsule per point (world ``centres``, world ``radii``; ``length``:
+    the segment relative to the radius, see :func:`capsule_length`; buffers: :func:`capsule_buffers`)."""
+    import mitsuba as mi
+
+    cp, segments = capsule_buffers(centres, radii, length)
+    fd, path = tempfile.mkstemp(prefix="blendify-curves-", suffix=".txt")
+    try:
+        os.write(fd, b"0 0 0 1\n0 0 1 1\n")  # a placeholder curve: the real buffers are set below
+        os.close(fd)
+        shape = mi.load_dict({"type": "linearcurve", "filename": path, "bsdf": bsdf})
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
     params = mi.traverse(shape)
     # the buffers change size: set them without SceneParameters.__setitem__'s equality shortcut
     for key, value in (
-        ("control_point_count", 2 * n + 2),
+        ("control_point_count", len(cp)),
         ("control_points", type(params["control_points"])(cp.ravel())),
-        ("segment_indices", type(params["segment_indices"])(segments.ravel())),
+        ("segment_indices", type(params["segment_indices"])(segments)),
     ):
         cur, value_type, node, _flags = params.properties[key]
         params.set_dirty(key)
@@ -158,3 +171,21 @@ def curve_points(centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: floa
             params.set_property(cur, value_type, value)
     params.update()
     return shape
+
+
+def curve_file_text(centres: np.ndarray, radii: np.ndarray, length: float = CAPSULE_LENGTH) -> str:
+    """The capsules of :func:`capsule_buffers` as a ``linearcurve`` file (one ``x y z radius`` line per control
+    point, curves separated by empty lines): the text format has no shared spacer, so every point is a curve
+    of three control points, its capsule and a spacer segment to a point of negative radius (Embree leaves it
+    out, as the shared one; the texel rows read at v stay the same: two segments per point)."""
+    cp, _segments = capsule_buffers(centres, radii, length)
+    n = (len(cp) - 2) // 2
+    rows = np.empty((n, 3, 4), np.float32)
+    rows[:, :2] = cp[: 2 * n].reshape(n, 2, 4)
+    rows[:, 2, :3] = rows[:, 1, :3]
+    rows[:, 2, 3] = SPACER_RADIUS
+    line = "%.9g %.9g %.9g %.9g\n"
+    block = line * 3 + "\n"
+    flat = rows.reshape(n, 12).astype(np.float64)
+    chunk = 4096
+    return "".join((block * len(part)) % tuple(part.ravel()) for part in np.array_split(flat, max(1, n // chunk)))

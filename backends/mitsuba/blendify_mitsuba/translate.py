@@ -329,6 +329,14 @@ def _with_mask(bsdf: dict[str, Any], opacity: Any, needed: bool) -> dict[str, An
     return {"type": "mask", "opacity": opacity, "bsdf": bsdf}
 
 
+def build_curves(name: str, centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: float) -> Any:
+    """One ``linearcurve`` shape of capsules (:func:`blendify_mitsuba.points.curve_points`)."""
+    mi = _mi()
+    if hasattr(mi, "build_curves"):  # the exporter's stand-in engine keeps the points
+        return mi.build_curves(name, centres, radii, bsdf, length)
+    return curve_points(centres, radii, bsdf, length)
+
+
 def build_mesh(
     name: str,
     vertices: np.ndarray,
@@ -1029,13 +1037,13 @@ class MitsubaTranslator(Translator):
         if capsules:
             key = f"{prefix}_curves"
             if per_point is not None:
-                tex = mi.load_dict(point_bitmap(per_point))
+                tex = mi.load_dict(point_bitmap(per_point, mi.TensorXf))
                 bsdf_d = self.dispatch(mat, ctx, tex)
                 ctx.shapes[key] = ShapeInfo(index, None, tex)
             else:
                 bsdf_d = self.dispatch(mat, ctx, _rgb(uniform))
                 ctx.shapes[key] = ShapeInfo(index, np.asarray(uniform, dtype=np.float64))
-            ctx.entries[key] = curve_points(centres, radii * scale, bsdf_d, capsule_length(size_ratio))
+            ctx.entries[key] = build_curves(key, centres, radii * scale, bsdf_d, capsule_length(size_ratio))
             return
         tm = r.to_mesh()
         # to_mesh works in object space around the raw vertices: move to world space
