@@ -174,10 +174,11 @@ def export_mitsuba(
     backend does (the same translation: integrator, sensor with film and sampler, shapes, BSDFs, emitters).
 
     Meshes go to ``.ply``, capsule point clouds to ``.txt`` and bitmaps to ``.exr`` files in ``<name>_files/``
-    beside the XML, referenced by relative paths. ``settings`` are render settings (:func:`blendify_core.pipeline.settings.resolve_settings`
-    keywords, e.g. ``quality="final", samples=64``) that fix the integrator and the sampler; ``variant``,
-    ``max_analytic_spheres`` and ``sampler`` are the backend's options (the variant decides only how point
-    clouds are translated: the XML loads in any RGB variant). Returns the written path."""
+    beside the XML, referenced by relative paths. ``settings`` are render settings
+    (:func:`blendify_core.pipeline.settings.resolve_settings` keywords, e.g. ``quality="final", samples=64``)
+    that fix the integrator and the sampler; ``variant``, ``max_analytic_spheres`` and ``sampler`` are the
+    backend's options (the variant decides only how point clouds are translated: the XML loads in any RGB
+    variant). Returns the written path."""
     if not isinstance(scene, Scene):
         raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
     if scene.camera is None:
