@@ -311,3 +311,19 @@ def test_vertex_coloured_bunny_passes_the_crosscheck_in_llvm():
         progress=False,
     )
     assert rep.passed, rep.summary()
+
+
+def test_distinct_layered_bsdfs_per_scene_are_capped(mi_scalar, monkeypatch):
+    """Dr.Jit traces each distinct Python BSDF at the first render: beyond LAYERED_MAX_DISTINCT per scene
+    (e.g. per-point colours of analytic spheres) the rest are lobe sums, stated in the approximations."""
+    from blendify_mitsuba import translate as T
+
+    monkeypatch.setattr(layered, "USE_IN_SCALAR", True)
+    monkeypatch.setattr(T, "LAYERED_MAX_DISTINCT", 2)
+    tr, ctx = T.MitsubaTranslator(), T.MitsubaContext()
+    kinds = []
+    for g in (0.1, 0.2, 0.1, 0.3):  # the third repeats the first: no new BSDF
+        d = tr.dispatch(PrincipledBSDFMaterial(roughness=0.4), ctx, {"type": "rgb", "value": [0.8, g, 0.1]})
+        kinds.append(d["type"])
+    assert kinds == [layered.PLUGIN, layered.PLUGIN, layered.PLUGIN, "twosided"]
+    assert any("distinct Principled materials" in a for a in ctx.approximations)
