@@ -11,10 +11,15 @@ that bisect every bend of the polyline (up to half the bend angle off the faces)
 BSDF to the tube's inside, lit it through the wall and let sampled rays leak through it.
 
 This module registers the BSDF ``blendify_sided``, which wraps another BSDF and applies Cycles' rule: the
-shading frame turned with the geometric normal on back faces, the incident direction lifted onto the shading
-normal's horizon when it lies below it (so the wrapped BSDF evaluates as the front, as Cycles' diffuse
-does), and sampled directions below the geometric surface dropped. It is for reflecting BSDFs only (the
-translator does not wrap transmitting or masked ones: their pass-through must stay below the surface).
+side by the geometric normal (both frames turned with it on back faces); the diffuse lobes in the
+interpolated normal's frame with the incident direction lifted onto its horizon when it lies below it (so
+they evaluate as the front, as Cycles' diffuse does whatever side the viewer is on); the glossy lobes in the
+frame of Cycles' valid-reflection normal (:func:`valid_reflection_normal`), split from the diffuse ones by the
+BSDF context's lobe mask; sampled directions below the geometric surface dropped. A wrapped BSDF written in
+Python that ignores the lobe mask (the layered Principled of the JIT variants) is evaluated whole in the
+interpolated normal's frame, with the view raised to the valid-reflection normal's cosine (which weighs
+Cycles' layers). It is for reflecting BSDFs only (the translator does not wrap transmitting or masked ones:
+their pass-through must stay below the surface).
 
 It runs in Python (per call in the scalar variants), so the translator uses it only for the curve tubes;
 meshes keep Mitsuba's rule, where the two differ only in a sub-pixel band at smooth silhouettes (measured on
@@ -94,6 +99,9 @@ def _bsdf_class() -> type:
             self.inner = props["bsdf"]
             self.m_flags = self.inner.flags()
             self.m_components = [self.inner.flags(i) for i in range(self.inner.component_count())]
+            # Mitsuba's own plugins honour the context's lobe mask; a BSDF written in Python (the layered
+            # Principled of the JIT variants) may not: it is evaluated whole in one frame (see _one_frame)
+            self.split = type(self.inner).__module__.startswith("mitsuba")
 
         @staticmethod
         def _lobes(ctx: Any) -> tuple[Any, Any]:
@@ -136,6 +144,28 @@ def _bsdf_class() -> type:
                 out.append(inner_si)
             return out[0], f_d, out[1], f_g, ng
 
+        @staticmethod
+        def _one_frame(si: Any) -> tuple[Any, Any, Any]:
+            """For a BSDF that cannot be split by lobe: the interaction in the interpolated normal's frame
+            (turned on back faces) with the view raised to Cycles' glossy cosine (the cosine with the
+            valid-reflection normal, which weighs Cycles' layers) where it is lower; the frame; the geometric
+            normal on the viewer's side."""
+            wi = si.to_world(si.wi)
+            front = dr.dot(si.n, wi) > 0
+            ng = dr.select(front, si.n, -si.n)
+            sh = si.sh_frame
+            n = dr.select(front, sh.n, -sh.n)
+            frame = mi.Frame3f(sh.s, dr.select(front, sh.t, -sh.t), n)
+            local = frame.to_local(wi)
+            cz = dr.maximum(dr.dot(valid_reflection_normal(ng, wi, n), wi), _HORIZON)
+            xy = dr.sqrt(dr.maximum(local.x * local.x + local.y * local.y, 1e-24))
+            scale = dr.sqrt(dr.maximum(1.0 - cz * cz, 0.0)) / xy
+            raised = mi.Vector3f(local.x * scale, local.y * scale, cz)
+            inner_si = mi.SurfaceInteraction3f(si)
+            inner_si.sh_frame = frame
+            inner_si.wi = dr.select(local.z < cz, raised, local)
+            return inner_si, frame, ng
+
         def sample(self, ctx: Any, si: Any, sample1: Any, sample2: Any, active: Any = True) -> Any:
             if scalar and self._agree(si):
                 bs, weight = self.inner.sample(ctx, si, sample1, sample2, active)
@@ -143,6 +173,14 @@ def _bsdf_class() -> type:
                     bs.pdf = 0.0
                     weight = mi.Spectrum(0.0)
                 return bs, weight
+            if not self.split:
+                inner_si, frame, ng = self._one_frame(si)
+                bs, weight = self.inner.sample(ctx, inner_si, sample1, sample2, active)
+                wo = frame.to_world(bs.wo)
+                above = dr.dot(ng, wo) > 0
+                bs.wo = si.to_local(wo)
+                bs.pdf = dr.select(above, bs.pdf, 0.0)
+                return bs, dr.select(above, weight, 0.0)
             si_d, f_d, si_g, f_g, ng = self._frames(si)
             c_d, c_g = self._lobes(ctx)
             # the wrapped BSDF picks its lobe from sample1 alone: the call whose mask allows it succeeds
@@ -160,6 +198,9 @@ def _bsdf_class() -> type:
         def eval(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             if scalar and self._agree(si):
                 return self.inner.eval(ctx, si, wo, active)
+            if not self.split:
+                inner_si, frame, _ = self._one_frame(si)
+                return self.inner.eval(ctx, inner_si, frame.to_local(si.to_world(wo)), active)
             si_d, f_d, si_g, f_g, _ = self._frames(si)
             c_d, c_g = self._lobes(ctx)
             w = si.to_world(wo)
@@ -170,6 +211,9 @@ def _bsdf_class() -> type:
         def pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             if scalar and self._agree(si):
                 return self.inner.pdf(ctx, si, wo, active)
+            if not self.split:
+                inner_si, frame, _ = self._one_frame(si)
+                return self.inner.pdf(ctx, inner_si, frame.to_local(si.to_world(wo)), active)
             si_d, f_d, si_g, f_g, _ = self._frames(si)
             c_d, c_g = self._lobes(ctx)
             w = si.to_world(wo)
@@ -180,6 +224,9 @@ def _bsdf_class() -> type:
         def eval_pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             if scalar and self._agree(si):
                 return self.inner.eval_pdf(ctx, si, wo, active)
+            if not self.split:
+                inner_si, frame, _ = self._one_frame(si)
+                return self.inner.eval_pdf(ctx, inner_si, frame.to_local(si.to_world(wo)), active)
             si_d, f_d, si_g, f_g, _ = self._frames(si)
             c_d, c_g = self._lobes(ctx)
             w = si.to_world(wo)

@@ -107,3 +107,69 @@ def test_wrapper_changes_nothing_where_both_rules_agree(mi_scalar):
         translate.material_lobes = real
     assert wrapped.sum() > 0
     assert abs(wrapped.sum() / plain.sum() - 1) < 0.01
+
+
+def test_grazing_view_evaluates_like_cycles_diffuse(mi_scalar):
+    """Viewer in front of the face but behind the interpolated normal (the zone where the rules differ): the
+    wrapper evaluates a Lambertian BSDF as Cycles does (albedo / pi x cos(normal, light), whatever side of
+    the interpolated normal the viewer is on) and drops a sampled direction below the face. Both for one of
+    Mitsuba's plugins (split by lobe) and for a BSDF written in Python that ignores the lobe mask (whole)."""
+    mi = mi_scalar
+    import drjit as dr
+
+    class Lambert(mi.BSDF):  # ignores the context's lobe mask, as the layered Principled does
+        def __init__(self, props):
+            super().__init__(props)
+            self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
+            self.m_components = [self.m_flags]
+
+        def eval(self, ctx, si, wo, active=True):
+            ok = (si.wi.z > 0) & (wo.z > 0)
+            return mi.Color3f(0.5 * dr.inv_pi * wo.z) if ok else mi.Color3f(0.0)
+
+        def pdf(self, ctx, si, wo, active=True):
+            return dr.inv_pi * wo.z if (si.wi.z > 0) & (wo.z > 0) else 0.0
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
+
+        def sample(self, ctx, si, s1, s2, active=True):
+            bs = dr.zeros(mi.BSDFSample3f)
+            bs.wo = mi.warp.square_to_cosine_hemisphere(s2)
+            bs.pdf = dr.inv_pi * bs.wo.z
+            bs.sampled_type = int(mi.BSDFFlags.DiffuseReflection)
+            return bs, mi.Color3f(0.5)
+
+        def to_string(self):
+            return "Lambert"
+
+    mi.register_bsdf("test_lambert_py", lambda p: Lambert(p))
+    from blendify_mitsuba.sided import register
+
+    register()
+    inners = {
+        "mitsuba": mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}}),
+        "python": mi.load_dict({"type": "test_lambert_py"}),
+    }
+    n = _unit([0.0, np.sin(np.radians(20)), np.cos(np.radians(20))])  # interpolated normal, tilted 20 deg
+    wi = _unit([0.0, -0.95, 0.2])  # in front of the face (z > 0), behind n
+    assert wi @ n < 0 < wi[2]
+    for name, inner in inners.items():
+        wrapped = mi.load_dict({"type": SIDED_BSDF, "bsdf": inner})
+        si = mi.SurfaceInteraction3f()
+        si.n = mi.Normal3f(0, 0, 1)
+        si.sh_frame = mi.Frame3f(mi.Vector3f(*n))
+        si.wi = si.sh_frame.to_local(mi.Vector3f(*wi))
+        for wo in ([0.0, 0.3, 0.95], [0.5, -0.2, 0.8], [0.0, -0.9, 0.1]):
+            wo = _unit(wo)
+            value = float(wrapped.eval(mi.BSDFContext(), si, si.sh_frame.to_local(mi.Vector3f(*wo)))[0])
+            assert value == pytest.approx(0.5 / np.pi * max(n @ wo, 0.0), rel=1e-4, abs=1e-7), name
+        below = 0
+        rng = np.random.default_rng(5)
+        for u, v in rng.uniform(size=(3000, 2)):  # ~1 % of the tilted cosine lobe lies below the face
+            bs, weight = wrapped.sample(mi.BSDFContext(), si, 0.5, mi.Point2f(u, v))
+            w = np.array(si.sh_frame.to_world(bs.wo), dtype=np.float64)
+            if w[2] <= 0:
+                below += 1
+                assert float(bs.pdf) == 0.0 and float(weight[0]) == 0.0, name
+        assert below > 0, name  # the tilted normal's hemisphere reaches below the face: those are dropped
