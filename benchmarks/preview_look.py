@@ -16,10 +16,10 @@ opaque film (``transparent_background=False``: the background is part of the pic
   clipped to [0, 1]; blendify_core/evaluate/metrics.py); the noise of the reference at 512 spp costs about
   0.01 of SSIM on these sizes (two Cycles seeds agree to SSIM >= 0.98).
 
-Run: ``nice -n 10 python benchmarks/preview_look.py [--tag before|after] [--size 96x72] [--samples 512]
+Run: ``nice -n 10 python benchmarks/preview_look.py [--tag before|after|round2] [--size 96x72] [--samples 512]
 [--only a,b]``. Writes ``benchmarks/results/preview_look_<tag>.json``; the table
-``benchmarks/results/preview_look.md`` and the contact sheet ``preview_look.png`` (per scene: Cycles, preview
-before, preview after) are written from every tag present.
+``benchmarks/results/preview_look.md`` and the contact sheet ``preview_look.png`` (per scene: Cycles, then the
+preview of each tag) are written from every tag present.
 """
 
 from __future__ import annotations
@@ -46,7 +46,8 @@ from blendify_core.ir.materials import DiffuseMaterial, MetalMaterial, Principle
 
 RESULTS = ROOT / "benchmarks" / "results"
 CACHE = ROOT / "benchmarks" / ".cache" / "preview_look"
-TAGS = ("before", "after")
+#: before = main before issue 23, after = its first round, round2 = soft shadows, indirect-light probe, solid glass
+TAGS = ("before", "after", "round2")
 #: the issue's goals: diffuse scenes, the others
 GOAL_DIFFUSE, GOAL_OTHER = 0.9, 0.8
 #: what the numbers do not say by themselves (kept with the table)
@@ -59,6 +60,12 @@ NOTES = [
     "smooth); drawing more of them raises it (0.57 at 0.4 px, 0.61 at 0.25 px) at 2-7x the time. The remaining "
     "gaps are indirect light (Cornell box, emitter, spheres on a lit floor: no bounce light or ambient "
     "occlusion in the preview), refraction (glass) and mirror reflections of the scene (metal).",
+    "'round2' = soft shadows (percentage-closer, from each light's size), indirect light from one light probe "
+    "(a 6 x 16^2 cube rendered by the preview, 9 SH coefficients for the diffuse term), solid glass refracting "
+    "the probe's light as through a sphere, the environment map bilinear behind the objects. Left: the tiny-point "
+    "cloud (speckle, unchanged), Cornell box (one probe for the whole room: the boxes' fronts too bright, no "
+    "contact shadows), metal sphere (reflects the world's light, not the floor), glass (the ball's shadowed floor "
+    "seen through it is lighter in the probe's blurred view), point cloud (per-point differences of 1-px spheres).",
 ]
 
 
@@ -238,11 +245,13 @@ def write_table(size: tuple[int, int], samples: int) -> None:
     if not runs:
         return
     names = [r["scene"] for r in next(iter(runs.values()))["rows"]]
+    dates = "; ".join(f"{tag} {run['date']}" for tag, run in runs.items())
     lines = [
         "# Preview look: SSIM of the pyrender preview against converged Cycles",
         "",
         f"`nice -n 10 python benchmarks/preview_look.py --size {size[0]}x{size[1]} --samples {samples}` "
-        f"({runs[next(iter(runs))]['date']}; {platform.processor() or platform.machine()}, 2 shared cores, "
+        f"({dates}; "
+        f"{platform.processor() or platform.machine()}, 2 shared cores, "
         "Mesa llvmpipe; preview times under load). Method in the script's docstring. Goals (issue 23): "
         f"SSIM >= {GOAL_DIFFUSE} on diffuse scenes (marked D), >= {GOAL_OTHER} on the others.",
         "",
@@ -307,7 +316,7 @@ def main() -> None:
     from blendify_core.utils import to_display_uint8
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--tag", default="after", choices=TAGS)
+    ap.add_argument("--tag", default="round2", choices=TAGS)
     ap.add_argument("--size", default="96x72")
     ap.add_argument("--samples", type=int, default=512)
     ap.add_argument("--only", default="")
