@@ -842,8 +842,8 @@ def report(data: dict[str, Any]) -> str:
                 else ""
             )
             + f". The cost of shading with the IR's normals is the IR's angle-weighted vertex normals: "
-            f"{r['ir_normals']:.2f} s for these {n:,} triangles (numpy, at every translation of the mesh: not memoised; computed in both "
-            "variants above, and needed by Mitsuba and pyrender too).",
+            f"{r['ir_normals']:.2f} s for these {n:,} triangles (numpy, at every translation of the mesh: not "
+            "memoised; computed in both variants above, and needed by Mitsuba and pyrender too).",
             "",
         ]
     return "\n".join(lines)
