@@ -162,6 +162,29 @@ class _Writer:
         return value
 
 
+#: blendify's Mitsuba plugins (written in Python) -> the call that registers them in a process
+_PLUGIN_REGISTRARS = {
+    "blendify_sided": "blendify_mitsuba.sided.register()",
+    "blendify_path": "blendify_mitsuba.integrator.register()",
+    "blendify_principled": "blendify_mitsuba.layered.register()",
+    "blendify_glass": "blendify_mitsuba.layered.register()",
+}
+
+
+def _own_plugins(value: Any) -> set[str]:
+    """The plugin types of :data:`_PLUGIN_REGISTRARS` used anywhere in the plain scene dictionary."""
+    found: set[str] = set()
+    if isinstance(value, dict):
+        if value.get("type") in _PLUGIN_REGISTRARS:
+            found.add(value["type"])
+        for item in value.values():
+            found |= _own_plugins(item)
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            found |= _own_plugins(item)
+    return found
+
+
 def export_mitsuba(
     scene: Any,
     path: str | os.PathLike[str],
@@ -213,6 +236,13 @@ def export_mitsuba(
             raise RenderError(f"export_mitsuba: Mitsuba could not write the scene: {exc}") from exc
     written = atomic_write(out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
     notes = []
+    own = sorted(_own_plugins(plain))
+    if own:
+        calls = sorted({_PLUGIN_REGISTRARS[p] for p in own})
+        notes.append(
+            f"the XML uses blendify's own Mitsuba plugins ({', '.join(own)}): call {', '.join(calls)} with the "
+            "variant set before mitsuba.load_file"
+        )
     if tr.coverage_dict is not None:
         notes.append("emissive surfaces under a sky with a transparent background: the coverage alpha is composited")
     if tr.catcher_dict is not None:

@@ -106,3 +106,19 @@ def test_every_hard_case_exports_an_xml_mitsuba_loads(tmp_path, scalar_backend):
             path = build().export_mitsuba(tmp_path / f"{name}.xml", variant="scalar_rgb", quality="draft", samples=8)
         mi = scalar_backend.session.set_variant()
         assert mi.load_file(str(path)) is not None, name
+
+
+def test_xml_names_the_blendify_plugins_it_needs(tmp_path, scalar_backend):
+    """A curve's tube takes blendify's own BSDF (blendify_mitsuba/sided.py): the export says which plugins the
+    XML uses and how to register them; registered, it loads."""
+    scene = textured_quad_scene()
+    keys = np.array([[-0.5, 0.0, 0.2], [0.5, 0.0, 0.2], [0.6, 0.3, 0.3]])
+    scene.renderables.add_curve_nurbs(keys, 0.05, bf.DiffuseMaterial(), bf.UniformColors((0.8, 0.2, 0.2)))
+    with pytest.warns(UserWarning, match=r"blendify_sided\).*blendify_mitsuba\.sided\.register\(\)"):
+        path = scene.export_mitsuba(tmp_path / "curve.xml", **SETTINGS)
+    assert 'type="blendify_sided"' in path.read_text()
+    mi = scalar_backend.session.set_variant()
+    from blendify_mitsuba.sided import register
+
+    register()
+    assert mi.load_file(str(path)) is not None
