@@ -169,6 +169,9 @@ class RenderMeta(TypedDict, total=False):
     pixel_filter: str
     #: [mitsuba] True when alpha was composited from a coverage pass (emissive surfaces over a sky)
     alpha_compositing: bool
+    #: [mitsuba] True when the directly seen emission of the light shapes (point lights with a radius, area
+    #: lights) was subtracted from the colour (scenes with emissive materials, where emitters stay visible)
+    lights_removed: bool
     #: [mitsuba] True when shadow catchers were emulated by a second render
     shadow_catcher_emulated: bool
     #: [mitsuba] spheres rendered as analytic sphere shapes (not tessellated)

@@ -10,8 +10,9 @@ binary ``.ply`` files (with their ``vertex_color`` / ``vertex_alpha`` attributes
 Mitsuba's own scene writer (``mitsuba.parser.write_file``). Every file is written atomically.
 
 What a render of the XML cannot do is what the backend does around ``mi.render`` (listed in a warning):
-compositing the coverage alpha of emissive surfaces under a sky, the shadow-catcher emulation and the
-resampling of non-square pixels.
+compositing the coverage alpha of emissive surfaces under a sky, adding the sky back behind an opaque
+film's hidden emitters, removing the lights the camera sees in scenes with emissive materials, the
+shadow-catcher emulation and the resampling of non-square pixels.
 """
 
 from __future__ import annotations
@@ -245,6 +246,10 @@ def export_mitsuba(
         )
     if tr.coverage_dict is not None:
         notes.append("emissive surfaces under a sky with a transparent background: the coverage alpha is composited")
+    if tr.coverage_dict is None and tr.background_dict is not None:
+        notes.append("emitters hidden from the camera under an opaque film: the backend adds the sky back behind them")
+    if tr.light_shapes:
+        notes.append("lights seen by the camera in a scene with emissive materials: the backend removes them")
     if tr.catcher_dict is not None:
         notes.append("shadow catchers: emulated by the backend from a second render")
     if tr.aniso is not None:

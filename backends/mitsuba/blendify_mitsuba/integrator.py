@@ -4,7 +4,8 @@ Mitsuba's own ``path`` integrator tests the visibility of every emitter sample. 
 lights skip that test: their light reaches every surface point, occluded or not (at every bounce). This
 module registers the integrator ``blendify_path``: the same unidirectional path tracer as Mitsuba's
 ``path`` (next-event estimation combined with BSDF sampling by the power heuristic, Russian roulette from
-``rr_depth`` on, ``hide_emitters`` hiding emission seen directly from the camera, the alpha set once a path
+``rr_depth`` on, ``hide_emitters`` hiding emission seen from the camera directly or through null surfaces
+(such as other lights' shapes, as Mitsuba 3.9 passes camera rays through them), the alpha set once a path
 continues from a non-null surface), except that next-event samples of the emitters named in ``no_shadow``
 (their ids, comma-separated) are not tested for visibility. BSDF-sampled rays still hit an area light only
 where nothing is in between (as in Cycles, which also only skips the shadow ray).
@@ -103,12 +104,13 @@ def _integrator_class() -> type:
             prev_si = dr.zeros(mi.Interaction3f)
             prev_pdf = mi.Float(1.0)
             prev_delta = mi.Bool(True)
+            camera = mi.Bool(True)  # the path has only passed through null surfaces since the camera
             max_depth = self.max_depth if self.max_depth >= 0 else 2**31 - 1
             while dr.any(active):
                 si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=depth == 0, active=active)
                 # emission reached by the previous BSDF sample (or by the camera ray)
                 no = self._not
-                shown = active & no(mi.Bool(self.hide) & (depth == 0))
+                shown = active & no(mi.Bool(self.hide) & camera)
                 ds = mi.DirectionSample3f(scene, si=si, ref=prev_si)
                 if dr.any(shown & (ds.emitter != None)):  # noqa: E711 (a pointer array compares to None)
                     em_pdf = scene.pdf_emitter_direction(prev_si, ds, no(prev_delta))
@@ -140,6 +142,7 @@ def _integrator_class() -> type:
                 throughput = dr.select(active_next, throughput * weight, throughput)
                 eta = dr.select(active_next, eta * bs.eta, eta)
                 valid |= active_next & no(mi.has_flag(bs.sampled_type, mi.BSDFFlags.Null))
+                camera &= no(active_next) | mi.has_flag(bs.sampled_type, mi.BSDFFlags.Null)
                 depth = dr.select(active_next, depth + 1, depth)
                 # Russian roulette
                 t_max = dr.max(throughput)
@@ -149,7 +152,7 @@ def _integrator_class() -> type:
                 throughput = dr.select(rr_active, throughput / dr.maximum(rr_prob, 1e-30), throughput)
                 active = active_next & (no(rr_active) | rr_go) & (t_max != 0)
                 if self._jit:
-                    dr.eval(ray, prev_si, prev_pdf, prev_delta, throughput, eta, valid, depth, result, active)
+                    dr.eval(ray, prev_si, prev_pdf, prev_delta, throughput, eta, valid, camera, depth, result, active)
             return result, valid, []
 
         def aov_names(self) -> list[str]:

@@ -26,7 +26,7 @@ from .aniso import resample_rows
 from .session import MitsubaNative, MitsubaSession
 from .translate import ShapeInfo
 
-__all__ = ["render_native", "render_rgba", "cast_outputs", "catch_shadows"]
+__all__ = ["render_native", "render_rgba", "seen_lights", "cast_outputs", "catch_shadows"]
 
 _MAX_PASS_THROUGH = 8  # light shapes (null BSDF) a geometric ray may pass through
 
@@ -49,6 +49,9 @@ def render_native(
             if settings.wants("rgb"):
                 t0 = time.perf_counter()
                 rgba = render_rgba(native.scene, native.spp, settings.seed)
+                if native.light_shapes:
+                    seen = seen_lights(native.scene, native.light_shapes, native.spp, settings.seed)
+                    rgba[..., :3] = np.maximum(rgba[..., :3] - seen, 0.0)
                 if native.coverage_scene is not None:
                     # emissive surfaces + a sky: rendered with the sky visible; the coverage alpha comes
                     # from a one-bounce pass of the shapes, the sky behind partly covered pixels is removed
@@ -57,6 +60,11 @@ def render_native(
                     rgba[..., :3] -= (1.0 - alpha)[..., None] * sky
                     rgba[..., :3] = np.maximum(rgba[..., :3], 0.0)
                     rgba[..., 3] = alpha
+                elif native.sky_scene is not None:
+                    # an opaque film whose emitters were hidden from the camera (the light shapes; the sky too,
+                    # in Mitsuba 3.9): the sky behind the pixels' uncovered part is added back
+                    sky = render_rgba(native.sky_scene, native.spp, settings.seed)[..., :3]
+                    rgba[..., :3] += (1.0 - rgba[..., 3])[..., None] * sky
                 if native.catcher_scene is not None:
                     rgba = catch_shadows(native, rgba, settings)
                 if native.aniso is not None:
@@ -105,6 +113,7 @@ def render_native(
         # meta["approximations"] (Backend.unapplied_settings), the denoiser and adaptive stop in "notes"
         "bias": [],
         "alpha_compositing": native.coverage_scene is not None,
+        "lights_removed": bool(native.light_shapes),
         "shadow_catcher_emulated": native.catcher_scene is not None,
         "analytic_spheres": native.n_analytic_spheres,
         "translate_cached": native.translate_cached,
@@ -155,11 +164,50 @@ def render_rgba(scene: Any, spp: int, seed: int) -> np.ndarray:
     return img[..., :4]
 
 
+def seen_lights(scene: Any, keys: list[str], spp: int, seed: int) -> np.ndarray:
+    """(H, W, 3) float32: the emission of the light shapes ``keys`` (ids of point-light spheres and area-light
+    surfaces) where camera rays meet them first, as the render of ``scene`` with ``spp`` and ``seed`` counts it.
+
+    Cycles' lights are not seen by camera rays. Mitsuba's ``hide_emitters`` would hide them, but in Mitsuba
+    3.9 camera rays then pass through every emitter, emissive surfaces and the sky included; where the
+    integrator keeps emitters visible, the render subtracts this instead. It is the difference of two
+    one-bounce renders (``path``, max_depth 1: emission at the first hit only) of the same scene, with these
+    emitters' radiance as it is and set to 0: the same seed gives the same camera samples, so everything but
+    the light shapes' emission cancels sample by sample (no noise added). Not removed: a light seen through
+    another light's shape or through a partly transparent (alpha) surface."""
+    import mitsuba as mi
+
+    one = mi.load_dict({"type": "path", "max_depth": 1, "hide_emitters": False})
+    wanted = set(keys)
+    params = [mi.traverse(s.emitter()) for s in scene.shapes() if s.id() in wanted and s.emitter() is not None]
+    if not params:
+        return np.zeros((1, 1, 3), np.float32)
+    lit = np.array(mi.render(scene, spp=int(spp), seed=int(seed), integrator=one), dtype=np.float32)[..., :3]
+    saved = [type(v)(v) for v in (p["radiance.value"] for p in params)]  # copies, not views
+    try:
+        for p, value in zip(params, saved):
+            p["radiance.value"] = value * 0.0
+            p.update()
+        dark = np.array(mi.render(scene, spp=int(spp), seed=int(seed), integrator=one), dtype=np.float32)[..., :3]
+    finally:
+        for p, value in zip(params, saved):
+            p["radiance.value"] = value
+            p.update()
+    return np.maximum(lit - dark, 0.0)  # type: ignore[no-any-return]
+
+
 def catch_shadows(native: MitsubaNative, rgba: np.ndarray, settings: RenderSettings) -> np.ndarray:
     """Shadow-catcher emulation: where a pixel centre sees a catcher, the pixel becomes black with
     alpha = (1 - shadowed / unshadowed radiance) x coverage; the unshadowed radiance comes from a
     render of the catchers alone (same seed and samples)."""
     free = render_rgba(native.catcher_scene, native.spp, settings.seed)
+    # the catcher scene holds the same lights and integrator: the same treatment of what the camera sees of them
+    if native.light_shapes:
+        seen = seen_lights(native.catcher_scene, native.light_shapes, native.spp, settings.seed)
+        free[..., :3] = np.maximum(free[..., :3] - seen, 0.0)
+    elif native.sky_scene is not None and native.coverage_scene is None:
+        sky = render_rgba(native.sky_scene, native.spp, settings.seed)[..., :3]
+        free[..., :3] += (1.0 - free[..., 3])[..., None] * sky
     cam = native.camera if native.aniso is None else native.aniso.camera
     inst = cast_outputs(
         native.scene, cam, native.shapes, ("instance",), not native.variant.startswith("scalar"), native.parallel_rays

@@ -65,9 +65,11 @@ class MitsubaNative:
     spp: int = 1  # samples per rendered pixel (differs from settings.samples for fx != fy)
     aniso: SquarePixelPlan | None = None  # the square-pixel plan for fx != fy (see aniso)
     coverage_scene: Any = None  # shapes only: coverage alpha (when compositing)
-    sky_scene: Any = None  # background/environment only: what the sky adds behind partial pixels
+    sky_scene: Any = None  # background/environment only: what the sky adds behind partial pixels (also when
+    # an opaque film's emitters are hidden: added back behind uncovered pixels)
     catcher_scene: Any = None  # shadow catchers alone (unshadowed radiance)
     catchers: list[int] = field(default_factory=list)  # renderable indices of the shadow catchers
+    light_shapes: list[str] = field(default_factory=list)  # light shapes to remove from the camera's view
     integrator: dict[str, Any] = field(default_factory=dict)
     effects: Any = None
     n_analytic_spheres: int = 0
@@ -207,8 +209,9 @@ class MitsubaSession:
                 cov_scene = sky_scene = catcher_scene = None
                 if tr.catcher_dict is not None:
                     catcher_scene = mi.load_dict(tr.catcher_dict)
-                if tr.coverage_dict is not None and tr.background_dict is not None:
+                if tr.coverage_dict is not None:
                     cov_scene = mi.load_dict(tr.coverage_dict)
+                if tr.background_dict is not None:
                     sky_scene = mi.load_dict(tr.background_dict)
             except Exception as exc:
                 raise RenderError(f"mitsuba: mi.load_dict failed: {exc}") from exc
@@ -224,6 +227,7 @@ class MitsubaSession:
             sky_scene=sky_scene,
             catcher_scene=catcher_scene,
             catchers=tr.catchers,
+            light_shapes=tr.light_shapes,
             integrator=tr.integrator,
             effects=tr.effects,
             n_analytic_spheres=tr.n_analytic_spheres,

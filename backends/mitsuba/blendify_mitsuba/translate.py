@@ -191,6 +191,9 @@ class Translation:
     #: shadow catchers: the scene with the catcher planes as the only renderables, and their indices
     catcher_dict: dict[str, Any] | None = None
     catchers: list[int] = field(default_factory=list)
+    #: the ids of the light shapes (point lights with a radius, area lights) when the integrator cannot hide
+    #: them from the camera: the render removes their directly seen emission (render.seen_lights)
+    light_shapes: list[str] = field(default_factory=list)
     integrator: dict[str, Any] = field(default_factory=dict)
     effects: Effects | None = None
     #: samples per rendered pixel (differs from settings.samples for fx != fy) and the square-pixel plan
@@ -212,8 +215,9 @@ class MitsubaContext(TranslationContext):
     shapes: dict[str, ShapeInfo] = field(default_factory=dict)
     catchers: list[int] = field(default_factory=list)
     n_analytic_spheres: int = 0
-    #: a camera ray may have to pass through a light's null surface (area lights, point lights with a radius)
-    null_light_surfaces: bool = False
+    #: null light surfaces a ray may cross to pass through one light (0 none; 1 area lights; 2 the spheres
+    #: of point lights with a radius)
+    null_light_surfaces: int = 0
     #: the distinct layered BSDFs (their specs) this scene has (see LAYERED_MAX_DISTINCT)
     layered_specs: set[str] = field(default_factory=set)
     bounds: Any = None  # the scene bounds (for point lights with a radius)
@@ -716,18 +720,25 @@ class MitsubaTranslator(Translator):
             self.dispatch(attachment, ctx)
         integrator = self.integrator(effects, ctx)
         d: dict[str, Any] = {"type": "scene", "integrator": integrator, "sensor": sensor, **ctx.entries, **emitters}
+        # lights are not seen by camera rays (as in Cycles): hide_emitters hides them, else the render removes
+        # the emission of these shapes where camera rays meet them first
+        hidden = integrator["hide_emitters"]
+        light_shapes = [] if hidden else [k for k, e in emitters.items() if k.startswith("light") and "emitter" in e]
+        sky = {k: v for k, v in d.items() if k in ("environment", "background")}
 
         coverage_dict = background_dict = None
-        sky = {k: v for k, v in d.items() if k in ("environment", "background")}
         composite = bool(self.settings.transparent_background) and effects.emission
+        if sky and (composite or (hidden and not self.settings.transparent_background)):
+            # the sky alone: what it adds behind partly covered pixels; removed again for transparent films
+            # with emissive surfaces, added back where an opaque film's hidden emitters left it out
+            one = {"type": "path", "max_depth": 1, "hide_emitters": False}
+            sky_dict = {k: (self._environment_again(ctx) if k == "environment" else v) for k, v in sky.items()}
+            background_dict = {"type": "scene", "integrator": one, "sensor": self.sensor(ctx), **sky_dict}
         if composite and sky:
             # max_depth 2: Mitsuba's path integrator records a hit in the alpha only once it decides to continue
             # the path (with max_depth 1 only emitters count); the scene has no lights, so this stays cheap
             two = {"type": "path", "max_depth": 2, "hide_emitters": False}
-            one = {"type": "path", "max_depth": 1, "hide_emitters": False}
             coverage_dict = {"type": "scene", "integrator": two, "sensor": self.sensor(ctx), **ctx.entries}
-            sky_dict = {k: (self._environment_again(ctx) if k == "environment" else v) for k, v in sky.items()}
-            background_dict = {"type": "scene", "integrator": one, "sensor": self.sensor(ctx), **sky_dict}
         catcher_dict = None
         if ctx.catchers:
             # the catchers alone under the same lights: the unshadowed radiance of the shadow-catcher emulation
@@ -744,6 +755,7 @@ class MitsubaTranslator(Translator):
             background_dict=background_dict,
             catcher_dict=catcher_dict,
             catchers=ctx.catchers,
+            light_shapes=light_shapes,
             integrator=integrator,
             effects=effects,
             spp=ctx.aniso.spp if ctx.aniso is not None else int(self.settings.samples),
@@ -755,16 +767,22 @@ class MitsubaTranslator(Translator):
 
     def integrator(self, effects: Effects, ctx: MitsubaContext) -> dict[str, Any]:
         """The integrator dictionary: ``path`` with max_depth = max_bounces + 2, or max_depth 2 (direct
-        light only; 3 when a camera ray may have to pass through an area light's null surface) when
-        ``settings.effects`` and the effect analysis finds no indirect light. Call after the lights."""
+        light only; 3 when a camera ray may have to pass through a light's null surface, 4 through a visible
+        point light's sphere) when ``settings.effects`` and the effect analysis finds no indirect light; and
+        whether it hides the emitters from the camera. Call after the lights."""
         s = self.settings
-        # hide_emitters gives a coverage alpha under a sky and hides area lights from the camera (as in
-        # Cycles), but in Mitsuba 3.9 it also skips emissive *surfaces* along camera rays: with emissive
-        # materials the alpha is recovered by compositing instead (see translate)
-        hide = bool(s.transparent_background) and not effects.emission
+        # Lights are not seen by camera rays, as in Cycles. hide_emitters hides the light shapes (and gives a
+        # coverage alpha under a sky), but in Mitsuba 3.9 camera rays then pass through every emitter: the sky
+        # and emissive *surfaces* vanish too. So it is used for transparent films and, when there are light
+        # shapes, opaque ones (the render adds the sky back behind uncovered pixels), and never with emissive
+        # materials: then the render removes the light shapes' directly seen emission instead
+        # (Translation.light_shapes) and recovers a transparent film's alpha by compositing (see translate)
+        hide = (bool(s.transparent_background) or ctx.null_light_surfaces > 0) and not effects.emission
         max_depth = s.max_bounces + 2
         if s.effects and not (effects.indirect_diffuse or effects.glossy or effects.transmission or effects.caustics):
-            max_depth = min(max_depth, 3 if ctx.null_light_surfaces else 2)
+            # direct light only; a visible light's surfaces crossed by a camera ray count as bounces
+            crossings = min(ctx.null_light_surfaces, 1) if hide else ctx.null_light_surfaces
+            max_depth = min(max_depth, 2 + crossings)
         if ctx.no_shadow:
             return {
                 "type": register_integrator(),
@@ -1322,8 +1340,8 @@ class MitsubaTranslator(Translator):
             "light.point": _exact("point, intensity = P / (4 pi)"),
             "light.point.soft": approximate(
                 "point lights: a sphere emitter of radiance P / (4 pi^2 r^2) (Blender's sphere light with soft "
-                "falloff off); spot lights: delta (radius ignored). The light's null surface also blocks other "
-                "lights' shadow rays"
+                "falloff off), hidden from the camera as light.area; spot lights: delta (radius ignored). The light's "
+                "null surface also blocks other lights' shadow rays"
             ),
         },
     )
@@ -1334,7 +1352,7 @@ class MitsubaTranslator(Translator):
         col = light.linear_color
         r = float(light.shadow_soft_size)
         if r > 0:
-            ctx.null_light_surfaces = True
+            ctx.null_light_surfaces = 2  # in and out of the sphere
         if r > 0 and ctx.bounds is not None:
             # a sphere far from everything it lights (radius < 1e-3 of the distance) is a point light
             # to within 0.1 %; Mitsuba's float32 sphere-emitter sampling breaks down there (a 0.25 m
@@ -1467,8 +1485,8 @@ class MitsubaTranslator(Translator):
         AreaLight,
         features={
             "light.area": _exact(
-                "rectangle with radiance P / (pi A), one-sided, hidden from the camera (visible from its emitting "
-                "side only in scenes with emissive materials)"
+                "rectangle with radiance P / (pi A), one-sided, hidden from the camera (hide_emitters; in scenes "
+                "with emissive materials its directly seen emission is subtracted: unbiased, noisy at its outline)"
             ),
             "light.area.disk": _exact("disk with radiance P / (pi A), one-sided, hidden from the camera as light.area"),
         },
@@ -1484,7 +1502,7 @@ class MitsubaTranslator(Translator):
                 f"light.area: area light {light.tag!r} lies in the plane of emissive {tag!r}: Mitsuba's rays meet the "
                 "two coincident emitters in arbitrary order (a scene like this measured 1.39x Cycles' light)"
             )
-        ctx.null_light_surfaces = True
+        ctx.null_light_surfaces = max(ctx.null_light_surfaces, 1)
         a, b = light.size
         disk = light.shape in ("circle", "ellipse")
         return {

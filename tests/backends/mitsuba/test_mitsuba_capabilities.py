@@ -123,8 +123,8 @@ FROZEN: dict[str, tuple[str, str]] = {
     "light.point.soft": (
         "approximate",
         "point lights: a sphere emitter of radiance P / (4 pi^2 r^2) (Blender's sphere light with soft "
-        "falloff off); spot lights: delta (radius ignored). The light's null surface also blocks other "
-        "lights' shadow rays",
+        "falloff off), hidden from the camera as light.area; spot lights: delta (radius ignored). The light's "
+        "null surface also blocks other lights' shadow rays",
     ),
     "light.sun": ("exact", "directional, irradiance = strength"),
     "light.sun.soft": (
@@ -141,8 +141,8 @@ FROZEN: dict[str, tuple[str, str]] = {
     ),
     "light.area": (
         "exact",
-        "rectangle with radiance P / (pi A), one-sided, hidden from the camera (visible from its emitting"
-        " side only in scenes with emissive materials)",
+        "rectangle with radiance P / (pi A), one-sided, hidden from the camera (hide_emitters; in scenes "
+        "with emissive materials its directly seen emission is subtracted: unbiased, noisy at its outline)",
     ),
     "light.area.disk": ("exact", "disk with radiance P / (pi A), one-sided, hidden from the camera as light.area"),
     "light.no_shadow": (

@@ -172,6 +172,60 @@ def test_sphere_light_matches_point_light_irradiance(scalar_backend):
     assert abs(ratio - 1) < 0.005
 
 
+def _light_in_frame_scene(light: str, emissive: bool) -> bf.Scene:
+    """A camera at the origin looking along +Y at a grey world (radiance 0.3), light ``light`` straight ahead
+    (its shape, if it has one, covers the image centre), and with ``emissive`` a glowing cube low on the left."""
+    scene = bf.Scene()
+    scene.set_perspective_camera(
+        (32, 24), fov_x=np.deg2rad(50), rotation_mode="look_at", rotation=(0, 1, 0), translation=(0, 0, 0)
+    )
+    scene.lights.set_background_light(0.3)
+    ahead = dict(rotation_mode="look_at", rotation=(0, 0, 0), translation=(0, 3, 0))  # facing the camera
+    if light == "point":
+        scene.lights.add_point(strength=50.0, shadow_soft_size=0.4, translation=(0, 3, 0))
+    elif light == "spot":
+        scene.lights.add_spot(strength=50.0, spot_size=np.deg2rad(60), shadow_soft_size=0.4, **ahead)
+    elif light in ("square", "disk"):
+        scene.lights.add_area("square" if light == "square" else "circle", 0.8, strength=50.0, **ahead)
+    elif light == "sun":  # the sun straight ahead: its light travels towards the camera
+        scene.lights.add_sun(3.0, angular_diameter=np.deg2rad(20), rotation_mode="look_at", rotation=(0, -1, 0))
+    if emissive:
+        glow = DiffuseMaterial(emission_color=(1.0, 0.5, 0.25, 1.0), emission_strength=4.0)
+        scene.renderables.add_cube_mesh(0.6, glow, UniformColors((0.5,) * 3), translation=(-0.9, 3, -0.6), tag="glow")
+    return scene
+
+
+@pytest.mark.parametrize("emissive", [False, True], ids=["lights-only", "with-emissive-surface"])
+@pytest.mark.parametrize("light", ["point", "spot", "square", "disk", "sun"])
+def test_lights_in_frame_show_the_world_behind_them_on_an_opaque_film(scalar_backend, light, emissive):
+    """Cycles' lights are not seen by camera rays: on an opaque film the world behind a light's sphere, area
+    or sun disk is what the camera sees, with or without emissive surfaces (which stay visible)."""
+    scene = _light_in_frame_scene(light, emissive)
+    r = _render(scalar_backend, scene, samples=16, transparent_background=False)
+    centre = r.rgba[9:15, 13:19, :3]  # the light's shape covers these pixels and more
+    print(f"{light}, emissive={emissive}: centre {centre.min():.4f}..{centre.max():.4f}")
+    np.testing.assert_allclose(centre, 0.3, atol=0.003)
+    assert np.all(r.rgba[..., 3] == 1.0)
+    if emissive:  # the glowing cube is seen (its emission 4 x (1, 0.5, 0.25) and some reflected light)
+        ((u, v),), _ = scene.camera.project([[-0.9, 2.7, -0.6]])  # its face's centre
+        assert r.rgba[int(v), int(u), 0] > 3.9 and not r.meta["hide_emitters"]
+        assert r.meta["lights_removed"] == (light in ("point", "square", "disk"))
+    else:  # away from the light, only the world
+        np.testing.assert_allclose(r.rgba[:4, :, :3], 0.3, atol=1e-5)
+
+
+def test_lights_in_frame_are_hidden_by_the_no_shadow_integrator_too(scalar_backend):
+    """The integrator of non-shadowing lights hides what the camera sees through a light's null surfaces:
+    the world behind the sphere is added once (not also through the sphere)."""
+    scene = _light_in_frame_scene("point", emissive=False)
+    scene.lights["Point_000"].use_shadow = False
+    r = _render(scalar_backend, scene, samples=4, transparent_background=False)
+    assert r.meta["integrator"] == "blendify_path"
+    np.testing.assert_allclose(r.rgba[..., :3], 0.3, atol=1e-5)
+    t = _render(scalar_backend, scene, samples=4, transparent_background=True)
+    assert np.all(t.rgba == 0.0)  # nothing but the world: transparent and black
+
+
 def test_background_light_units(scalar_backend):
     scene = testing.plane_scene("background", resolution=(16, 16))
     r = _render(scalar_backend, scene, samples=64)
