@@ -218,6 +218,8 @@ class MitsubaContext(TranslationContext):
     #: null light surfaces a ray may cross to pass through one light (0 none; 1 area lights; 2 the spheres
     #: of point lights with a radius)
     null_light_surfaces: int = 0
+    #: some light is a shape the camera could meet (point-light sphere, area light, sun disk)
+    light_shapes: bool = False
     #: the distinct layered BSDFs (their specs) this scene has (see LAYERED_MAX_DISTINCT)
     layered_specs: set[str] = field(default_factory=set)
     bounds: Any = None  # the scene bounds (for point lights with a radius)
@@ -777,7 +779,7 @@ class MitsubaTranslator(Translator):
         # shapes, opaque ones (the render adds the sky back behind uncovered pixels), and never with emissive
         # materials: then the render removes the light shapes' directly seen emission instead
         # (Translation.light_shapes) and recovers a transparent film's alpha by compositing (see translate)
-        hide = (bool(s.transparent_background) or ctx.null_light_surfaces > 0) and not effects.emission
+        hide = (bool(s.transparent_background) or ctx.light_shapes) and not effects.emission
         max_depth = s.max_bounces + 2
         if s.effects and not (effects.indirect_diffuse or effects.glossy or effects.transmission or effects.caustics):
             # direct light only; a visible light's surfaces crossed by a camera ray count as bounces
@@ -801,6 +803,7 @@ class MitsubaTranslator(Translator):
             if emitter is not None:
                 key = f"light{i:04d}"
                 out[key] = emitter
+                ctx.light_shapes = ctx.light_shapes or "emitter" in emitter
                 if not light.use_shadow:  # the integrator finds the emitter by its id
                     if "emitter" in emitter:  # a shape's area emitter
                         emitter["emitter"]["id"] = key = f"{key}_emitter"
