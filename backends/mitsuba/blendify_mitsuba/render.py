@@ -56,15 +56,13 @@ def render_native(
                     # emissive surfaces + a sky: rendered with the sky visible; the coverage alpha comes
                     # from a one-bounce pass of the shapes, the sky behind partly covered pixels is removed
                     alpha = render_rgba(native.coverage_scene, native.spp, settings.seed)[..., 3]
-                    sky = render_rgba(native.sky_scene, native.spp, settings.seed)[..., :3]
-                    rgba[..., :3] -= (1.0 - alpha)[..., None] * sky
+                    rgba[..., :3] -= (1.0 - alpha)[..., None] * _sky(native, settings)
                     rgba[..., :3] = np.maximum(rgba[..., :3], 0.0)
                     rgba[..., 3] = alpha
                 elif native.sky_scene is not None:
                     # an opaque film whose emitters were hidden from the camera (the light shapes; the sky too,
                     # in Mitsuba 3.9): the sky behind the pixels' uncovered part is added back
-                    sky = render_rgba(native.sky_scene, native.spp, settings.seed)[..., :3]
-                    rgba[..., :3] += (1.0 - rgba[..., 3])[..., None] * sky
+                    rgba[..., :3] += (1.0 - rgba[..., 3])[..., None] * _sky(native, settings)
                 if native.catcher_scene is not None:
                     rgba = catch_shadows(native, rgba, settings)
                 if native.aniso is not None:
@@ -164,6 +162,13 @@ def render_rgba(scene: Any, spp: int, seed: int) -> np.ndarray:
     return img[..., :4]
 
 
+def _sky(native: MitsubaNative, settings: RenderSettings) -> np.ndarray:
+    """What the sky alone gives each pixel: a constant sky's radiance (3,), else the sky-only render (H, W, 3)."""
+    if native.sky_radiance is not None:
+        return np.asarray(native.sky_radiance, np.float32)
+    return render_rgba(native.sky_scene, native.spp, settings.seed)[..., :3]
+
+
 def seen_lights(scene: Any, keys: list[str], spp: int, seed: int) -> np.ndarray:
     """(H, W, 3) float32: the emission of the light shapes ``keys`` (ids of point-light spheres and area-light
     surfaces) where camera rays meet them first, as the render of ``scene`` with ``spp`` and ``seed`` counts it.
@@ -206,8 +211,7 @@ def catch_shadows(native: MitsubaNative, rgba: np.ndarray, settings: RenderSetti
         seen = seen_lights(native.catcher_scene, native.light_shapes, native.spp, settings.seed)
         free[..., :3] = np.maximum(free[..., :3] - seen, 0.0)
     elif native.sky_scene is not None and native.coverage_scene is None:
-        sky = render_rgba(native.sky_scene, native.spp, settings.seed)[..., :3]
-        free[..., :3] += (1.0 - free[..., 3])[..., None] * sky
+        free[..., :3] += (1.0 - free[..., 3])[..., None] * _sky(native, settings)
     cam = native.camera if native.aniso is None else native.aniso.camera
     inst = cast_outputs(
         native.scene, cam, native.shapes, ("instance",), not native.variant.startswith("scalar"), native.parallel_rays

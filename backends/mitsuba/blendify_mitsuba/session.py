@@ -67,6 +67,7 @@ class MitsubaNative:
     coverage_scene: Any = None  # shapes only: coverage alpha (when compositing)
     sky_scene: Any = None  # background/environment only: what the sky adds behind partial pixels (also when
     # an opaque film's emitters are hidden: added back behind uncovered pixels)
+    sky_radiance: list[float] | None = None  # a constant sky's radiance: what sky_scene renders, without a render
     catcher_scene: Any = None  # shadow catchers alone (unshadowed radiance)
     catchers: list[int] = field(default_factory=list)  # renderable indices of the shadow catchers
     light_shapes: list[str] = field(default_factory=list)  # light shapes to remove from the camera's view
@@ -225,6 +226,7 @@ class MitsubaSession:
             aniso=tr.aniso,
             coverage_scene=cov_scene,
             sky_scene=sky_scene,
+            sky_radiance=tr.sky_radiance,
             catcher_scene=catcher_scene,
             catchers=tr.catchers,
             light_shapes=tr.light_shapes,

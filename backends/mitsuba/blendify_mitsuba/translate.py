@@ -188,6 +188,8 @@ class Translation:
     #: ``hide_emitters`` cannot be used): the shapes alone (coverage alpha) and the sky alone
     coverage_dict: dict[str, Any] | None = None
     background_dict: dict[str, Any] | None = None
+    #: the sky's radiance (3,) when it is a constant background: what background_dict renders, without a render
+    sky_radiance: list[float] | None = None
     #: shadow catchers: the scene with the catcher planes as the only renderables, and their indices
     catcher_dict: dict[str, Any] | None = None
     catchers: list[int] = field(default_factory=list)
@@ -736,6 +738,9 @@ class MitsubaTranslator(Translator):
             one = {"type": "path", "max_depth": 1, "hide_emitters": False}
             sky_dict = {k: (self._environment_again(ctx) if k == "environment" else v) for k, v in sky.items()}
             background_dict = {"type": "scene", "integrator": one, "sensor": self.sensor(ctx), **sky_dict}
+        sky_radiance = None
+        if background_dict is not None and list(sky) == ["background"]:
+            sky_radiance = [float(x) for x in sky["background"]["radiance"]["value"]]
         if composite and sky:
             # max_depth 2: Mitsuba's path integrator records a hit in the alpha only once it decides to continue
             # the path (with max_depth 1 only emitters count); the scene has no lights, so this stays cheap
@@ -755,6 +760,7 @@ class MitsubaTranslator(Translator):
             ctx.n_analytic_spheres,
             coverage_dict=coverage_dict,
             background_dict=background_dict,
+            sky_radiance=sky_radiance,
             catcher_dict=catcher_dict,
             catchers=ctx.catchers,
             light_shapes=light_shapes,
