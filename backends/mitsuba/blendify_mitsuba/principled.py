@@ -1,7 +1,10 @@
-"""Cycles' Principled BSDF (docs/conventions.md, "Materials") as a sum of Mitsuba's built-in lobes.
+"""Cycles' Principled BSDF (docs/conventions.md, "Materials"): its layers' albedos and view-dependent weights,
+and the model as a sum of Mitsuba's built-in lobes.
 
-Mitsuba has no layered BSDF of Cycles' kind and a Python BSDF is called once per ray in ``scalar_rgb`` (the
-variant every machine has), so the model is mapped onto built-in plugins whose sum Mitsuba renders natively:
+In the JIT variants the layers are rendered by :mod:`blendify_mitsuba.layered` (a Dr.Jit BSDF) with the weight
+tables computed here (:attr:`Lobe.jit`, :func:`layered_bsdf`, :func:`glass_layered`). ``scalar_rgb`` would call
+a Python BSDF once per sample (22-39x slower, measured), and exported scene files need plain plugins, so there
+the model is mapped onto built-in plugins whose sum Mitsuba renders natively:
 
 - every GGX lobe of Cycles (dielectric specular, metal, coat) becomes a ``roughconductor`` whose complex
   IOR (per channel) is fitted to the lobe's Fresnel curve (real dielectric Fresnel, Blender's tint remapping,
