@@ -226,6 +226,25 @@ def test_lights_in_frame_are_hidden_by_the_no_shadow_integrator_too(scalar_backe
     assert np.all(t.rgba == 0.0)  # nothing but the world: transparent and black
 
 
+def test_sphere_light_over_a_floor_in_a_scene_with_emission(scalar_backend):
+    """With emissive materials (emitters stay visible, the lights' directly seen emission is subtracted) the
+    floor seen through a point light's sphere on an opaque film is lit as by the point light. Inside the
+    outline only: at the outline the subtraction leaves about one sample of the sphere's radiance per pixel
+    (the 4x4 block with the outline measured 1.09)."""
+    scene = testing.plane_scene("point", resolution=(16, 16))
+    delta = _render(scalar_backend, scene, samples=4, transparent_background=False).rgba
+    scene.lights["Point_000"].shadow_soft_size = 0.3
+    glow = DiffuseMaterial(emission_color=(1.0, 1.0, 1.0, 1.0), emission_strength=2.0)
+    scene.renderables.add_plane_mesh(0.25, glow, UniformColors((0.5,) * 3), translation=(0.8, 0.8, 1e-3), tag="glow")
+    r = _render(scalar_backend, scene, samples=64, transparent_background=False)
+    assert r.meta["lights_removed"]
+    behind = slice(7, 9)  # inside the sphere's outline: the floor below the light, seen through it
+    ratio = r.rgba[behind, behind, 0].sum() / delta[behind, behind, 0].sum()
+    print(f"floor behind the sphere / point light = {ratio:.5f}")
+    assert abs(ratio - 1) < 0.01
+    assert r.rgba[1, 14, 0] > 2.0  # the glowing quad is seen
+
+
 def test_background_light_units(scalar_backend):
     scene = testing.plane_scene("background", resolution=(16, 16))
     r = _render(scalar_backend, scene, samples=64)
