@@ -222,6 +222,8 @@ class MitsubaContext(TranslationContext):
     null_light_surfaces: int = 0
     #: some light is a shape the camera could meet (point-light sphere, area light, sun disk)
     light_shapes: bool = False
+    #: ids of light-shape dictionaries no camera ray can reach (a sun's disk beyond the far clip)
+    unreachable_lights: set[int] = field(default_factory=set)
     #: the distinct layered BSDFs (their specs) this scene has (see LAYERED_MAX_DISTINCT)
     layered_specs: set[str] = field(default_factory=set)
     bounds: Any = None  # the scene bounds (for point lights with a radius)
@@ -727,7 +729,15 @@ class MitsubaTranslator(Translator):
         # lights are not seen by camera rays (as in Cycles): hide_emitters hides them, else the render removes
         # the emission of these shapes where camera rays meet them first
         hidden = integrator["hide_emitters"]
-        light_shapes = [] if hidden else [k for k, e in emitters.items() if k.startswith("light") and "emitter" in e]
+        light_shapes = (
+            []
+            if hidden
+            else [
+                k
+                for k, e in emitters.items()
+                if k.startswith("light") and "emitter" in e and id(e) not in ctx.unreachable_lights
+            ]
+        )
         sky = {k: v for k, v in d.items() if k in ("environment", "background")}
 
         coverage_dict = background_dict = None
@@ -809,7 +819,9 @@ class MitsubaTranslator(Translator):
             if emitter is not None:
                 key = f"light{i:04d}"
                 out[key] = emitter
-                ctx.light_shapes = ctx.light_shapes or "emitter" in emitter
+                ctx.light_shapes = ctx.light_shapes or (
+                    "emitter" in emitter and id(emitter) not in ctx.unreachable_lights
+                )
                 if not light.use_shadow:  # the integrator finds the emitter by its id
                     if "emitter" in emitter:  # a shape's area emitter
                         emitter["emitter"]["id"] = key = f"{key}_emitter"
@@ -1416,8 +1428,9 @@ class MitsubaTranslator(Translator):
         :data:`SUN_DISK_DISTANCE` times the radius of the scene (renderables and camera) away, at most
         :data:`SUN_DISK_MAX_DISTANCE` m (Mitsuba's float32 emitter sampling lost 0.6 % of the light at 3e6 m,
         none at 3e5 m): its direction varies by at most 1e-4 rad across the scene (1e-3 rad for radii up to
-        200 m), its irradiance by 2e-4. Like the area lights, the disk is a null surface: camera rays do not
-        see it (as Cycles' sun), reflections do. None: keep the delta sun (no angular
+        200 m), its irradiance by 2e-4. Camera rays do not see it (as Cycles' sun), reflections do: beyond the
+        camera's far clip it is out of their reach (recorded in ``ctx.unreachable_lights``, so it needs no
+        hiding), nearer it is a light shape hidden like the others. None: keep the delta sun (no angular
         diameter, no renderables, or a scene so large that the disk would come nearer than
         :data:`SUN_DISK_MIN_DISTANCE` radii: listed in meta)."""
         half = 0.5 * float(light.angular_diameter)
@@ -1446,12 +1459,16 @@ class MitsubaTranslator(Translator):
         m[:3, 0], m[:3, 1], m[:3, 2] = x * r, y * r, d  # the disk's normal (+z: its emitting side) along d
         m[:3, 3] = centre - dist * d
         radiance = light.linear_color * (light.strength / (math.pi * math.sin(half) ** 2))
-        return {
+        disk = {
             "type": "disk",
             "to_world": _mat(m),
             "bsdf": {"type": "null"},
             "emitter": {"type": "area", "radiance": _rgb(radiance)},
         }
+        # beyond the far clip (planar: a ray up to 84 deg off the axis reaches 10x it), camera rays never meet it
+        if camera is None or 10.0 * camera.far < dist - radius:
+            ctx.unreachable_lights.add(id(disk))
+        return disk
 
     @handles(
         SpotLight,

@@ -87,3 +87,17 @@ def test_large_scene_keeps_the_delta_sun_and_says_so(mi_scalar):
     tr = MitsubaTranslator(resolve_settings(samples=4)).translate(_plane_under_sun(np.deg2rad(1.0), size=size))
     assert tr.scene_dict["light0000"]["type"] == "directional"
     assert any("light.sun.soft" in a and "delta" in a for a in tr.approximations)
+
+
+def test_sun_disk_beyond_the_far_clip_needs_no_hiding(mi_scalar):
+    """An opaque film with a sky: a sun's disk out of camera rays' reach is not a light shape to hide (no
+    hide_emitters, no extra sky pass); with a far clip that reaches it, it is hidden like the other lights."""
+    scene = _plane_under_sun(np.deg2rad(2.0))
+    scene.lights.set_background_light(0.5, (0.3, 0.4, 0.6))
+    settings = resolve_settings(samples=4, transparent_background=False)
+    tr = MitsubaTranslator(settings).translate(scene)
+    assert tr.scene_dict["light0000"]["type"] == "disk"
+    assert tr.integrator["hide_emitters"] is False and tr.background_dict is None
+    scene.camera.far = 1e6
+    tr = MitsubaTranslator(settings).translate(scene)
+    assert tr.integrator["hide_emitters"] is True and tr.background_dict is not None
