@@ -278,6 +278,8 @@ _PATCHES = (
     ),
 )
 #: soft shadows (shaders/blendify_shadow.glsl): the shadow look-ups of suns and spot/area lights take the light's size
+#: in the BLENDIFY_SOFT variant of mesh.frag, used only for frames with a soft light (its code alone, even when
+#: skipped, costs llvmpipe about 30 % of the colour pass)
 _SUN_SHADOW = """        float shadow = shadow_calc(
             directional_lights[i].light_matrix,
             directional_lights[i].shadow_map,
@@ -292,14 +294,20 @@ _SOFT_PATCHES = (
     (
         "mesh.frag",
         _SUN_SHADOW,
+        "#ifdef BLENDIFY_SOFT\n"
         """        float shadow = bf_soft_shadow(
-            directional_lights[i].light_matrix, directional_lights[i].shadow_map, nl, bf_dir_soft[i], false, n);""",
+            directional_lights[i].light_matrix, directional_lights[i].shadow_map, nl, bf_dir_soft[i], false, n);
+#else
+""" + _SUN_SHADOW + "\n#endif",
     ),
     (
         "mesh.frag",
         _SPOT_SHADOW,
+        "#ifdef BLENDIFY_SOFT\n"
         """        float shadow = bf_soft_shadow(
-            spot_lights[i].light_matrix, spot_lights[i].shadow_map, nl, bf_spot_soft[i], true, n);""",
+            spot_lights[i].light_matrix, spot_lights[i].shadow_map, nl, bf_spot_soft[i], true, n);
+#else
+""" + _SPOT_SHADOW + "\n#endif",
     ),
 )
 _patched_dir: str | None = None
@@ -359,15 +367,19 @@ def is_sprite(primitive: Any) -> bool:
 
 
 class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore[misc]
-    """pyrender's program cache adding the BLENDIFY_SPRITE define to mesh.vert/mesh.frag while ``sprite``."""
+    """pyrender's program cache adding the BLENDIFY_SPRITE define to mesh.vert/mesh.frag while ``sprite`` and
+    BLENDIFY_SOFT while ``soft`` (the frame has a light with soft shadows)."""
 
     sprite = False
+    soft = False
 
     def get_program(
         self, vertex_shader: str, fragment_shader: str, geometry_shader: Any = None, defines: Any = None
     ) -> Any:
         if self.sprite and vertex_shader == "mesh.vert":
             defines = {**(defines or {}), "BLENDIFY_SPRITE": 1}
+        if self.soft and vertex_shader == "mesh.vert":
+            defines = {**(defines or {}), "BLENDIFY_SOFT": 1}
         return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
 
 
@@ -1019,6 +1031,9 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
     renderer, scene = engine.renderer, engine.pscene
     renderer.no_shadow_nodes = {e.node for e in frame.entries if not e.casts_shadow}
     renderer.no_shadow_lights = {node for node, _, casts in frame.light_nodes if not casts}
+    renderer._program_cache.soft = any(
+        casts and float(getattr(node.light, "blendify_soft", 0.0)) > 0.0 for node, _, casts in frame.light_nodes
+    )
     point_px, point_notes = _point_pixels(scene, frame)
     counts = tuple(
         len(p.indices) for n in frame.nodes if n is not None for p in n.mesh.primitives if hasattr(p, "point_diameter")

@@ -77,6 +77,10 @@ __all__ = [
 #: pyrender's diffuse term is (1 - F) * base * (1 - 0.04) / pi: divide dielectric base colours by this
 DIFFUSE_COMPENSATION = 0.96
 #: area lights become spot lights with these cones (outer < 84.4 deg keeps the spot shadow camera finite)
+#: suns narrower than this keep hard shadows (their penumbra is under ~2 shadow-map texels for blockers within a
+#: quarter of the scene's size; Blender's default sun, 0.526 degrees, among them): the soft-shadow variant of the
+#: shader costs llvmpipe about 30 % of the colour pass
+SUN_SOFT_MIN = float(np.deg2rad(1.0))
 AREA_INNER_CONE = np.deg2rad(25.0)
 AREA_OUTER_CONE = np.deg2rad(80.0)
 
@@ -949,7 +953,7 @@ class PyrenderTranslator(Translator):
             "light.sun": exact("irradiance exact; shadows shadow-mapped (2048^2 over the scene bounds, PCF)"),
             "light.sun.soft": approximate(
                 "soft shadows of that angular size from the one shadow map (percentage-closer soft shadows: "
-                "penumbra from the mean blocker depth)"
+                "penumbra from the mean blocker depth); suns under 1 degree keep hard shadows"
             ),
         },
     )
@@ -957,7 +961,9 @@ class PyrenderTranslator(Translator):
         if light.strength <= 0:
             return None
         pl = _pyrender().DirectionalLight(color=_light_color(light), intensity=float(light.strength))
-        pl.blendify_soft = float(np.tan(0.5 * light.angular_diameter))  # soft shadows (render.py)
+        # soft shadows (render.py) for suns of at least SUN_SOFT_MIN: smaller ones keep pyrender's hard 3x3 PCF
+        soft = light.angular_diameter >= SUN_SOFT_MIN
+        pl.blendify_soft = float(np.tan(0.5 * light.angular_diameter)) if soft else 0.0
         return LightBuild(pl, light.matrix_world, casts=bool(light.use_shadow))
 
     @handles(

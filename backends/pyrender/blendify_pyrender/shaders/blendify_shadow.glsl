@@ -5,7 +5,9 @@
 // width. Every look-up compares against the receiver's tangent plane at the looked-up texel (receiver-plane
 // depth bias: no self-shadowing over the wide regions). bf_spot_soft[i] = (emitter radius m, near, far,
 // tan(half fov)) of a spot/area light's perspective map; bf_dir_soft[i] = (tan(half angular diameter), near,
-// far, half width) of a sun's orthographic map. A size of 0: pyrender's 3x3 PCF (hard shadows).
+// far, half width) of a sun's orthographic map. A size of 0: pyrender's 3x3 PCF (hard shadows). Compiled only in
+// the BLENDIFY_SOFT variant (frames with a soft light).
+#ifdef BLENDIFY_SOFT
 uniform vec4 bf_spot_soft[MAX_SPOT_LIGHTS];
 uniform vec4 bf_dir_soft[MAX_DIRECTIONAL_LIGHTS];
 const int BF_BLOCKER_K = 4;
@@ -107,4 +109,4 @@ float bf_soft_shadow(mat4 light_matrix, sampler2D shadow_map, float nl, vec4 s, 
     }
     return shadow / float(BF_FILTER_K * BF_FILTER_K);
 }
-
+#endif
