@@ -250,9 +250,12 @@ def measure_scene(
     sweep: tuple[int, ...],
     sweep_defaults: tuple[int, ...],
     flip: bool = False,
+    configs: list[str] | None = None,
 ) -> dict[str, Any]:
-    """Every configuration on one scene: the references, the sweeps, the presets and the target renders."""
-    for b in ("cycles", "mitsuba", "pyrender"):  # warm-up (engine import, first-frame setup)
+    """Every configuration on one scene (or only ``configs``): the references, the sweeps, the presets and the
+    target renders."""
+    names = [c for c in _config_order(flip) if configs is None or c in configs]
+    for b in dict.fromkeys(CONFIGS[c][0] for c in names):  # warm-up (engine import, first-frame setup)
         bf.render(scene, backend=b, samples=1, threads=THREADS)
     ref_spp = 2 * round(ref_spp * REF_SPP_FACTOR.get(sname, 1.0) / 2)
     refs = {b: reference(scene, b, ref_spp) for b in ("cycles", "mitsuba")}
@@ -275,7 +278,7 @@ def measure_scene(
     )
     rows: list[dict[str, Any]] = []
     warmed: set[str] = set()
-    for cname in _config_order(flip):
+    for cname in names:
         backend, kw, ckind = CONFIGS[cname]
         if ckind == "target" and backend not in warmed:
             # one 16-spp pass with each setting first: Mitsuba's llvm variant compiles per setting and
@@ -354,6 +357,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ref-spp", type=int, default=256, help="samples of each reference (two halves)")
     ap.add_argument("--fresh", action="store_true", help="measure every scene again (references stay cached)")
     ap.add_argument(
+        "--configs",
+        nargs="*",
+        default=None,
+        help="re-measure only these configurations on every (cached) scene, keeping the other rows",
+    )
+    ap.add_argument(
         "--only", nargs="*", default=None, help="scene names to measure (default: all; others come from the cache)"
     )
     args = ap.parse_args(argv)
@@ -368,6 +377,16 @@ def main(argv: list[str] | None = None) -> int:
         if args.only and sname not in args.only:
             if done.is_file():  # measured before: kept in the results
                 per_scene[sname] = json.loads(done.read_text())
+            continue
+        if done.is_file() and args.configs:
+            per_scene[sname] = json.loads(done.read_text())
+            new = measure_scene(sname, scene, kind, ref_spp, sweep, sweep_defaults, configs=args.configs)
+            kept = [r for r in per_scene[sname]["rows"] if r["config"] not in args.configs]
+            per_scene[sname]["rows"] = kept + new["rows"]
+            per_scene[sname].setdefault("remeasured", {}).update(
+                {c: {"load_average": new["reference"]["load_average"]} for c in args.configs}
+            )
+            done.write_text(json.dumps(per_scene[sname], indent=1, default=float))
             continue
         if done.is_file() and not args.fresh:
             per_scene[sname] = json.loads(done.read_text())
@@ -397,6 +416,7 @@ def main(argv: list[str] | None = None) -> int:
         "target_time_limit_glass": TARGET_TIME_LIMIT_GLASS,
         "references": {k: v["reference"] for k, v in per_scene.items()},
         "scene_seconds": {k: v.get("seconds") for k, v in per_scene.items()},
+        "remeasured": {k: v["remeasured"] for k, v in per_scene.items() if v.get("remeasured")},
         "rows": rows,
         "summary": summarise(rows),
         "total_seconds": time.perf_counter() - t_run,
@@ -624,6 +644,14 @@ def markdown(out: dict[str, Any], before: dict[str, Any] | None = None) -> str:
         old = (before or {}).get("summary", {}).get(s, {}).get("preview_ssim")
         olds = " / ".join(f"{v:.3f}" for v in old.values()) if old else "n/a"
         lines.append(f"| {s} | " + " | ".join(f"{v:.3f}" for v in sm["preview_ssim"].values()) + f" | {olds} |")
+    again = sorted({c for v in out.get("remeasured", {}).values() for c in v})
+    if again:
+        loads = [x["load_average"][0] for v in out["remeasured"].values() for x in v.values()]
+        lines += [
+            "",
+            f"Re-measured later against the same cached references (`--configs`): {', '.join(again)} "
+            f"(load average {min(loads):.1f}-{max(loads):.1f}).",
+        ]
     lines += [
         "",
         "## Every measurement",
