@@ -40,6 +40,8 @@ PROBE_OCCLUSION = 0.5
 #: objects thinner than this fraction of the scene's diagonal along some axis are "flat" (walls, floors): the
 #: probe's point is chosen among the others
 FLAT_FRACTION = 0.01
+#: rows of the probe's equirectangular map that metals reflect (shaders/blendify_env.glsl)
+MAP_HEIGHT = 32
 #: the cosine lobe's band factors A_l / pi (shaders/blendify_env.glsl, translate._SH_BAND_FACTOR)
 _BAND = np.array([1.0, 2 / 3, 2 / 3, 2 / 3, 0.25, 0.25, 0.25, 0.25, 0.25])
 #: camera-to-world rotations of the six faces: columns (right, up, backward); OpenGL cameras look along -Z
@@ -70,6 +72,28 @@ def cube_directions(n: int) -> tuple[list[np.ndarray], np.ndarray]:
         d = x[:, None] * rot[:, 0] + y[:, None] * rot[:, 1] - rot[:, 2]
         dirs.append(d / np.sqrt(r2)[:, None])
     return dirs, d_omega
+
+
+def equirect_from_cube(faces: list[np.ndarray], n: int, height: int) -> np.ndarray:
+    """(height, 2 height, 3) equirectangular map (row 0 = +Z, polar angle (i + 0.5) / height x pi; column j =
+    azimuth (j + 0.5) / width x 2 pi - pi from +X toward +Y) of the six faces' (n*n, 3) radiances (nearest texel)."""
+    width = 2 * height
+    theta = (np.arange(height) + 0.5) / height * np.pi
+    phi = (np.arange(width) + 0.5) / width * 2.0 * np.pi - np.pi
+    theta, phi = np.meshgrid(theta, phi, indexing="ij")
+    d = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1).reshape(-1, 3)
+    out = np.zeros((d.shape[0], 3))
+    fwd = np.stack([-rot[:, 2] for rot in _FACES])  # (6, 3)
+    face = np.argmax(d @ fwd.T, axis=1)
+    for k, rot in enumerate(_FACES):
+        m = face == k
+        dk = d[m]
+        z = dk @ -rot[:, 2]
+        x, y = (dk @ rot[:, 0]) / z, (dk @ rot[:, 1]) / z
+        col = np.clip(((x + 1.0) * 0.5 * n).astype(np.int64), 0, n - 1)
+        row = np.clip(((1.0 - y) * 0.5 * n).astype(np.int64), 0, n - 1)
+        out[m] = faces[k][row * n + col]
+    return out.reshape(height, width, 3)
 
 
 def world_radiance(sh: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -114,7 +138,11 @@ def probe_sh(engine: Engine, frame: Frame, flags: int, render_rgba: Any) -> tupl
     diagonal = float(scene.scale) if nodes else 1.0
     point, hidden = probe_point([(n, *_node_box(scene, n)) for n in nodes], diagonal)
     world = np.asarray(r.env_sh, dtype=np.float64).copy()
+    for n in nodes:  # metals reflect the probe's view only when it was rendered from inside them
+        for prim in n.mesh.primitives:
+            prim.blendify_probe_inside = n in hidden
     if len(hidden) == len(nodes):  # nothing left to see: the world's light
+        r.set_probe_map(None)
         return world, ""
     cam_node = scene.main_camera_node
     cam = cam_node.camera
@@ -134,25 +162,33 @@ def probe_sh(engine: Engine, frame: Frame, flags: int, render_rgba: Any) -> tupl
     r.emission_scale = 0.0
     cam.projection, cam.znear, cam.zfar = proj, near, far
     sh = world
+    # what the metals' map shows where the probe sees nothing: the environment map itself when there is one
+    sky = [frame.sky(d) if frame.sky is not None else bg for d, bg in zip(dirs, background)]
+    seen = list(sky)
+    r.probe_scale = 0.0  # the probe does not see its own (stale) map
     try:
         for _ in range(PROBE_BOUNCES):
             r.env_sh = r.spec_sh = sh.astype(np.float32)
             acc = np.zeros((9, 3))
-            for rot, b, bg in zip(_FACES, basis, background):
+            seen = []
+            for rot, b, bg, sky_k in zip(_FACES, basis, background, sky):
                 pose = np.eye(4)
                 pose[:3, :3], pose[:3, 3] = rot, point
                 scene.set_pose(cam_node, pose)
                 rgba = render_rgba(PROBE_SIZE, PROBE_SIZE).reshape(-1, 4).astype(np.float64)
-                radiance = rgba[:, :3] + (1.0 - PROBE_OCCLUSION * rgba[:, 3:4]) * bg
-                acc += b.T @ radiance
+                acc += b.T @ (rgba[:, :3] + (1.0 - PROBE_OCCLUSION * rgba[:, 3:4]) * bg)
+                seen.append(rgba[:, :3] + (1.0 - rgba[:, 3:4]) * sky_k)
             sh = acc * _BAND[:, None]
     finally:
         for n in hidden:
             n.mesh.is_visible = True
-        r.shadow_key, r.emission_scale = key, emission
+        r.shadow_key, r.emission_scale, r.probe_scale = key, emission, 1.0
         r.env_sh = r.spec_sh = world.astype(np.float32)
         cam.projection, cam.znear, cam.zfar = saved[0], saved[1], saved[2]
         scene.set_pose(cam_node, saved[3])
+    # the map metals reflect: only for metals the probe was rendered inside (their surroundings)
+    metals = any(getattr(prim.material, "metallicFactor", 0.0) > 0.0 for n in hidden for prim in n.mesh.primitives)
+    r.set_probe_map(equirect_from_cube(seen, PROBE_SIZE, MAP_HEIGHT) if metals else None)
     where = ", ".join(f"{v:.3g}" for v in point)
     note = (
         f"indirect light: one light probe at ({where}) ({PROBE_BOUNCES} bounces, a cube of 6 x {PROBE_SIZE}^2 "

@@ -367,11 +367,13 @@ def is_sprite(primitive: Any) -> bool:
 
 
 class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore[misc]
-    """pyrender's program cache adding the BLENDIFY_SPRITE define to mesh.vert/mesh.frag while ``sprite`` and
-    BLENDIFY_SOFT while ``soft`` (the frame has a light with soft shadows)."""
+    """pyrender's program cache adding the BLENDIFY_SPRITE define to mesh.vert/mesh.frag while ``sprite``,
+    BLENDIFY_SOFT while ``soft`` (the frame has a light with soft shadows) and BLENDIFY_PROBE_MAP while
+    ``probe_map`` (metals reflect the probe's map). Unused code still costs llvmpipe: each is a variant."""
 
     sprite = False
     soft = False
+    probe_map = False
 
     def get_program(
         self, vertex_shader: str, fragment_shader: str, geometry_shader: Any = None, defines: Any = None
@@ -380,6 +382,8 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
             defines = {**(defines or {}), "BLENDIFY_SPRITE": 1}
         if self.soft and vertex_shader == "mesh.vert":
             defines = {**(defines or {}), "BLENDIFY_SOFT": 1}
+        if self.probe_map and vertex_shader == "mesh.vert":
+            defines = {**(defines or {}), "BLENDIFY_PROBE_MAP": 1}
         return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
 
 
@@ -502,6 +506,11 @@ class FrameRenderer(pyrender.Renderer):
         self.spec_sh = np.zeros((9, 3), dtype=np.float32)
         #: emission scale (0 while the indirect-light probe is rendered)
         self.emission_scale = 1.0
+        #: what the indirect-light probe sees, as an equirectangular texture metals reflect (probe.py), its
+        #: radiance scale (the 8-bit texture holds radiance / scale) and whether it is used (0 while the probe renders)
+        self.probe_texture: Any = None
+        self.probe_map_scale = 0.0
+        self.probe_scale = 1.0
         #: the indirect-light probe of the last frame: (key, coefficients, note) (probe.py)
         self.probe_cache: tuple[Any, np.ndarray, str] | None = None
 
@@ -638,13 +647,35 @@ class FrameRenderer(pyrender.Renderer):
             _set_optional(program, f"bf_area_v[{k}]", v)
             _set_optional(program, f"bf_spot_soft[{k}]", _soft_params(n.light, scene.scale))
             k += 1
+        if self.probe_texture is not None and self.probe_scale > 0.0:  # the BLENDIFY_PROBE_MAP variant
+            self._bind_texture(self.probe_texture, "bf_probe_map", program)
+            program.set_uniform("bf_probe_scale", float(self.probe_map_scale))
         for i in range(9):  # the world's light (shaders/blendify_env.glsl)
             program.set_uniform(f"bf_env_sh[{i}]", self.env_sh[i])
             program.set_uniform(f"bf_spec_sh[{i}]", self.spec_sh[i])
 
+    def set_probe_map(self, radiance: np.ndarray | None) -> None:
+        """Upload what the indirect-light probe sees ((H, 2H, 3) linear radiance; None: no map)."""
+        if self.probe_texture is not None:
+            self.probe_texture.delete()
+            self.probe_texture = None
+        self.probe_map_scale = 0.0
+        if radiance is None:
+            return
+        scale = max(float(radiance.max(initial=0.0)), 1e-6)
+        # 8 bits, gamma 2.2 (as pyrender's colour): radiance = scale x value^2.2
+        u8 = np.round(np.clip(radiance / scale, 0.0, 1.0) ** (1.0 / _GAMMA) * 255.0).astype(np.uint8)
+        sampler = pyrender.Sampler(
+            magFilter=GLTF.LINEAR, minFilter=GLTF.LINEAR_MIPMAP_LINEAR, wrapS=GLTF.REPEAT, wrapT=GLTF.CLAMP_TO_EDGE
+        )
+        self.probe_texture = pyrender.Texture(source=u8, source_channels="RGB", sampler=sampler)
+        self.probe_texture._add_to_context()
+        self.probe_map_scale = scale
+
     # -- sphere impostors -------------------------------------------------------------------------
     def _get_primitive_program(self, primitive: Any, flags: int, program_flags: int) -> Any:
         self._program_cache.sprite = is_sprite(primitive)
+        self._program_cache.probe_map = self.probe_texture is not None and self.probe_scale > 0.0
         try:
             return super()._get_primitive_program(primitive, flags, program_flags)
         finally:
@@ -657,6 +688,7 @@ class FrameRenderer(pyrender.Renderer):
             glass[3] = 1.0 if _is_solid(primitive) else 0.0
         program.set_uniform("bf_glass", _NO_GLASS if glass is None else glass)
         program.set_uniform("bf_emission", float(self.emission_scale))
+        program.set_uniform("bf_probe_inside", 1.0 if getattr(primitive, "blendify_probe_inside", False) else 0.0)
         if is_sprite(primitive):
             program.set_uniform("sprite_viewport", float(self.viewport_width))
             program.set_uniform("sprite_diameter_scale", float(getattr(primitive, "sprite_scale", 1.0)))
@@ -1063,6 +1095,7 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
         if "rgb" in want:
             world_sh = renderer.env_sh
             renderer.spec_sh = world_sh
+            renderer.probe_scale = 1.0 if PROBE else 0.0
             if PROBE:
                 t0 = time.perf_counter()
                 renderer.env_sh, note = _indirect_probe(engine, frame, flags)

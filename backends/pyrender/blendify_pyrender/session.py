@@ -33,6 +33,7 @@ from .translate import (
     emitter_lights,
     environment_background,
     environment_light,
+    environment_radiance,
     environment_sun,
     uniform_sh,
 )
@@ -65,6 +66,8 @@ class Frame:
     ambient: np.ndarray
     #: the film's background on an opaque film (computed on demand): the environment map through each pixel
     background: Callable[[], np.ndarray] | None = None
+    #: the world's radiance in given directions ((N, 3) -> (N, 3)), the map's sun left out (None: uniform / SH)
+    sky: Callable[[np.ndarray], np.ndarray] | None = None
     notes: list[str] = field(default_factory=list)
     ignored: list[str] = field(default_factory=list)
     sync_seconds: float = 0.0
@@ -101,6 +104,7 @@ class Engine:
         self._emitter_notes: list[str] = []
         self._world_light_nodes: list[tuple[Any, Any, bool]] = []  # the environment map's sun
         self._world_notes: list[str] = []
+        self._sun_luminance = float("inf")  # the environment map's sun pixels (translate.EnvironmentLight)
         self.msaa_supported = self.renderer.max_samples >= 2
         ref = weakref.ref(self)
 
@@ -177,6 +181,7 @@ class Engine:
             light_nodes=self._light_nodes + self._world_light_nodes,
             ambient=self._ambient,
             background=self._background(scene),
+            sky=self._sky(scene),
             notes=sorted(set(notes + ctx.approximations + self._emitter_notes + self._world_notes)),
             ignored=list(ctx.ignored),
             sync_seconds=time.perf_counter() - t0,
@@ -235,6 +240,7 @@ class Engine:
                 total += mean
                 if isinstance(world, EnvironmentMap) and world.strength > 0:
                     env = environment_light(world)
+                    self._sun_luminance = env.sun_luminance
                     sh += env.sh
                     sun = environment_sun(env)
                     if sun is not None:  # the map's sun as a shadowing directional light
@@ -251,6 +257,15 @@ class Engine:
         self._ambient = total
         # pyrender's ambient term has no 0.96 factor: scale it so base/0.96 x ambient = albedo x radiance
         self.pscene.ambient_light = total * DIFFUSE_COMPENSATION
+
+    def _sky(self, scene: Any) -> Callable[[np.ndarray], np.ndarray] | None:
+        env = scene.lights.environment
+        if env is None or env.strength <= 0:
+            return None
+        bg = scene.lights.background
+        uniform = bg.radiance if bg is not None and bg.strength > 0 else np.zeros(3)
+        sun = self._sun_luminance
+        return lambda dirs: environment_radiance(env, dirs, uniform, sun)
 
     def _background(self, scene: Any) -> Callable[[], np.ndarray] | None:
         env = scene.lights.environment

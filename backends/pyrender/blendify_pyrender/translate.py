@@ -66,6 +66,7 @@ __all__ = [
     "environment_light",
     "environment_sun",
     "environment_background",
+    "environment_radiance",
     "EnvironmentLight",
     "uniform_sh",
     "sh_basis",
@@ -364,6 +365,8 @@ class EnvironmentLight:
     sun_irradiance: np.ndarray | None = None
     #: the sun pixels' solid angle (sr): its angular size (soft shadows)
     sun_solid_angle: float = 0.0
+    #: luminance (times the strength) above which a pixel belongs to the sun (inf: no sun)
+    sun_luminance: float = float("inf")
 
 
 def environment_light(env: EnvironmentMap, max_rows: int = 64) -> EnvironmentLight:
@@ -392,6 +395,7 @@ def environment_light(env: EnvironmentMap, max_rows: int = 64) -> EnvironmentLig
             out.sun_direction = direction / np.linalg.norm(direction)
             out.sun_irradiance = e
             out.sun_solid_angle = float(d_omega[peak].sum())
+            out.sun_luminance = float(SUN_PEAK_FRACTION * lum.max())
             img = img.copy()
             img[peak] = 0.0
     out.sh = (sh_basis(d) * d_omega[:, None]).T @ img * _SH_BAND_FACTOR[:, None]
@@ -402,11 +406,22 @@ def environment_background(env: EnvironmentMap, camera: Any, uniform: np.ndarray
     """(H, W, 3) float32 film background: the map seen through each pixel centre of ``camera`` (bilinear
     between texel centres as Cycles' "Linear" environment texture, wrapping around in u; times its strength)
     plus a ``uniform`` radiance (the background light)."""
+    _, dirs = camera.pixel_rays()
+    bg = environment_radiance(env, dirs, uniform)
+    return bg.reshape(camera.height, camera.width, 3).astype(np.float32)
+
+
+def environment_radiance(
+    env: EnvironmentMap, dirs: np.ndarray, uniform: np.ndarray, sun_luminance: float = float("inf")
+) -> np.ndarray:
+    """(N, 3) radiance of the map (bilinear, times its strength) in world directions ``dirs`` (N, 3), plus a
+    ``uniform`` radiance; texels brighter than ``sun_luminance`` (the map's sun, drawn as a light) count as 0."""
     from blendify_core.ir.lights import equirect_uv
 
-    _, dirs = camera.pixel_rays()
     uv = equirect_uv(dirs @ env.rotation_matrix)  # the map's frame: R^-1 d
-    img = env.linear_rgb_image().astype(np.float64)
+    img = env.linear_rgb_image().astype(np.float64) * float(env.strength)
+    if np.isfinite(sun_luminance):
+        img = np.where((img @ np.array([0.2126, 0.7152, 0.0722]) > sun_luminance)[..., None], 0.0, img)
     h, w = img.shape[:2]
     y = np.clip((1.0 - uv[:, 1]) * h - 0.5, 0.0, h - 1.0)
     x = uv[:, 0] * w - 0.5
@@ -417,8 +432,7 @@ def environment_background(env: EnvironmentMap, camera: Any, uniform: np.ndarray
     top = img[y0, x0] * (1.0 - fx) + img[y0, x1] * fx
     bottom = img[y1, x0] * (1.0 - fx) + img[y1, x1] * fx
     texel = top * (1.0 - fy) + bottom * fy
-    bg = texel * float(env.strength) + np.asarray(uniform, dtype=np.float64)
-    return bg.reshape(camera.height, camera.width, 3).astype(np.float32)
+    return np.asarray(texel + np.asarray(uniform, dtype=np.float64))
 
 
 def environment_sun(light: EnvironmentLight) -> SunLight | None:
@@ -802,7 +816,11 @@ class PyrenderTranslator(Translator):
             "material.diffuse_only": approximate(
                 "pyrender keeps an F0 = 0.04 GGX lobe; base colour / 0.96 gives -0.8% mean vs Lambert (p95 1.5%)"
             ),
-            "material.metallic": approximate("GGX metal lit by the lights only (no reflections); highlights clip at 1"),
+            "material.metallic": approximate(
+                "GGX metal; reflects the world's light (9 SH coefficients) and, when the indirect-light probe is "
+                "rendered from inside the object, what the probe sees (a 32 x 64 equirectangular map, blurred "
+                "with roughness): the scene around it from its centre; highlights clip at 1"
+            ),
             "material.transmission": approximate(
                 "the transmitted share weight x (1 - F) (Schlick, F0 from the IOR): solid objects are opaque "
                 "and show the world's light (the indirect-light probe's) along the ray refracted in and out as "

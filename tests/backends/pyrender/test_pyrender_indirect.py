@@ -86,3 +86,44 @@ def test_emission_is_left_out_of_the_probe(pyr):
     finally:
         engine.renderer.emission_scale = 1.0
     assert dark < 0.01
+
+
+def test_cube_to_equirect_map():
+    from blendify_pyrender.probe import equirect_from_cube
+
+    n = 4
+    faces = [np.full((n * n, 3), float(k)) for k in range(6)]  # faces +X, -X, +Y, -Y, +Z, -Z
+    m = equirect_from_cube(faces, n, 8)  # (8, 16): row 0 at +Z, columns from azimuth -pi
+    assert m.shape == (8, 16, 3)
+    assert m[0, 0, 0] == 4 and m[-1, 0, 0] == 5  # the poles
+    row = 3  # near the horizon
+    azimuth = (np.arange(16) + 0.5) / 16 * 2 * np.pi - np.pi
+    col = {0.0: 0, np.pi / 2: 2, -np.pi / 2: 3}  # +X, +Y, -Y
+    for az, face in col.items():
+        assert m[row, int(np.argmin(np.abs(azimuth - az))), 0] == face
+    assert m[row, 0, 0] == 1  # azimuth -pi: -X
+
+
+def test_metal_reflects_the_scene_around_it(pyr):
+    """A mirror-like metal ball on a bright floor under a dark sky: its lower half reflects the floor (the probe,
+    rendered from inside the ball, sees it), its upper half the sky."""
+    scene = Scene()
+    scene.set_orthographic_camera(
+        (32, 32), ortho_scale=2.4, translation=(0, -5.0, 1.0), rotation=(0.7071068, 0.7071068, 0, 0)
+    )
+    scene.renderables.add_plane_mesh(20.0, DiffuseMaterial(), UniformColors((0.8, 0.8, 0.8), color_space="linear"))
+    scene.renderables.add_sphere_nurbs(
+        1.0,
+        PrincipledBSDFMaterial(metallic=1.0, roughness=0.1),
+        UniformColors((0.9, 0.9, 0.9)),
+        translation=(0, 0, 1.0),
+    )
+    scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(0, 0, 0))
+    scene.lights.set_background_light(0.05)
+    res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))
+    rows = np.nonzero((res.instance == 1).any(axis=1))[0]
+    top, bottom = rows.min(), rows.max()
+    upper = res.rgba[top + 3 : top + 8, 14:18, :3].mean()
+    lower = res.rgba[bottom - 7 : bottom - 2, 14:18, :3].mean()
+    print(f"upper {upper:.3f}, lower {lower:.3f}")
+    assert lower > 2.0 * upper  # the world alone (0.05 everywhere) would leave the lower half dark

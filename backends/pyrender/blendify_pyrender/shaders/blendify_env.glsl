@@ -4,6 +4,21 @@
 uniform vec3 bf_env_sh[9];
 // the world's light alone for the glossy term (bf_env_sh may hold the indirect-light probe's, probe.py)
 uniform vec3 bf_spec_sh[9];
+#ifdef BLENDIFY_PROBE_MAP
+// what the indirect-light probe sees (probe.py), equirectangular, 8-bit gamma 2.2 times bf_probe_scale (0: none):
+// metals reflect it (the scene around them) instead of the world's light
+uniform sampler2D bf_probe_map;
+uniform float bf_probe_scale;
+// 1 when the probe was rendered from inside this object (its view is the object's surroundings)
+uniform float bf_probe_inside;
+
+vec3 bf_probe_radiance(vec3 d, float roughness)
+{
+    vec2 uv = vec2(atan(d.y, d.x) / (2.0 * PI) + 0.5, 1.0 - acos(clamp(d.z, -1.0, 1.0)) / PI);
+    float lod = roughness * log2(float(textureSize(bf_probe_map, 0).y));
+    return pow(textureLod(bf_probe_map, uv, lod).rgb, vec3(2.2)) * bf_probe_scale;
+}
+#endif
 
 vec3 bf_sh_of(vec3 s[9], vec3 d, vec3 band)
 {
@@ -33,7 +48,13 @@ vec3 bf_environment(vec3 n, vec3 v, float roughness, float metallic, vec3 f0, ve
         vec4 rc = roughness * vec4(-1.0, -0.0275, -0.572, 0.022) + vec4(1.0, 0.0425, 1.04, -0.04);
         float a004 = min(rc.x * rc.x, exp2(-9.28 * nv)) * rc.x + rc.y;
         vec2 ab = vec2(-1.04, 1.04) * a004 + rc.zw;
-        light += bf_sh_of(bf_spec_sh, r, band) * (f0 * ab.x + ab.y);
+        vec3 reflected = bf_sh_of(bf_spec_sh, r, band);
+#ifdef BLENDIFY_PROBE_MAP
+        if (metallic > 0.0 && bf_probe_inside > 0.5) {
+            reflected = mix(reflected, bf_probe_radiance(r, roughness), metallic);
+        }
+#endif
+        light += reflected * (f0 * ab.x + ab.y);
     }
     return light;
 }
