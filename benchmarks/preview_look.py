@@ -60,12 +60,13 @@ NOTES = [
     "smooth); drawing more of them raises it (0.57 at 0.4 px, 0.61 at 0.25 px) at 2-7x the time. The remaining "
     "gaps are indirect light (Cornell box, emitter, spheres on a lit floor: no bounce light or ambient "
     "occlusion in the preview), refraction (glass) and mirror reflections of the scene (metal).",
-    "'round2' = soft shadows (percentage-closer, from each light's size), indirect light from one light probe "
-    "(a 6 x 16^2 cube rendered by the preview, 9 SH coefficients for the diffuse term), solid glass refracting "
-    "the probe's light as through a sphere, the environment map bilinear behind the objects. Left: the tiny-point "
-    "cloud (speckle, unchanged), Cornell box (one probe for the whole room: the boxes' fronts too bright, no "
-    "contact shadows), metal sphere (reflects the world's light, not the floor), glass (the ball's shadowed floor "
-    "seen through it is lighter in the probe's blurred view), point cloud (per-point differences of 1-px spheres).",
+    "'round2' = soft shadows (percentage-closer, from each light's size; suns under 1 degree stay hard), indirect "
+    "light from one light probe (a 6 x 16^2 cube rendered by the preview, 9 SH coefficients for the diffuse "
+    "term), solid glass refracting the probe's light as through a sphere, a metal the probe is inside reflecting "
+    "its view, the environment map bilinear behind the objects. Left: the tiny-point cloud (speckle, unchanged), "
+    "Cornell box (one probe for the whole room: the boxes' fronts too bright, no contact shadows), glass (the "
+    "ball's shadowed floor seen through it is lighter in the probe's blurred view; no caustic), point cloud "
+    "(per-point differences of 1-px spheres).",
 ]
 
 
