@@ -167,13 +167,15 @@ def estimate_cost(
     passes, samples, reached = predict_schedule(pilot_error, pilot_n, target, base)
     seconds = seconds_for(pilot_error)
     hi_err = hi_err if np.isfinite(hi_err) else pilot_error * 2
+    # the seconds are not monotonic in the error (whole passes: a larger error can mean fewer, larger passes)
+    bounds = (seconds_for(lo_err), seconds, seconds_for(hi_err))
     return CostEstimate(
         backend=name,
         target_error=target,
         samples=samples,
         passes=passes,
         seconds=seconds,
-        seconds_range=(seconds_for(lo_err), seconds_for(hi_err)),
+        seconds_range=(min(bounds), max(bounds)),
         pilot_samples=pilot_n,
         pilot_seconds=time.perf_counter() - t_start,
         pilot_error=pilot_error,

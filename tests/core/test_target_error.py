@@ -77,6 +77,28 @@ def test_estimator_weighting_matches_equal_split():
     assert equal > 0
 
 
+def test_estimate_is_not_lowered_by_bright_outliers():
+    """A pass with a rare bright sample raises a pixel's mean with its error; the divisor of the relative error
+    comes from the neighbours' median, so the estimate stays near the true error (the pixel's own mean as the
+    divisor gave 0.67x here, and 0.6-0.7x on a glossy metal sphere)."""
+    rng = np.random.default_rng(0)
+    passes = 0.5 + 0.05 * rng.normal(size=(4, 64, 64, 3))
+    passes[rng.random(passes.shape) < 0.01] += 1.25  # one sample of 20 in a pass of 16
+    true = float(np.sqrt(np.mean((passes.mean(axis=0) - 0.5) ** 2 / (0.25 + 1e-2))))
+    assert true / 1.15 <= relative_error_estimate(passes) <= true * 1.15
+
+
+def test_estimate_keeps_features_one_pixel_wide():
+    """Bright lines a pixel wide on a dark floor (bright in every pass) keep their own value as the divisor: a
+    3x3 median alone would divide their noise by the floor's value (13x the true error here)."""
+    rng = np.random.default_rng(1)
+    value = np.full((48, 48, 3), 0.05)
+    value[:, ::4] = 2.0
+    passes = value * (1 + 0.2 * rng.normal(size=(6, *value.shape)))
+    true = float(np.sqrt(np.mean((passes.mean(axis=0) - value) ** 2 / (value**2 + 1e-2))))
+    assert true / 1.15 <= relative_error_estimate(passes) <= true * 1.15
+
+
 def test_final_targets_its_error_and_reports_it(noisy):
     """``final`` with no ``samples=`` renders passes to FINAL_TARGET_ERROR and says what it reached."""
     result = bf.render(plane_scene("sun"), backend=noisy)
