@@ -156,9 +156,11 @@ def probe_sh(engine: Engine, frame: Frame, flags: int, render_rgba: Any) -> tupl
     basis = [sh_basis(d) * d_omega[:, None] for d in dirs]
     background = [world_radiance(world, d) for d in dirs]
     key, emission = r.shadow_key, r.emission_scale
+    # the frame's shadow maps, drawn before anything is hidden: the hidden objects still cast their shadows
+    # (the floor under a ball stays dark in the probe's view), and the frame reuses them
+    r.shadow_maps(scene, flags)
     for n in hidden:
         n.mesh.is_visible = False
-    r.shadow_key = (key, "probe")  # its shadow maps leave the hidden objects out: not the frame's
     r.emission_scale = 0.0
     cam.projection, cam.znear, cam.zfar = proj, near, far
     sh = world

@@ -714,6 +714,17 @@ class FrameRenderer(pyrender.Renderer):
             self._shadow_light = None
         self._shadow_done[light_node] = (key, id(texture))
 
+    def shadow_maps(self, scene: Any, flags: int) -> None:
+        """Draw (or keep, while ``shadow_key`` holds) the shadow maps of the lights ``flags`` shadows, as
+        pyrender's render does before its colour pass."""
+        self._update_context(scene, flags)
+        for ln in scene.light_nodes:
+            light = ln.light
+            if (isinstance(light, pyrender.DirectionalLight) and flags & RenderFlags.SHADOWS_DIRECTIONAL) or (
+                isinstance(light, pyrender.SpotLight) and flags & RenderFlags.SHADOWS_SPOT
+            ):
+                self._shadow_mapping_pass(scene, ln, flags)
+
     def _sorted_mesh_nodes(self, scene: Any) -> list[Any]:
         nodes = super()._sorted_mesh_nodes(scene)
         if self._shadow_light is not None:

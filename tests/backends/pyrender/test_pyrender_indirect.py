@@ -112,12 +112,13 @@ def test_metal_reflects_the_scene_around_it(pyr):
         (32, 32), ortho_scale=2.4, translation=(0, -5.0, 1.0), rotation=(0.7071068, 0.7071068, 0, 0)
     )
     scene.renderables.add_plane_mesh(20.0, DiffuseMaterial(), UniformColors((0.8, 0.8, 0.8), color_space="linear"))
-    scene.renderables.add_sphere_nurbs(
+    ball = scene.renderables.add_sphere_nurbs(
         1.0,
         PrincipledBSDFMaterial(metallic=1.0, roughness=0.1),
         UniformColors((0.9, 0.9, 0.9)),
         translation=(0, 0, 1.0),
     )
+    ball.emit_shadows = False  # the floor it reflects is lit everywhere
     scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(0, 0, 0))
     scene.lights.set_background_light(0.05)
     res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))
@@ -127,3 +128,7 @@ def test_metal_reflects_the_scene_around_it(pyr):
     lower = res.rgba[bottom - 7 : bottom - 2, 14:18, :3].mean()
     print(f"upper {upper:.3f}, lower {lower:.3f}")
     assert lower > 2.0 * upper  # the world alone (0.05 everywhere) would leave the lower half dark
+    # the probe's view keeps the hidden ball's shadow: the floor right under it is dark, and so is its reflection
+    ball.emit_shadows = True
+    shadowed = render(scene, backend=pyr, quality="preview").rgba[bottom - 7 : bottom - 2, 14:18, :3].mean()
+    assert shadowed < 0.5 * lower
