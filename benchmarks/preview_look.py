@@ -62,11 +62,11 @@ NOTES = [
     "occlusion in the preview), refraction (glass) and mirror reflections of the scene (metal).",
     "'round2' = soft shadows (percentage-closer, from each light's size; suns under 1 degree stay hard), indirect "
     "light from one light probe (a 6 x 16^2 cube rendered by the preview, 9 SH coefficients for the diffuse "
-    "term), solid glass refracting the probe's light as through a sphere, a metal the probe is inside reflecting "
-    "its view, the environment map bilinear behind the objects. Left: the tiny-point cloud (speckle, unchanged), "
-    "Cornell box (one probe for the whole room: the boxes' fronts too bright, no contact shadows), glass (the "
-    "ball's shadowed floor seen through it is lighter in the probe's blurred view; no caustic), point cloud "
-    "(per-point differences of 1-px spheres).",
+    "term; rendered with the frame's shadow maps), solid glass refracting the probe's light as through a sphere, "
+    "a metal the probe is inside reflecting its view, the environment map bilinear behind the objects. Left: "
+    "the tiny-point cloud (speckle, unchanged), Cornell box (one probe for the whole room: the boxes' fronts too "
+    "bright, no contact shadows), glass (blurred view through the ball; no caustic), point cloud (per-point "
+    "differences of 1-px spheres).",
 ]
 
 
