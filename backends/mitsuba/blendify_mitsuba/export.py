@@ -172,6 +172,29 @@ _PLUGIN_REGISTRARS = {
 }
 
 
+def _register_for_writer(mi: Any, own: set[str]) -> None:
+    """Mitsuba 3.9.1's XML writer finds a Python plugin's object type (its XML tag) only when the plugin is
+    registered in ``scalar_rgb`` (measured: a plugin registered in ``llvm_ad_rgb`` alone fails with "Cannot
+    determine XML tag name ... unknown object type"), so ``own`` plugins are registered there too."""
+    if not own or mi.variant() == "scalar_rgb" or "scalar_rgb" not in mi.variants():
+        return
+    from . import integrator, layered, sided
+
+    registrars = {
+        "blendify_sided": sided.register,
+        "blendify_path": integrator.register,
+        "blendify_principled": layered.register,
+        "blendify_glass": layered.register,
+    }
+    variant = mi.variant()
+    try:
+        mi.set_variant("scalar_rgb")
+        for name in sorted(own):
+            registrars[name]()
+    finally:
+        mi.set_variant(variant)
+
+
 def _own_plugins(value: Any) -> set[str]:
     """The plugin types of :data:`_PLUGIN_REGISTRARS` used anywhere in the plain scene dictionary."""
     found: set[str] = set()
@@ -229,6 +252,8 @@ def export_mitsuba(
         plain = _Writer(mi, folder, out.parent).plain(tr.scene_dict)
         try:
             import mitsuba.parser as mp
+
+            _register_for_writer(mi, _own_plugins(plain))
 
             config = mp.ParserConfig(mi.variant())
             state = mp.parse_dict(config, plain)
