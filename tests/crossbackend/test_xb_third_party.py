@@ -23,12 +23,11 @@ from ports import PORTS  # noqa: E402
 
 #: port -> why Cycles and Mitsuba disagree on it (measured by benchmarks/crosscheck_report.py)
 KNOWN_THIRD_PARTY: dict[str, str] = {
-    "blendify_nurbs_primitives": "the colour beyond the material margin in ~7 of 84 tiles: in scalar_rgb six on "
+    "blendify_nurbs_primitives": "the colour beyond the material margin in ~7 of 84 tiles in scalar_rgb: six on "
     "the Principled sphere, circle and cylinder and one on the curve (Mitsuba's Principled there uses "
-    "cosine-weighted means of Cycles' view-dependent layer weights: material issue); in llvm_ad_rgb (8 tiles) on "
-    "the curve seen at grazing angles, where the layered Principled ignores the lobe mask, so the tube's "
-    "sidedness wrapper cannot give its glossy lobes Cycles' bent normal (blendify_mitsuba/sided.py); with "
-    "Lambertian materials the port passes in both",
+    "cosine-weighted means of Cycles' view-dependent layer weights: material issue); passes in llvm_ad_rgb "
+    "(the layered Principled honours the lobe mask, so the tube's sidedness wrapper gives its glossy lobes "
+    "Cycles' bent normal: blendify_mitsuba/sided.py); with Lambertian materials the port passes in both",
     "blendify_readme_cube": "2-3 of 64 tiles beyond the material margin on a pure green Principled cube under a "
     "strong point light (specular highlight) in scalar_rgb, whose Principled is the lobe sum with cosine-weighted "
     "means of Cycles' view-dependent layer weights; passes in llvm_ad_rgb (blendify_mitsuba.layered, "

@@ -11,6 +11,9 @@ Fresnel remapped by the specular tint, Cycles' F82-tint metal Fresnel, or none) 
 (RGB over :data:`blendify_mitsuba.principled.N_MU` viewing cosines, linear in between) computed with numpy by
 :func:`blendify_mitsuba.principled.principled_lobes`. Sampling picks a lobe with fixed odds, then the GGX
 visible normals or the cosine hemisphere; the pdf is the mixture's (one-sample MIS over the lobes).
+The BSDF context's lobe mask (diffuse vs glossy reflection here; reflection vs transmission for the glass)
+restricts eval, pdf and sampling to the enabled lobes, their sampling odds renormalised over them, as Mitsuba's
+own plugins do (the curve tubes' sidedness wrapper, sided.py, evaluates the halves in different frames).
 
 Two-sided like every blendify surface: seen from behind it scatters like its front with the normal flipped.
 
@@ -83,6 +86,8 @@ def _bsdf_class() -> type:
             self.n_mu = len(self.lobes[0]["table"]) // 3
             total = sum(max(float(lb["p"]), 0.0) for lb in self.lobes) or 1.0
             self.odds = [max(float(lb["p"]), 0.0) / total for lb in self.lobes]
+            #: the odds of sampling a diffuse lobe (the lobe-mask wrapper of sided.py mixes its halves by it)
+            self.diffuse_odds = sum(self.odds[k] for k, lb in enumerate(self.lobes) if lb["kind"] == "diffuse")
             self.jit = dr.is_jit_v(mi.Float)
             tables = [[float(v) for v in lb["table"]] for lb in self.lobes]
             self.tables = [mi.Float(t) for t in tables] if self.jit else tables
@@ -93,14 +98,26 @@ def _bsdf_class() -> type:
             self.diffuse = [i for i, lb in enumerate(self.lobes) if lb["kind"] == "diffuse"]
             flags = mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
             comps = []
+            #: each lobe's type, for the context's lobe mask
+            self.types = []
             for lb in self.lobes:
                 kind = mi.BSDFFlags.GlossyReflection if lb["kind"] == "ggx" else mi.BSDFFlags.DiffuseReflection
                 comps.append(kind | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide)
+                self.types.append(kind)
                 flags = flags | kind
             self.m_components = comps
             self.m_flags = flags
 
         # -- pieces -------------------------------------------------------------------------------------
+        def _odds(self, ctx: Any) -> tuple[list[float], list[bool]]:
+            """The lobes the context's lobe mask enables, and their sampling odds renormalised over them (0
+            for the others); the plain odds when every lobe is enabled."""
+            on = [bool(ctx.is_enabled(t, k)) for k, t in enumerate(self.types)]
+            if all(on):
+                return self.odds, on
+            total = sum(o for o, e in zip(self.odds, on, strict=True) if e)
+            return [o / total if e and total > 0 else 0.0 for o, e in zip(self.odds, on, strict=True)], on
+
         def _table(self, k: int, mu: Any, tables: Any = None) -> Any:
             table = (self.tables if tables is None else tables)[k]
             x = dr.clip(mu * self.n_mu - 0.5, 0.0, self.n_mu - 1.0)
@@ -159,7 +176,8 @@ def _bsdf_class() -> type:
             m5 = dr.square(dr.square(m)) * m
             return dr.clip(f0 + (1.0 - f0) * m5 - b * c * m5 * m, 0.0, 1.0)
 
-        def _eval_pdf(self, si: Any, wi: Any, wo: Any, active: Any) -> tuple[Any, Any]:
+        def _eval_pdf(self, si: Any, wi: Any, wo: Any, active: Any, odds: list[float], on: list[bool]) -> Any:
+            """Value and pdf of the lobes enabled by ``on`` with the sampling ``odds`` (:meth:`_odds`)."""
             cos_i, cos_o = wi.z, wo.z
             active = active & (cos_i > 0) & (cos_o > 0)
             base = self.base.eval(si, active) if self.base is not None else None
@@ -169,6 +187,8 @@ def _bsdf_class() -> type:
             ih = dr.dot(wi, h)
             inv4 = dr.rcp(4.0 * dr.maximum(cos_i, 1e-8))
             for k in self.ggx:
+                if not on[k]:
+                    continue
                 lb = self.lobes[k]
                 alpha = float(lb["alpha"])
                 d = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, alpha, True).eval(h)
@@ -179,11 +199,13 @@ def _bsdf_class() -> type:
                 else:
                     fresnel = self._fresnel(lb, ih)
                 value += self._table(k, cos_i) * fresnel * (d * g2 * inv4)
-                pdf += self.odds[k] * d * inv4 / (1.0 + lam_i)
+                pdf += odds[k] * d * inv4 / (1.0 + lam_i)
             for k in self.diffuse:
+                if not on[k]:
+                    continue
                 tint = base if self.lobes[k].get("base") else 1.0
                 value += self._table(k, cos_i) * tint * (cos_o * dr.inv_pi)
-                pdf += self.odds[k] * cos_o * dr.inv_pi
+                pdf += odds[k] * cos_o * dr.inv_pi
             value = dr.select(active, value, 0.0)
             pdf = dr.select(active, pdf, 0.0)
             return value, pdf
@@ -199,26 +221,33 @@ def _bsdf_class() -> type:
         # -- the BSDF interface -------------------------------------------------------------------------
         def eval(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             wi, wo, _ = self._front(si, wo)
-            return self._eval_pdf(si, wi, wo, mi.Bool(active))[0]
+            return self._eval_pdf(si, wi, wo, mi.Bool(active), *self._odds(ctx))[0]
 
         def pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             wi, wo, _ = self._front(si, wo)
-            return self._eval_pdf(si, wi, wo, mi.Bool(active))[1]
+            return self._eval_pdf(si, wi, wo, mi.Bool(active), *self._odds(ctx))[1]
 
         def eval_pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             wi, wo, _ = self._front(si, wo)
-            return self._eval_pdf(si, wi, wo, mi.Bool(active))
+            return self._eval_pdf(si, wi, wo, mi.Bool(active), *self._odds(ctx))
 
         def sample(self, ctx: Any, si: Any, sample1: Any, sample2: Any, active: Any = True) -> Any:
             active = mi.Bool(active)
             back = si.wi.z < 0
             wi = mi.Vector3f(si.wi.x, si.wi.y, dr.abs(si.wi.z))
-            # the lobe: by the odds, from sample1
-            chosen = mi.UInt32(len(self.lobes) - 1)
+            # the lobe: by the odds (of the lobes the context enables), from sample1
+            odds, on = self._odds(ctx)
+            enabled = [k for k, o in enumerate(odds) if o > 0]
+            if not enabled:  # the mask leaves no lobe to sample
+                return dr.zeros(mi.BSDFSample3f), mi.Color3f(0.0)
+            last = enabled[-1] if odds is not self.odds else len(self.lobes) - 1
+            chosen = mi.UInt32(last)
             edge = 0.0
             for k in range(len(self.lobes) - 1):
-                edge += self.odds[k]
-                chosen = dr.select((sample1 < edge) & (chosen == len(self.lobes) - 1), k, chosen)
+                if k == last or (odds[k] <= 0 and odds is not self.odds):
+                    continue
+                edge += odds[k]
+                chosen = dr.select((sample1 < edge) & (chosen == last), k, chosen)
             is_diffuse = mi.Bool(False)
             alpha = mi.Float(1.0)
             for k in self.diffuse:
@@ -229,7 +258,7 @@ def _bsdf_class() -> type:
             wo_ggx = mi.reflect(wi, m)
             wo_dif = mi.warp.square_to_cosine_hemisphere(sample2)
             wo = dr.select(is_diffuse, wo_dif, wo_ggx)
-            value, pdf = self._eval_pdf(si, wi, wo, active)
+            value, pdf = self._eval_pdf(si, wi, wo, active, odds, on)
             bs = dr.zeros(mi.BSDFSample3f)
             bs.wo = mi.Vector3f(wo.x, wo.y, dr.select(back, -wo.z, wo.z))
             bs.pdf = pdf
@@ -307,7 +336,13 @@ def _glass_class() -> type:
             c2 = dr.maximum(cos_t * cos_t, 1e-12)
             return 0.5 * (dr.sqrt(1.0 + self.alpha * self.alpha * dr.maximum(1.0 - c2, 0.0) / c2) - 1.0)
 
-        def _eval_pdf(self, si: Any, wo: Any, active: Any) -> tuple[Any, Any]:
+        def _lobes(self, ctx: Any) -> tuple[bool, bool]:
+            """Whether the context's lobe mask enables the reflection, the transmission."""
+            r, t = mi.BSDFFlags.GlossyReflection, mi.BSDFFlags.GlossyTransmission
+            return bool(ctx.is_enabled(r, 0)), bool(ctx.is_enabled(t, 1))
+
+        def _eval_pdf(self, ctx: Any, si: Any, wo: Any, active: Any) -> tuple[Any, Any]:
+            has_r, has_t = self._lobes(ctx)
             wi = si.wi
             cos_i, cos_o = wi.z, wo.z
             reflect = cos_i * cos_o > 0
@@ -333,18 +368,23 @@ def _glass_class() -> type:
             p_t = (1.0 - f) * d_vis * eta * eta * dr.abs(om) / denom2
             # microfacets facing away from either direction scatter nothing
             ok = active & (cos_i != 0) & (cos_o != 0) & (im * cos_i > 0) & (om * cos_o > 0)
+            if not (has_r and has_t):  # one lobe (or none): its value, its pdf with the choice's odds at 1
+                ok &= reflect == has_r
+                ok &= has_r or has_t
+                p_r = p_r / dr.maximum(f, 1e-12)
+                p_t = p_t / dr.maximum(1.0 - f, 1e-12)
             value = dr.select(ok, comp * dr.select(reflect, v_r, v_t), 0.0)
             pdf = dr.select(ok, dr.select(reflect, p_r, p_t), 0.0)
             return value, pdf
 
         def eval(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
-            return self._eval_pdf(si, wo, mi.Bool(active))[0]
+            return self._eval_pdf(ctx, si, wo, mi.Bool(active))[0]
 
         def pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
-            return self._eval_pdf(si, wo, mi.Bool(active))[1]
+            return self._eval_pdf(ctx, si, wo, mi.Bool(active))[1]
 
         def eval_pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
-            return self._eval_pdf(si, wo, mi.Bool(active))
+            return self._eval_pdf(ctx, si, wo, mi.Bool(active))
 
         def sample(self, ctx: Any, si: Any, sample1: Any, sample2: Any, active: Any = True) -> Any:
             active = mi.Bool(active)
@@ -352,9 +392,11 @@ def _glass_class() -> type:
             distr = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, self.alpha, True)
             m = distr.sample(dr.mulsign(wi, wi.z), sample2)[0]
             f, cos_t, _eta_it, eta_ti = mi.fresnel(dr.dot(wi, m), self.eta)
-            reflect = sample1 <= f
+            has_r, has_t = self._lobes(ctx)
+            reflect = sample1 <= f if has_r and has_t else mi.Bool(has_r)
+            active &= has_r or has_t
             wo = dr.select(reflect, mi.reflect(wi, m), mi.refract(wi, m, cos_t, eta_ti))
-            value, pdf = self._eval_pdf(si, wo, active)
+            value, pdf = self._eval_pdf(ctx, si, wo, active)
             bs = dr.zeros(mi.BSDFSample3f)
             bs.wo = wo
             bs.pdf = pdf

@@ -15,11 +15,14 @@ side by the geometric normal (both frames turned with it on back faces); the dif
 interpolated normal's frame with the incident direction lifted onto its horizon when it lies below it (so
 they evaluate as the front, as Cycles' diffuse does whatever side the viewer is on); the glossy lobes in the
 frame of Cycles' valid-reflection normal (:func:`valid_reflection_normal`), split from the diffuse ones by the
-BSDF context's lobe mask; sampled directions below the geometric surface dropped. A wrapped BSDF written in
-Python that ignores the lobe mask (the layered Principled of the JIT variants) is evaluated whole in the
-interpolated normal's frame, with the view raised to the valid-reflection normal's cosine (which weighs
-Cycles' layers). It is for reflecting BSDFs only (the translator does not wrap transmitting or masked ones:
-their pass-through must stay below the surface).
+BSDF context's lobe mask; sampled directions below the geometric surface dropped. A wrapped BSDF that says
+how often it samples its diffuse lobes (``diffuse_odds``: the layered Principled of the JIT variants, whose
+lobe mask renormalises its lobe odds) is sampled as that mixture of its two halves, with the mixture's pdf;
+Mitsuba's plugins are sampled with both masks and the same random numbers (the call whose mask allows the
+lobe that sample1 picks succeeds). The diffuse half sees the view raised to the glossy half's cosine where
+it is lower (Cycles weighs the layers by the glossy layers' albedo at that cosine; a Lambertian lobe depends
+on the view's side only). It is for reflecting BSDFs only (the translator does not wrap
+transmitting or masked ones: their pass-through must stay below the surface).
 
 It runs in Python (per call in the scalar variants), so the translator uses it only for the curve tubes;
 meshes keep Mitsuba's rule, where the two differ only in a sub-pixel band at smooth silhouettes (measured on
@@ -83,6 +86,7 @@ def _bsdf_class() -> type:
     import mitsuba as mi
 
     diffuse_mask = int(mi.BSDFFlags.Diffuse)
+    other_mask = int(mi.BSDFFlags.Glossy) | int(mi.BSDFFlags.Delta)
     scalar = not dr.is_jit_v(mi.Float)
 
     class GeometricSides(mi.BSDF):  # type: ignore[misc,name-defined]
@@ -99,9 +103,17 @@ def _bsdf_class() -> type:
             self.inner = props["bsdf"]
             self.m_flags = self.inner.flags()
             self.m_components = [self.inner.flags(i) for i in range(self.inner.component_count())]
-            # Mitsuba's own plugins honour the context's lobe mask; a BSDF written in Python (the layered
-            # Principled of the JIT variants) may not: it is evaluated whole in one frame (see _one_frame)
-            self.split = type(self.inner).__module__.startswith("mitsuba")
+            # the odds of the diffuse half when the wrapped BSDF renormalises its lobe odds under a mask
+            odds = getattr(self.inner, "diffuse_odds", None)
+            self.p_d = None if odds is None else float(odds)
+
+        def _mix(self, ctx: Any) -> float:
+            """The odds of sampling the diffuse half under ``ctx``'s mask (for a BSDF with ``diffuse_odds``)."""
+            if not ctx.type_mask & diffuse_mask:
+                return 0.0
+            if not ctx.type_mask & other_mask:
+                return 1.0
+            return float(self.p_d)
 
         @staticmethod
         def _lobes(ctx: Any) -> tuple[Any, Any]:
@@ -142,29 +154,14 @@ def _bsdf_class() -> type:
                 inner_si.sh_frame = frame
                 inner_si.wi = dr.normalize(local)
                 out.append(inner_si)
-            return out[0], f_d, out[1], f_g, ng
-
-        @staticmethod
-        def _one_frame(si: Any) -> tuple[Any, Any, Any]:
-            """For a BSDF that cannot be split by lobe: the interaction in the interpolated normal's frame
-            (turned on back faces) with the view raised to Cycles' glossy cosine (the cosine with the
-            valid-reflection normal, which weighs Cycles' layers) where it is lower; the frame; the geometric
-            normal on the viewer's side."""
-            wi = si.to_world(si.wi)
-            front = dr.dot(si.n, wi) > 0
-            ng = dr.select(front, si.n, -si.n)
-            sh = si.sh_frame
-            n = dr.select(front, sh.n, -sh.n)
-            frame = mi.Frame3f(sh.s, dr.select(front, sh.t, -sh.t), n)
-            local = frame.to_local(wi)
-            cz = dr.maximum(dr.dot(valid_reflection_normal(ng, wi, n), wi), _HORIZON)
+            # the diffuse half sees the view at least at the glossy cosine: Cycles weighs its layers by the
+            # glossy layers' albedo at that cosine (a Lambertian lobe depends on the view's side only)
+            local = f_d.to_local(wi)
+            cz = dr.maximum(dr.dot(n_g, wi), _HORIZON)
             xy = dr.sqrt(dr.maximum(local.x * local.x + local.y * local.y, 1e-24))
             scale = dr.sqrt(dr.maximum(1.0 - cz * cz, 0.0)) / xy
-            raised = mi.Vector3f(local.x * scale, local.y * scale, cz)
-            inner_si = mi.SurfaceInteraction3f(si)
-            inner_si.sh_frame = frame
-            inner_si.wi = dr.select(local.z < cz, raised, local)
-            return inner_si, frame, ng
+            out[0].wi = dr.select(local.z < cz, mi.Vector3f(local.x * scale, local.y * scale, cz), out[0].wi)
+            return out[0], f_d, out[1], f_g, ng
 
         def sample(self, ctx: Any, si: Any, sample1: Any, sample2: Any, active: Any = True) -> Any:
             if scalar and self._agree(si):
@@ -173,16 +170,23 @@ def _bsdf_class() -> type:
                     bs.pdf = 0.0
                     weight = mi.Spectrum(0.0)
                 return bs, weight
-            if not self.split:
-                inner_si, frame, ng = self._one_frame(si)
-                bs, weight = self.inner.sample(ctx, inner_si, sample1, sample2, active)
-                wo = frame.to_world(bs.wo)
-                above = dr.dot(ng, wo) > 0
-                bs.wo = si.to_local(wo)
-                bs.pdf = dr.select(above, bs.pdf, 0.0)
-                return bs, dr.select(above, weight, 0.0)
             si_d, f_d, si_g, f_g, ng = self._frames(si)
             c_d, c_g = self._lobes(ctx)
+            if self.p_d is not None:  # the mixture of the halves, by the wrapped BSDF's odds
+                p = self._mix(ctx)
+                active = mi.Bool(active)
+                use_d = mi.Bool(sample1 < p)
+                s_d = dr.minimum(sample1 / max(p, 1e-12), 0.99999994)
+                s_g = dr.clip((sample1 - p) / max(1.0 - p, 1e-12), 0.0, 0.99999994)
+                bs_d, _ = self.inner.sample(c_d, si_d, s_d, sample2, active & use_d)
+                bs_g, _ = self.inner.sample(c_g, si_g, s_g, sample2, active & ~use_d)
+                bs = dr.select(use_d, bs_d, bs_g)
+                wo = dr.select(use_d, f_d.to_world(bs_d.wo), f_g.to_world(bs_g.wo))
+                bs.wo = si.to_local(wo)
+                value, pdf = self.eval_pdf(ctx, si, bs.wo, active)
+                ok = (dr.dot(ng, wo) > 0) & (pdf > 0)  # Cycles drops a reflection below the geometric surface
+                bs.pdf = dr.select(ok, pdf, 0.0)
+                return bs, dr.select(ok, value / dr.select(ok, pdf, 1.0), 0.0)
             # the wrapped BSDF picks its lobe from sample1 alone: the call whose mask allows it succeeds
             bs_d, w_d = self.inner.sample(c_d, si_d, sample1, sample2, active)
             bs_g, w_g = self.inner.sample(c_g, si_g, sample1, sample2, active)
@@ -198,9 +202,6 @@ def _bsdf_class() -> type:
         def eval(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             if scalar and self._agree(si):
                 return self.inner.eval(ctx, si, wo, active)
-            if not self.split:
-                inner_si, frame, _ = self._one_frame(si)
-                return self.inner.eval(ctx, inner_si, frame.to_local(si.to_world(wo)), active)
             si_d, f_d, si_g, f_g, _ = self._frames(si)
             c_d, c_g = self._lobes(ctx)
             w = si.to_world(wo)
@@ -211,27 +212,27 @@ def _bsdf_class() -> type:
         def pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             if scalar and self._agree(si):
                 return self.inner.pdf(ctx, si, wo, active)
-            if not self.split:
-                inner_si, frame, _ = self._one_frame(si)
-                return self.inner.pdf(ctx, inner_si, frame.to_local(si.to_world(wo)), active)
             si_d, f_d, si_g, f_g, _ = self._frames(si)
             c_d, c_g = self._lobes(ctx)
             w = si.to_world(wo)
-            return self.inner.pdf(c_d, si_d, f_d.to_local(w), active) + self.inner.pdf(
-                c_g, si_g, f_g.to_local(w), active
-            )
+            p_d = self.inner.pdf(c_d, si_d, f_d.to_local(w), active)
+            p_g = self.inner.pdf(c_g, si_g, f_g.to_local(w), active)
+            if self.p_d is not None:
+                p = self._mix(ctx)
+                return p * p_d + (1.0 - p) * p_g
+            return p_d + p_g
 
         def eval_pdf(self, ctx: Any, si: Any, wo: Any, active: Any = True) -> Any:
             if scalar and self._agree(si):
                 return self.inner.eval_pdf(ctx, si, wo, active)
-            if not self.split:
-                inner_si, frame, _ = self._one_frame(si)
-                return self.inner.eval_pdf(ctx, inner_si, frame.to_local(si.to_world(wo)), active)
             si_d, f_d, si_g, f_g, _ = self._frames(si)
             c_d, c_g = self._lobes(ctx)
             w = si.to_world(wo)
             v_d, p_d = self.inner.eval_pdf(c_d, si_d, f_d.to_local(w), active)
             v_g, p_g = self.inner.eval_pdf(c_g, si_g, f_g.to_local(w), active)
+            if self.p_d is not None:
+                p = self._mix(ctx)
+                return v_d + v_g, p * p_d + (1.0 - p) * p_g
             return v_d + v_g, p_d + p_g
 
         def traverse(self, callback: Any) -> None:

@@ -113,28 +113,34 @@ def test_grazing_view_evaluates_like_cycles_diffuse(mi_scalar):
     """Viewer in front of the face but behind the interpolated normal (the zone where the rules differ): the
     wrapper evaluates a Lambertian BSDF as Cycles does (albedo / pi x cos(normal, light), whatever side of
     the interpolated normal the viewer is on) and drops a sampled direction below the face. Both for one of
-    Mitsuba's plugins (split by lobe) and for a BSDF written in Python that ignores the lobe mask (whole)."""
+    Mitsuba's plugins and for a BSDF written in Python that states its diffuse odds (sampled as the mixture of
+    its masked halves, as the layered Principled is)."""
     mi = mi_scalar
     import drjit as dr
 
-    class Lambert(mi.BSDF):  # ignores the context's lobe mask, as the layered Principled does
+    class Lambert(mi.BSDF):  # honours the context's lobe mask and states its odds, as the layered Principled
+        diffuse_odds = 1.0
+
         def __init__(self, props):
             super().__init__(props)
             self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
             self.m_components = [self.m_flags]
 
         def eval(self, ctx, si, wo, active=True):
-            ok = (si.wi.z > 0) & (wo.z > 0)
+            ok = (si.wi.z > 0) & (wo.z > 0) & ctx.is_enabled(mi.BSDFFlags.DiffuseReflection, 0)
             return mi.Color3f(0.5 * dr.inv_pi * wo.z) if ok else mi.Color3f(0.0)
 
         def pdf(self, ctx, si, wo, active=True):
-            return dr.inv_pi * wo.z if (si.wi.z > 0) & (wo.z > 0) else 0.0
+            ok = (si.wi.z > 0) & (wo.z > 0) & ctx.is_enabled(mi.BSDFFlags.DiffuseReflection, 0)
+            return dr.inv_pi * wo.z if ok else 0.0
 
         def eval_pdf(self, ctx, si, wo, active=True):
             return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
 
         def sample(self, ctx, si, s1, s2, active=True):
             bs = dr.zeros(mi.BSDFSample3f)
+            if not ctx.is_enabled(mi.BSDFFlags.DiffuseReflection, 0):
+                return bs, mi.Color3f(0.0)
             bs.wo = mi.warp.square_to_cosine_hemisphere(s2)
             bs.pdf = dr.inv_pi * bs.wo.z
             bs.sampled_type = int(mi.BSDFFlags.DiffuseReflection)
@@ -173,3 +179,46 @@ def test_grazing_view_evaluates_like_cycles_diffuse(mi_scalar):
                 below += 1
                 assert float(bs.pdf) == 0.0 and float(weight[0]) == 0.0, name
         assert below > 0, name  # the tilted normal's hemisphere reaches below the face: those are dropped
+
+
+def test_layered_principled_is_split_by_lobe_as_a_mixture(mi_scalar):
+    """The layered Principled (honours the lobe mask, renormalising its odds) in the grazing zone: the wrapper
+    evaluates its diffuse and glossy halves in their frames; a sampled direction's pdf is the halves' mixture
+    by the diffuse odds (the pdf eval_pdf gives) and its weight eval / pdf; the pdf integrates to at most 1."""
+    mi = mi_scalar
+    from blendify_mitsuba import layered
+    from blendify_mitsuba import principled as P
+    from blendify_mitsuba.sided import register
+
+    from blendify_core.ir.materials import PrincipledBSDFMaterial
+
+    layered.register()
+    register()
+    material = PrincipledBSDFMaterial(roughness=0.4, coat_weight=0.5, coat_roughness=0.2)
+    inner = mi.load_dict(P.layered_bsdf(P.principled_lobes(material, np.array([0.8, 0.4, 0.2]))))
+    assert 0 < inner.diffuse_odds < 1
+    wrapped = mi.load_dict({"type": SIDED_BSDF, "bsdf": inner})
+    n = _unit([0.0, np.sin(np.radians(20)), np.cos(np.radians(20))])
+    si = mi.SurfaceInteraction3f()
+    si.n = mi.Normal3f(0, 0, 1)
+    si.sh_frame = mi.Frame3f(mi.Vector3f(*n))
+    si.wi = si.sh_frame.to_local(mi.Vector3f(*_unit([0.0, -0.95, 0.2])))
+    ctx = mi.BSDFContext()
+    rng = np.random.default_rng(7)
+    kinds = set()
+    for u in rng.uniform(size=(200, 3)):
+        bs, weight = wrapped.sample(ctx, si, float(u[0]), mi.Point2f(float(u[1]), float(u[2])))
+        if float(bs.pdf) <= 0:
+            continue
+        kinds.add(int(bs.sampled_type))
+        value, pdf = wrapped.eval_pdf(ctx, si, bs.wo)
+        assert float(pdf) == pytest.approx(float(bs.pdf), rel=1e-4)
+        assert float(wrapped.pdf(ctx, si, bs.wo)) == pytest.approx(float(pdf), rel=1e-4)
+        np.testing.assert_allclose(np.array(weight), np.array(value) / float(pdf), rtol=1e-4, atol=1e-7)
+    assert kinds == {int(mi.BSDFFlags.DiffuseReflection), int(mi.BSDFFlags.GlossyReflection)}
+    total = 0.0  # the pdf over the sphere (uniform directions): a density, at most 1 (samples below are lost)
+    m = 4000
+    for d in rng.normal(size=(m, 3)):
+        total += float(wrapped.pdf(ctx, si, si.sh_frame.to_local(mi.Vector3f(*_unit(d)))))
+    total *= 4 * np.pi / m
+    assert 0.8 < total < 1.05
