@@ -75,20 +75,9 @@ def _curves_before(centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: fl
     """The capsule layout first built for issue 17 (kept here for the before/after rows): three control
     points per point, the capsule from the centre 1 % of the radius along z, then a spacer segment of radius
     0 per point (2N segments in Embree's BVH)."""
-    import contextlib
-    import tempfile
-
-    import mitsuba as mi
+    from blendify_mitsuba.points import curve_shape
 
     n = len(centres)
-    fd, path = tempfile.mkstemp(suffix=".txt")
-    try:
-        os.write(fd, b"0 0 0 1\n0 0 1 1\n")
-        os.close(fd)
-        shape = mi.load_dict({"type": "linearcurve", "filename": path, "bsdf": bsdf})
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(path)
     r = np.asarray(radii, dtype=np.float64) / np.sqrt(1.0 + 1e-2 / 2.0)
     cp = np.empty((n, 3, 4), np.float32)
     cp[:, :, :3] = np.asarray(centres, dtype=np.float64)[:, None, :]
@@ -96,20 +85,7 @@ def _curves_before(centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: fl
     cp[:, :2, 3] = r[:, None]
     cp[:, 2, 3] = 0.0
     base = np.arange(n, dtype=np.uint32) * 3
-    params = mi.traverse(shape)
-    for key, value in (
-        ("control_point_count", 3 * n),
-        ("control_points", type(params["control_points"])(cp.ravel())),
-        ("segment_indices", type(params["segment_indices"])(np.stack([base, base + 1], axis=1).ravel())),
-    ):
-        cur, value_type, _node, _flags = params.properties[key]
-        params.set_dirty(key)
-        if value_type is None:
-            params.set_property(cur, value)
-        else:
-            params.set_property(cur, value_type, value)
-    params.update()
-    return shape
+    return curve_shape(cp.reshape(-1, 4), np.stack([base, base + 1], axis=1), bsdf)
 
 
 def _timed(module: Any, name: str, phases: dict[str, float]) -> None:

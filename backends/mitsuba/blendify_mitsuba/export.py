@@ -163,13 +163,15 @@ class _Writer:
         return value
 
 
-#: blendify's Mitsuba plugins (written in Python) -> the call that registers them in a process
-_PLUGIN_REGISTRARS = {
-    "blendify_sided": "blendify_mitsuba.sided.register()",
-    "blendify_path": "blendify_mitsuba.integrator.register()",
-    "blendify_principled": "blendify_mitsuba.layered.register()",
-    "blendify_glass": "blendify_mitsuba.layered.register()",
+#: blendify's Mitsuba plugins (written in Python) -> the module whose ``register()`` registers them in a process
+_PLUGIN_MODULES = {
+    "blendify_sided": "sided",
+    "blendify_path": "integrator",
+    "blendify_principled": "layered",
+    "blendify_glass": "layered",
 }
+#: ... and that call as a user writes it
+_PLUGIN_REGISTRARS = {name: f"blendify_mitsuba.{module}.register()" for name, module in _PLUGIN_MODULES.items()}
 
 
 def _register_for_writer(mi: Any, own: set[str]) -> None:
@@ -178,19 +180,13 @@ def _register_for_writer(mi: Any, own: set[str]) -> None:
     determine XML tag name ... unknown object type"), so ``own`` plugins are registered there too."""
     if not own or mi.variant() == "scalar_rgb" or "scalar_rgb" not in mi.variants():
         return
-    from . import integrator, layered, sided
+    import importlib
 
-    registrars = {
-        "blendify_sided": sided.register,
-        "blendify_path": integrator.register,
-        "blendify_principled": layered.register,
-        "blendify_glass": layered.register,
-    }
     variant = mi.variant()
     try:
         mi.set_variant("scalar_rgb")
-        for name in sorted(own):
-            registrars[name]()
+        for module in sorted({_PLUGIN_MODULES[name] for name in own}):
+            importlib.import_module(f"{__package__}.{module}").register()
     finally:
         mi.set_variant(variant)
 

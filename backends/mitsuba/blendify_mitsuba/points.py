@@ -145,9 +145,17 @@ def capsule_buffers(
 def curve_points(centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: float = CAPSULE_LENGTH) -> Any:
     """A loaded ``linearcurve`` shape of one capsule per point (world ``centres``, world ``radii``; ``length``:
     the segment relative to the radius, see :func:`capsule_length`; buffers: :func:`capsule_buffers`)."""
+    cp, segments = capsule_buffers(centres, radii, length)
+    return curve_shape(cp, segments, bsdf)
+
+
+def curve_shape(control_points: np.ndarray, segments: np.ndarray, bsdf: Any) -> Any:
+    """A loaded ``linearcurve`` shape holding ``control_points`` ((N, 4) float32: x, y, z, radius) and
+    ``segments`` (the index of each segment's first control point), set in memory: Mitsuba 3.9.1 builds curves
+    only from a file, so a two-point placeholder file is loaded and its buffers replaced."""
     import mitsuba as mi
 
-    cp, segments = capsule_buffers(centres, radii, length)
+    cp = np.asarray(control_points, dtype=np.float32)
     fd, path = tempfile.mkstemp(prefix="blendify-curves-", suffix=".txt")
     try:
         os.write(fd, b"0 0 0 1\n0 0 1 1\n")  # a placeholder curve: the real buffers are set below
@@ -161,7 +169,7 @@ def curve_points(centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: floa
     for key, value in (
         ("control_point_count", len(cp)),
         ("control_points", type(params["control_points"])(cp.ravel())),
-        ("segment_indices", type(params["segment_indices"])(segments)),
+        ("segment_indices", type(params["segment_indices"])(np.asarray(segments, dtype=np.uint32).ravel())),
     ):
         cur, value_type, node, _flags = params.properties[key]
         params.set_dirty(key)
