@@ -21,24 +21,17 @@ from __future__ import annotations
 
 from typing import Any
 
+from .variant import register_plugin
+
 __all__ = ["INTEGRATOR", "register"]
 
 #: the plugin name of the integrator
 INTEGRATOR = "blendify_path"
 
-_REGISTERED: set[str] = set()
-
 
 def register() -> str:
     """Register :data:`INTEGRATOR` for the current Mitsuba variant (once per variant); its name."""
-    import mitsuba as mi
-
-    variant = mi.variant()
-    if variant not in _REGISTERED:
-        cls = _integrator_class()
-        mi.register_integrator(INTEGRATOR, lambda props: cls(props))
-        _REGISTERED.add(variant)
-    return INTEGRATOR
+    return register_plugin("integrator", INTEGRATOR, _integrator_class)
 
 
 def _mis(a: Any, b: Any) -> Any:

@@ -33,6 +33,8 @@ from __future__ import annotations
 import json
 from typing import Any
 
+from .variant import register_plugin
+
 __all__ = ["PLUGIN", "register", "spec_json"]
 
 #: the plugin name of the BSDF
@@ -44,21 +46,12 @@ ENABLED = True
 #: use the plugin in ``scalar_rgb`` too (for measuring its cost there; off: the lobe sum)
 USE_IN_SCALAR = False
 
-_REGISTERED: set[str] = set()
-
 
 def register() -> str:
-    """Register :data:`PLUGIN` for the current Mitsuba variant (once per variant); its name."""
-    import mitsuba as mi
-
-    variant = mi.variant()
-    if variant not in _REGISTERED:
-        cls = _bsdf_class()
-        mi.register_bsdf(PLUGIN, lambda props: cls(props))
-        glass = _glass_class()
-        mi.register_bsdf(GLASS_PLUGIN, lambda props: glass(props))
-        _REGISTERED.add(variant)
-    return PLUGIN
+    """Register :data:`PLUGIN` and :data:`GLASS_PLUGIN` for the current Mitsuba variant (once per variant);
+    :data:`PLUGIN`."""
+    register_plugin("bsdf", GLASS_PLUGIN, _glass_class)
+    return register_plugin("bsdf", PLUGIN, _bsdf_class)
 
 
 def spec_json(lobes: list[dict[str, Any]]) -> str:

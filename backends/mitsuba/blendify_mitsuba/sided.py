@@ -34,6 +34,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from .variant import register_plugin
+
 __all__ = ["SIDED_BSDF", "register"]
 
 #: the plugin name of the wrapper BSDF
@@ -41,8 +43,6 @@ SIDED_BSDF = "blendify_sided"
 
 #: the smallest cosine the lifted incident direction keeps with the shading normal
 _HORIZON = 1e-4
-
-_REGISTERED: set[str] = set()
 
 
 def valid_reflection_normal(ng: Any, wi: Any, n: Any) -> Any:
@@ -70,14 +70,7 @@ def valid_reflection_normal(ng: Any, wi: Any, n: Any) -> Any:
 
 def register() -> str:
     """Register :data:`SIDED_BSDF` for the current Mitsuba variant (once per variant); its name."""
-    import mitsuba as mi
-
-    variant = mi.variant()
-    if variant not in _REGISTERED:
-        cls = _bsdf_class()
-        mi.register_bsdf(SIDED_BSDF, lambda props: cls(props))
-        _REGISTERED.add(variant)
-    return SIDED_BSDF
+    return register_plugin("bsdf", SIDED_BSDF, _bsdf_class)
 
 
 def _bsdf_class() -> type:

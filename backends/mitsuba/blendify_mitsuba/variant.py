@@ -30,7 +30,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -598,3 +598,19 @@ def describe(requested: str | None = None) -> list[str]:
     where = str(path) if path is not None else "off"
     lines.append(f"  probe cache: {where} (set {CACHE_ENV}=off to disable, or a file path); took {dt:.1f} s")
     return lines
+
+
+_PLUGINS_REGISTERED: set[tuple[str, str]] = set()
+
+
+def register_plugin(kind: str, name: str, make_class: Callable[[], type]) -> str:
+    """Register blendify's Python plugin ``name`` (``kind``: ``"bsdf"`` or ``"integrator"``) for the current
+    Mitsuba variant, once per variant (``make_class`` builds its class with that variant's types); its name."""
+    import mitsuba as mi
+
+    key = (mi.variant(), name)
+    if key not in _PLUGINS_REGISTERED:
+        cls = make_class()
+        getattr(mi, f"register_{kind}")(name, lambda props: cls(props))
+        _PLUGINS_REGISTERED.add(key)
+    return name
