@@ -356,3 +356,21 @@ def test_world_bounds_follow_the_pose():
     assert np.allclose(lo, [1 - r, 2 - r, 2]) and np.allclose(hi, [1 + r, 2 + r, 4])
     lo, hi = s.bounds()
     assert np.allclose(hi, [1 + r, 2 + r, 4])
+
+
+def test_mesh_vertex_normals_computed_once_per_geometry():
+    """A mesh's vertex normals are computed once while its arrays live (every render of an unchanged mesh
+    reuses them), read-only, and recomputed when the vertices change."""
+    s = bf.Scene()
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    m = s.renderables.add_mesh(v, f, bf.DiffuseMaterial(), bf.UniformColors((0.5, 0.5, 0.5)))
+    n1 = m.vertex_normals()
+    assert m.vertex_normals() is n1
+    assert not n1.flags.writeable
+    np.testing.assert_array_equal(n1, vertex_normals(v, f))
+    m.update_vertices(v * [1.0, 2.0, 3.0])
+    n2 = m.vertex_normals()
+    assert n2 is not n1
+    np.testing.assert_allclose(n2, vertex_normals(v * [1.0, 2.0, 3.0], f), atol=1e-15)
+    assert not np.allclose(n2, n1)

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from blendify_core._memo import bounds_memo
+from blendify_core._memo import bounds_memo, normals_memo
 from blendify_core.errors import InvalidSceneError
 from blendify_core.errors import describe as _describe
 from blendify_core.ir.colors import (
@@ -230,7 +230,9 @@ class Mesh(Renderable):
         self._bump("geometry")
 
     def vertex_normals(self) -> AnyArray:
-        return vertex_normals(self._vertices, self._faces)
+        """The IR's angle-weighted vertex normals (read-only; computed once while the vertices and faces
+        arrays live: every render and backend of an unchanged mesh reuses them)."""
+        return normals_memo(self._vertices, self._faces, _frozen_vertex_normals)
 
     def update_vertices(self, vertices: Any) -> None:
         """New positions for the same vertices (same count)."""
@@ -275,3 +277,9 @@ class Mesh(Renderable):
             uv_map=uv_to_dict(self._uv_map, arrays, prefix + "uvmap."),
         )
         return d
+
+
+def _frozen_vertex_normals(vertices: AnyArray, faces: AnyArray) -> AnyArray:
+    n = vertex_normals(vertices, faces)
+    n.flags.writeable = False
+    return n
