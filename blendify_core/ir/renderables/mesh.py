@@ -232,7 +232,8 @@ class Mesh(Renderable):
     def vertex_normals(self) -> AnyArray:
         """The IR's angle-weighted vertex normals (read-only; computed once while the vertices and faces
         arrays live: every render and backend of an unchanged mesh reuses them)."""
-        return normals_memo(self._vertices, self._faces, _frozen_vertex_normals)
+        normals: AnyArray = normals_memo(self._vertices, self._faces, _frozen_vertex_normals)
+        return normals
 
     def update_vertices(self, vertices: Any) -> None:
         """New positions for the same vertices (same count)."""
