@@ -7,8 +7,11 @@ module registers the integrator ``blendify_path``: the same unidirectional path 
 ``rr_depth`` on, ``hide_emitters`` hiding emission seen from the camera directly or through null surfaces
 (such as other lights' shapes, as Mitsuba 3.9 passes camera rays through them), the alpha set once a path
 continues from a non-null surface), except that next-event samples of the emitters named in ``no_shadow``
-(their ids, comma-separated) are not tested for visibility. BSDF-sampled rays still hit an area light only
-where nothing is in between (as in Cycles, which also only skips the shadow ray).
+(their ids, comma-separated) are not tested for visibility, and with ``transparent_shadows`` = n > 0 the
+other samples' shadow rays pass through up to n surfaces with a null component (alpha < 1), keeping their
+null transmission (Cycles' transparent shadows; ``volpath`` does the same for scenes without such lights).
+BSDF-sampled rays still hit an area light only where nothing is in between (as in Cycles, which also only
+skips the shadow ray).
 
 The translator uses it only when a scene has such a light: it runs in Python (per sample in the scalar
 variants), so it is slower than ``path`` -- measured in benchmarks/results/mitsuba_no_shadow.md.
@@ -66,6 +69,8 @@ def _integrator_class() -> type:
             self.rr_depth = int(props.get("rr_depth", 5))
             self.hide = bool(props.get("hide_emitters", False))
             self.no_shadow = {s for s in str(props.get("no_shadow", "")).split(",") if s}
+            #: surfaces with a null component (alpha < 1) a shadow ray may cross (0: shadow rays are opaque)
+            self.transparent_shadows = int(props.get("transparent_shadows", 0))
             self._jit = dr.is_jit_v(mi.Float)
             self._pointers: dict[int, list[Any]] = {}
             # a scalar variant's masks are Python bools (``~True == -2``)
@@ -82,6 +87,24 @@ def _integrator_class() -> type:
             for ptr in self._pointers[key]:
                 mask |= emitter == ptr
             return mask
+
+        def _transmittance(self, scene: Any, si: Any, ds: Any, active: Any) -> Any:
+            """The light a shadow ray from ``si`` to the emitter sample ``ds`` keeps: the product of the null
+            transmissions (1 - alpha) of the surfaces it crosses, 0 when it meets an opaque one or more than
+            ``transparent_shadows`` surfaces (Cycles' limit of transparent bounces)."""
+            tr = mi.Spectrum(1.0)
+            it = mi.Interaction3f(si)
+            active = mi.Bool(active)
+            for _ in range(self.transparent_shadows + 1):
+                ray = it.spawn_ray_to(ds.p)
+                hit = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=False, active=active)
+                active &= hit.is_valid()
+                if not dr.any(active):
+                    return tr
+                tr = dr.select(active, tr * hit.bsdf(ray).eval_null_transmission(hit, active), tr)
+                active &= dr.max(tr) > 0
+                it = dr.select(active, mi.Interaction3f(hit), it)
+            return dr.select(active, 0.0, tr)  # still crossing surfaces after the limit: blocked
 
         def sample(
             self, scene: Any, sampler: Any, ray_: Any, medium: Any = None, active: Any = True
@@ -119,8 +142,11 @@ def _integrator_class() -> type:
                 ds, em_weight = scene.sample_emitter_direction(si, sampler.next_2d(), False, active_em)
                 test = active_em & (ds.pdf != 0) & no(self._shadowless(scene, ds.emitter))
                 if dr.any(test):
-                    occluded = scene.ray_test(si.spawn_ray_to(ds.p), test)
-                    em_weight = dr.select(test & occluded, 0.0, em_weight)
+                    if self.transparent_shadows > 0:
+                        em_weight = dr.select(test, em_weight * self._transmittance(scene, si, ds, test), em_weight)
+                    else:
+                        occluded = scene.ray_test(si.spawn_ray_to(ds.p), test)
+                        em_weight = dr.select(test & occluded, 0.0, em_weight)
                 wo = si.to_local(ds.d)
                 s1 = sampler.next_1d()
                 s2 = sampler.next_2d()
@@ -152,6 +178,9 @@ def _integrator_class() -> type:
             return []
 
         def to_string(self) -> str:
-            return f"NoShadowPath[max_depth={self.max_depth}, no_shadow={sorted(self.no_shadow)}]"
+            return (
+                f"NoShadowPath[max_depth={self.max_depth}, no_shadow={sorted(self.no_shadow)}, "
+                f"transparent_shadows={self.transparent_shadows}]"
+            )
 
     return NoShadowPath

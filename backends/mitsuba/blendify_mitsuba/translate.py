@@ -231,6 +231,9 @@ class MitsubaContext(TranslationContext):
     parallel_rays: bool = False  # set by the camera handler
     #: emitter ids of the lights that cast no shadow (rendered by the integrator 'blendify_path')
     no_shadow: list[str] = field(default_factory=list)
+    #: some surface has alpha < 1 (a ``mask`` BSDF): light passes through it to the surfaces behind, so
+    #: shadow rays must too (Cycles' transparent shadows; see MitsubaTranslator.integrator)
+    masked: bool = False
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -360,10 +363,12 @@ SUN_DISK_MAX_DISTANCE = 2e5
 SUN_DISK_MIN_DISTANCE = 1e3
 
 
-def _with_mask(bsdf: dict[str, Any], opacity: Any, needed: bool) -> dict[str, Any]:
-    """``bsdf`` wrapped in a ``mask`` of ``opacity`` when ``needed`` (alpha < 1 somewhere)."""
+def _with_mask(ctx: MitsubaContext, bsdf: dict[str, Any], opacity: Any, needed: bool) -> dict[str, Any]:
+    """``bsdf`` wrapped in a ``mask`` of ``opacity`` when ``needed`` (alpha < 1 somewhere); records in
+    ``ctx.masked`` that the scene has such a surface (its shadows are then transparent too)."""
     if not needed:
         return bsdf
+    ctx.masked = True
     return {"type": "mask", "opacity": opacity, "bsdf": bsdf}
 
 
@@ -784,7 +789,8 @@ class MitsubaTranslator(Translator):
         )
 
     def integrator(self, effects: Effects, ctx: MitsubaContext) -> dict[str, Any]:
-        """The integrator dictionary: ``path`` with max_depth = max_bounces + 2, or max_depth 2 (direct
+        """The integrator dictionary: ``path`` (``volpath`` when a surface has alpha < 1: transparent
+        shadows) with max_depth = max_bounces + 2, or max_depth 2 (direct
         light only; 3 when a camera ray may have to pass through a light's null surface, 4 through a visible
         point light's sphere) when ``settings.effects`` and the effect analysis finds no indirect light; and
         whether it hides the emitters from the camera. Call after the lights."""
@@ -807,8 +813,15 @@ class MitsubaTranslator(Translator):
                 "max_depth": int(max_depth),
                 "hide_emitters": hide,
                 "no_shadow": ",".join(ctx.no_shadow),
+                # surfaces with alpha < 1 pass light to shadow rays (as many as Cycles' transparent bounces)
+                "transparent_shadows": s.bounces("transparent") if ctx.masked else 0,
             }
-        return {"type": "path", "max_depth": int(max_depth), "hide_emitters": hide}
+        # Mitsuba's ``path`` treats every surface as opaque to shadow rays, so a 30 % alpha plane cast a full
+        # shadow where Cycles lets 70 % of the light through; ``volpath`` multiplies the shadow ray by the
+        # null transmission of the surfaces it crosses (the ``mask``'s 1 - opacity) and renders the same
+        # surfaces otherwise (no media in these scenes): used only where some surface has alpha < 1
+        kind = "volpath" if ctx.masked else "path"
+        return {"type": kind, "max_depth": int(max_depth), "hide_emitters": hide}
 
     def emitters(self, ctx: MitsubaContext) -> dict[str, Any]:
         """The emitters of the positioned lights (``light{i:04d}``), then of the world."""
@@ -1016,7 +1029,7 @@ class MitsubaTranslator(Translator):
             if src.needs_uv and part.uv is None:
                 raise InvalidSceneError(f"renderable {r.tag!r}: texture colours need a UV map")
             opacity, masked = src.opacity(float(mat.alpha))
-            bsdf_d = _with_mask(self.dispatch(mat, ctx, refl), opacity, masked)
+            bsdf_d = _with_mask(ctx, self.dispatch(mat, ctx, refl), opacity, masked)
             if geometric_sides and not masked and not material_lobes(mat).transmission:
                 bsdf_d = {"type": register_sided(), "bsdf": mi.load_dict(bsdf_d)}
             bsdf = mi.load_dict(bsdf_d)
@@ -1087,9 +1100,9 @@ class MitsubaTranslator(Translator):
                 bsdf = self.dispatch(mat, ctx, _rgb(c))
                 if per_point is not None:  # this point's alpha (linear RGBA: no decoding)
                     own = ColorSource(constant=np.array([1.0, 1.0, 1.0, float(src.per_vertex[i, 3])]))
-                    bsdf = _with_mask(bsdf, *own.opacity(alpha))
+                    bsdf = _with_mask(ctx, bsdf, *own.opacity(alpha))
                 else:
-                    bsdf = _with_mask(bsdf, *src.opacity(alpha))
+                    bsdf = _with_mask(ctx, bsdf, *src.opacity(alpha))
                 key = f"{prefix}_p{i:07d}"
                 shape = {"type": "sphere", "center": centres[i].tolist(), "radius": float(radii[i]), "bsdf": bsdf}
                 em = _emission(mat)
@@ -1127,7 +1140,7 @@ class MitsubaTranslator(Translator):
             const, tex = None, refl
         else:
             refl, const, tex = _rgb(uniform), np.asarray(uniform, dtype=np.float64), None
-        bsdf = mi.load_dict(_with_mask(self.dispatch(mat, ctx, refl), *src.opacity(alpha)))
+        bsdf = mi.load_dict(_with_mask(ctx, self.dispatch(mat, ctx, refl), *src.opacity(alpha)))
         emitter = None
         em = _emission(mat)
         if strength > 0:
@@ -1207,7 +1220,10 @@ class MitsubaTranslator(Translator):
                 "area emitter on the surface: emits from the front side only; with a background/environment light "
                 "the coverage alpha is composited from two extra one-bounce passes"
             ),
-            "material.alpha": _exact("mask BSDF with the material x colour alpha"),
+            "material.alpha": _exact(
+                "mask BSDF with the material x colour alpha; its shadows transparent as in Cycles (volpath, or "
+                "blendify_path's shadow rays with shadowless lights)"
+            ),
             "material.wireframe": approximate(
                 "the points Blender's Wireframe shader marks (within wireframe_thickness / 2 of a triangle edge, "
                 "world units) as flat bands on each triangle with the surface's BSDF in the wireframe colour, lifted "
