@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
+from blendify_core.ir.lights import Light, SunLight
 from blendify_core.ir.physics import material_lobes
 from blendify_core.ir.renderables import CircleMesh, CubeMesh, EllipsoidNURBS, PlaneMesh, PointCloud, SphereNURBS
 from blendify_core.ir.scene import Scene
@@ -12,6 +15,8 @@ from blendify_core.ir.validate import strict_api, strict_arguments
 __all__ = ["Effects", "analyse_effects"]
 
 _CONVEX = (SphereNURBS, EllipsoidNURBS, CubeMesh, PlaneMesh, CircleMesh)
+#: the closed ones among them: a light inside one lights its inside, which then sees itself
+_CLOSED = (SphereNURBS, EllipsoidNURBS, CubeMesh)
 _FIELDS = (
     "shadows",
     "indirect_diffuse",
@@ -103,12 +108,16 @@ def analyse_effects(scene: Scene) -> Effects:
 
     several = len(renderables) > 1
     concave = [o for o in renderables if not isinstance(o, _CONVEX)]
+    # a closed convex object with a light inside lights its own inside (a room made of one sphere or cube)
+    lit_inside = [o for o in renderables if _holds_a_light(o, lights)]
     # light passing through a transparent or refractive convex object reaches its own inside
     see_through = [o for o in renderables if o.tag in transparent or o.tag in transmissive]
     if several:
         indirect, r["indirect_diffuse"] = True, f"{len(renderables)} objects can light each other"
     elif concave:
         indirect, r["indirect_diffuse"] = True, f"{concave[0].tag!r} may see itself (not convex)"
+    elif lit_inside:
+        indirect, r["indirect_diffuse"] = True, f"{lit_inside[0].tag!r} has a light inside: its inside sees itself"
     elif see_through:
         indirect, r["indirect_diffuse"] = True, f"{see_through[0].tag!r} is see-through: its inside sees itself"
     else:
@@ -124,7 +133,7 @@ def analyse_effects(scene: Scene) -> Effects:
     # switches drop every glossy bounce after a diffuse one, and a rough reflector still lights the floor
     # (measured: a roughness-0.5 metal ball on a floor loses visible light without them)
     specular_paths = sorted(set(glossy_objs) | set(transmissive))
-    concave_tags = {o.tag for o in concave} | {o.tag for o in see_through}
+    concave_tags = {o.tag for o in concave} | {o.tag for o in see_through} | {o.tag for o in lit_inside}
     pair = next(
         ((sp, rc) for sp in specular_paths for rc in dict.fromkeys(diffuse_objs) if rc != sp or sp in concave_tags),
         None,
@@ -150,3 +159,31 @@ def analyse_effects(scene: Scene) -> Effects:
         background=background,
         reasons=r,
     )
+
+
+def _holds_a_light(obj: object, lights: list[Light]) -> bool:
+    """Whether a positioned light (point, spot, area: not the sun) lies inside the closed convex ``obj``:
+    inside every face plane of its world-space tessellation (the side of the shape's centroid)."""
+    if not isinstance(obj, _CLOSED):
+        return False
+    lo, hi = obj.world_bounds()  # cheap rejection before the tessellation
+    positioned = [
+        light
+        for light in lights
+        if not isinstance(light, SunLight) and np.all((light.translation > lo) & (light.translation < hi))
+    ]
+    if not positioned:
+        return False
+    mesh = obj.to_mesh()
+    m = obj.matrix_world
+    v = mesh.vertices @ m[:3, :3].T + m[:3, 3]
+    tri = v[mesh.faces.reshape(-1, 3)]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    keep = np.linalg.norm(n, axis=1) > 0
+    n, p0 = n[keep], tri[keep, 0]
+    inner = np.sign(np.einsum("fi,fi->f", n, v.mean(axis=0) - p0))
+    for light in positioned:
+        side = np.einsum("fi,fi->f", n, np.asarray(light.translation, dtype=np.float64) - p0)
+        if np.all(side * inner > 0):
+            return True
+    return False

@@ -99,6 +99,39 @@ def test_indirect_diffuse_single_convex_off_two_objects_on():
     assert e.indirect_diffuse and e.reasons["indirect_diffuse"] == "2 objects can light each other"
 
 
+@pytest.mark.parametrize(
+    "shape", ["sphere", "ellipsoid", "cube-rotated-and-moved"], ids=["sphere", "ellipsoid", "cube"]
+)
+def test_indirect_diffuse_on_when_a_light_is_inside_a_closed_convex_object(shape):
+    """A single convex object cannot light itself from outside, but a light inside a closed one lights its
+    inside, which sees itself: inside a sphere the path tracers lost all indirect light (Cycles' mean 0.0132
+    with 0 and with 12 bounces, Mitsuba 1.8x that with a glossy material)."""
+    s = bf.Scene()
+    if shape == "sphere":
+        s.renderables.add_sphere_nurbs(2.0, bf.DiffuseMaterial(), WHITE, tag="room")
+        inside, outside = (0, 0, 1.5), (0, 0, 2.5)
+    elif shape == "ellipsoid":
+        s.renderables.add_ellipsoid_nurbs((3.0, 1.0, 1.0), bf.DiffuseMaterial(), WHITE, tag="room")
+        inside, outside = (2.5, 0, 0), (0, 1.5, 0)
+    else:
+        s.renderables.add_cube_mesh(
+            2.0,
+            bf.DiffuseMaterial(),
+            WHITE,
+            tag="room",
+            rotation_mode="eulerXYZ",
+            rotation=(0, 0, 0.7),
+            translation=(10, 0, 0),
+        )
+        inside, outside = (10.9, 0, 0), (8.5, 0, 0)
+    s.lights.add_point(10.0, translation=outside, tag="lamp")
+    s.lights.add_sun(1.0)
+    assert not bf.analyse_effects(s).indirect_diffuse
+    s.lights["lamp"].translation = inside
+    e = bf.analyse_effects(s)
+    assert e.indirect_diffuse and "light inside" in e.reasons["indirect_diffuse"]
+
+
 def test_indirect_diffuse_single_concave_mesh():
     s = bf.Scene()
     s.renderables.add_mesh(V, PYRAMID, bf.DiffuseMaterial(), WHITE, tag="pyramid")
