@@ -696,3 +696,26 @@ def test_biased_settings_mitsuba_cannot_apply_are_approximations(scalar_backend)
     assert res.meta["bias"] == [] and not any("clamp" in n or "glossy" in n for n in res.meta.get("notes", []))
     with pytest.raises(UnsupportedFeatureError, match="cannot apply the render settings"):
         _render(scalar_backend, scene, strict=True, **kw)
+
+
+@pytest.mark.parametrize("row", [1, 4, 7])
+def test_environment_texels_sit_where_blender_puts_them(row):
+    """A single bright texel of a 16x32 map lights a Lambertian plane as Blender's mapping says: row r at
+    v = (r + 1/2) / H with linear interpolation between row centres, so the plane's radiance is
+    (albedo / pi) x the integral of that hat times cos(theta) over the sky. Mitsuba's own rows sit at
+    v = k / (H - 1) (before: 0.80x near the zenith to 1.20x near the horizon)."""
+    h = 16
+    scene = bf.Scene()
+    scene.set_orthographic_camera((4, 4), ortho_scale=1.0, translation=(0, 0, 3))
+    scene.renderables.add_plane_mesh(50, DiffuseMaterial(), UniformColors((0.5, 0.5, 0.5), color_space="linear"))
+    env = np.zeros((h, 2 * h, 3), np.float32)
+    env[row, 5] = 1000.0
+    scene.lights.set_environment_map(env)
+    got = bf.render(scene, backend="mitsuba", samples=64, seed=0, outputs=("rgb",), variant="scalar_rgb").rgba
+    theta = np.linspace(0.0, np.pi / 2, 100_001)
+    hat = np.clip(1.0 - np.abs(theta / np.pi * h - (row + 0.5)), 0.0, None)
+    f = hat * np.cos(theta) * np.sin(theta)
+    irradiance = 1000.0 * (np.pi / h) * float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(theta)))
+    expected = 0.5 / np.pi * irradiance
+    print(f"row {row}: mitsuba {got[..., :3].mean():.4f}, Blender's mapping {expected:.4f}")
+    assert got[..., :3].mean() == pytest.approx(expected, rel=0.01)
