@@ -22,10 +22,6 @@ KNOWN = {
     "angle-weighted vertex normals (tests/crossbackend/test_xb_geometry.py)",
     ("pointcloud", "pyrender"): "pyrender approximates points by coarser spheres (level of detail): depth "
     "q99 1.2e-3, 9 interior mask pixels",
-    ("plane_area", "pyrender"): "pyrender writes 8-bit colour: the plane under the area light reaches radiance "
-    "2.2 and clips at 1 (ratio 0.70 over the image, 0.983 where Cycles stays below 0.95; the area light itself "
-    "is integrated over its surface, tests/crossbackend/test_xb_lights.py)",
-    ("plane_area_disk", "pyrender"): "as plane_area: 8-bit colour clips the plane's radiance above 1",
     ("shadow_catcher", "cycles"): "Cycles' albedo pass on the catcher is 1.205 where Mitsuba and pyrender give "
     "the material's 0.604 (twice as much: the catcher's shader mix is counted twice?), and the shadow alpha "
     "differs (mean over the catcher: Cycles 0.024, Mitsuba 0.028, pyrender 0.017); Cycles hides the catcher from "

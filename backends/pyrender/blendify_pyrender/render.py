@@ -7,8 +7,9 @@ the session imports it once its context exists.
 
 Differences of :class:`FrameRenderer` from pyrender's stock renderer (0.1.45):
 
-- colour pass into an RGBA8 framebuffer with ``samples`` MSAA samples (0 = none), alpha = coverage;
-  depth is not read back (geometric outputs come from the G-buffer pass);
+- colour pass into a float (RGBA32F) framebuffer with ``samples`` MSAA samples (0 = none): mesh.frag writes
+  linear radiance without pyrender's gamma encoding or clamp at 1, alpha = coverage x opacity, read back as
+  floats; depth is not read back (geometric outputs come from the G-buffer pass);
 - a G-buffer pass without MSAA (our own shaders): planar view depth, world normal, albedo and instance id
   in float32 framebuffers, exact at pixel centres, no face culling (two-sided), so the orthographic depth
   bug of pyrender's depth linearisation does not arise;
@@ -16,9 +17,11 @@ Differences of :class:`FrameRenderer` from pyrender's stock renderer (0.1.45):
   (two-sided shading, as Cycles);
 - shadow maps skip objects that cast no shadow and lights that cast none.
 
-The colour pass is pyrender's 8-bit output (gamma 1/2.2), linearised by :func:`linearise_rgba8`;
-anti-aliasing (:class:`AntiAliasing`) is "msaa" (multisampled lit pass), "coverage" (plain lit pass plus a
-supersampled coverage pass, :func:`apply_coverage`), "ssaa" (supersampled, :func:`box_downsample`) or none.
+The colour pass is linear premultiplied radiance (:func:`color_pass_linear`); where the driver cannot render
+into float targets it falls back to pyrender's 8-bit output (gamma 1/2.2, clipped at 1), linearised by
+:func:`linearise_rgba8` and listed in ``meta["approximations"]``. Anti-aliasing (:class:`AntiAliasing`) is
+"msaa" (multisampled lit pass), "coverage" (plain lit pass plus a supersampled coverage pass,
+:func:`apply_coverage`), "ssaa" (supersampled, :func:`box_downsample`) or none.
 """
 
 from __future__ import annotations
@@ -120,6 +123,7 @@ __all__ = [
     "GBuffer",
     "MatrixCamera",
     "linearise_rgba8",
+    "color_pass_linear",
     "apply_coverage",
     "box_downsample",
     "COVERAGE_SUPERSAMPLE",
@@ -215,6 +219,13 @@ _SPRITE_FRAG_MAIN = """
 """
 _GLASS_DIFFUSE = "    vec3 c_diff = mix(vec3(0.0), base_color.rgb * (1 - min_roughness), 1.0 - metallic);\n"
 _GLASS_ALPHA = "    frag_color = clamp(vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a), 0.0, 1.0);\n"
+#: the float colour pass (BLENDIFY_FLOAT_COLOR, see FrameRenderer.float_color): linear radiance as shaded, only
+#: negatives cut (pyrender's line above encodes gamma 1/2.2 and clamps at 1 for its 8-bit framebuffer)
+_FLOAT_OUT = (
+    "#ifdef BLENDIFY_FLOAT_COLOR\n"
+    "    frag_color = vec4(max(color.xyz, 0.0), clamp(color.a * base_color.a, 0.0, 1.0));\n"
+    "#else\n" + _GLASS_ALPHA + "#endif\n"
+)
 #: glass (bf_glass = (transmission weight w, F0, IOR, solid)): no diffuse for the transmitted share T = w (1 - F),
 #: F Schlick's Fresnel at the viewing angle.
 #: - solid glass (a closed object, not flat): opaque; the transmitted share shows the light of the world (the SH:
@@ -276,6 +287,8 @@ _PATCHES = (
         "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n",
         "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n" + _SPRITE_VERT_MAIN,
     ),
+    # last: the output line, after the glass patch put its code before it
+    ("mesh.frag", _GLASS_ALPHA, _FLOAT_OUT),
 )
 #: soft shadows (shaders/blendify_shadow.glsl): the shadow look-ups of suns and spot/area lights take the light's size
 #: in the BLENDIFY_SOFT variant of mesh.frag, used only for frames with a soft light (its code alone, even when
@@ -368,12 +381,14 @@ def is_sprite(primitive: Any) -> bool:
 
 class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore[misc]
     """pyrender's program cache adding the BLENDIFY_SPRITE define to mesh.vert/mesh.frag while ``sprite``,
-    BLENDIFY_SOFT while ``soft`` (the frame has a light with soft shadows) and BLENDIFY_PROBE_MAP while
-    ``probe_map`` (metals reflect the probe's map). Unused code still costs llvmpipe: each is a variant."""
+    BLENDIFY_SOFT while ``soft`` (the frame has a light with soft shadows), BLENDIFY_PROBE_MAP while
+    ``probe_map`` (metals reflect the probe's map) and BLENDIFY_FLOAT_COLOR while ``float_color`` (linear output
+    for the float colour pass). Unused code still costs llvmpipe: each is a variant."""
 
     sprite = False
     soft = False
     probe_map = False
+    float_color = False
 
     def get_program(
         self, vertex_shader: str, fragment_shader: str, geometry_shader: Any = None, defines: Any = None
@@ -384,6 +399,8 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
             defines = {**(defines or {}), "BLENDIFY_SOFT": 1}
         if self.probe_map and vertex_shader == "mesh.vert":
             defines = {**(defines or {}), "BLENDIFY_PROBE_MAP": 1}
+        if self.float_color and vertex_shader == "mesh.vert":
+            defines = {**(defines or {}), "BLENDIFY_FLOAT_COLOR": 1}
         return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
 
 
@@ -488,7 +505,7 @@ class FrameRenderer(pyrender.Renderer):
         self._program_cache = _ProgramCache(shader_dir=_shader_dir())
         self.max_samples = int(glGetIntegerv(GL_MAX_SAMPLES))
         self.gl_renderer = (glGetString(GL_RENDERER) or b"").decode("ascii", "replace")
-        self._targets: dict[tuple[str, int, int, int], dict[str, Any]] = {}
+        self._targets: dict[tuple[str, int, int, int, bool], dict[str, Any]] = {}
         self._target: tuple[int, int, int] = (1, 1, 0)
         self._shadow_light: Any = None
         #: nodes that cast no shadow / lights that cast none / nodes hidden in the current pass
@@ -513,10 +530,46 @@ class FrameRenderer(pyrender.Renderer):
         self.probe_scale = 1.0
         #: the indirect-light probe of the last frame: (key, coefficients, note) (probe.py)
         self.probe_cache: tuple[Any, np.ndarray, str] | None = None
+        self.float_color = self.float_targets_supported()
+
+    @property
+    def float_color(self) -> bool:
+        """Whether the colour pass renders linear radiance into float targets (RGBA32F, read back as floats);
+        False: pyrender's 8-bit gamma-encoded output (the fallback where the driver has no float targets)."""
+        return bool(self._program_cache.float_color)
+
+    @float_color.setter
+    def float_color(self, value: bool) -> None:
+        self._program_cache.float_color = bool(value)
+
+    def float_targets_supported(self) -> bool:
+        """Whether RGBA32F renderbuffers are complete colour targets here, single-sampled and with the most
+        samples the driver allows (a 4 x 4 trial)."""
+        ok = True
+        for samples in (0, self.max_samples) if self.max_samples >= 2 else (0,):
+            rb = glGenRenderbuffers(1)
+            fbo = glGenFramebuffers(1)
+            try:
+                glBindRenderbuffer(GL_RENDERBUFFER, rb)
+                if samples > 0:
+                    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_RGBA32F, 4, 4)
+                else:
+                    glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA32F, 4, 4)
+                glBindFramebuffer(GL_FRAMEBUFFER, fbo)
+                glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, rb)
+                ok = ok and glCheckFramebufferStatus(GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE
+            except Exception:  # a GL error raised by PyOpenGL: the format is not renderable
+                ok = False
+            finally:
+                glBindFramebuffer(GL_FRAMEBUFFER, 0)
+                glDeleteFramebuffers(1, [fbo])
+                glDeleteRenderbuffers(1, [rb])
+        return ok
 
     # -- framebuffers ----------------------------------------------------------------------------
     def _framebuffer(self, kind: str, width: int, height: int, samples: int) -> dict[str, Any]:
-        key = (kind, width, height, samples)
+        floats = kind == "color" and self.float_color
+        key = (kind, width, height, samples, floats)
         fb = self._targets.get(key)
         if fb is not None:
             return fb
@@ -525,12 +578,13 @@ class FrameRenderer(pyrender.Renderer):
             self._free_target(self._targets.pop(old))
         fb = {"fbos": [], "rbs": []}
         if kind in ("color", "coverage"):
+            fmt = GL_RGBA32F if floats else GL_RGBA8
             color_rb, depth_rb = glGenRenderbuffers(2)
             glBindRenderbuffer(GL_RENDERBUFFER, color_rb)
             if samples > 0:
-                glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_RGBA8, width, height)
+                glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples, fmt, width, height)
             else:
-                glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height)
+                glRenderbufferStorage(GL_RENDERBUFFER, fmt, width, height)
             glBindRenderbuffer(GL_RENDERBUFFER, depth_rb)
             if samples > 0:
                 glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_DEPTH_COMPONENT24, width, height)
@@ -548,7 +602,7 @@ class FrameRenderer(pyrender.Renderer):
             if samples > 0:
                 resolve_rb = glGenRenderbuffers(1)
                 glBindRenderbuffer(GL_RENDERBUFFER, resolve_rb)
-                glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height)
+                glRenderbufferStorage(GL_RENDERBUFFER, fmt, width, height)
                 resolve = glGenFramebuffers(1)
                 glBindFramebuffer(GL_FRAMEBUFFER, resolve)
                 glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, resolve_rb)
@@ -607,8 +661,8 @@ class FrameRenderer(pyrender.Renderer):
             glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST)
         glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["read"])
         glReadBuffer(GL_COLOR_ATTACHMENT0)
-        buf = glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE)
-        img = np.frombuffer(buf, dtype=np.uint8).reshape(h, w, 4)
+        gl_type, dtype = (GL_FLOAT, np.float32) if self.float_color else (GL_UNSIGNED_BYTE, np.uint8)
+        img = np.frombuffer(glReadPixels(0, 0, w, h, GL_RGBA, gl_type), dtype=dtype).reshape(h, w, 4)
         return img[::-1], None
 
     # -- lights ----------------------------------------------------------------------------------
@@ -735,10 +789,11 @@ class FrameRenderer(pyrender.Renderer):
 
     # -- passes ----------------------------------------------------------------------------------
     def render_color(self, scene: Any, width: int, height: int, samples: int, flags: int) -> np.ndarray:
-        """Lit colour pass: (H, W, 4) uint8, gamma 1/2.2 encoded (pyrender's shader), alpha = coverage x
-        opacity. pyrender blends translucent materials with glBlendFunc(SRC_ALPHA, ONE_MINUS_SRC_ALPHA),
-        which also squares the destination alpha; during this call its blend function keeps alpha
-        "over"-composited (ONE, ONE_MINUS_SRC_ALPHA) instead."""
+        """Lit colour pass, alpha = coverage x opacity, rows top to bottom (read-only): (H, W, 4) float32
+        linear premultiplied radiance (``float_color``), else uint8 gamma 1/2.2 encoded (pyrender's shader;
+        see :func:`color_pass_linear`). pyrender blends translucent materials with glBlendFunc(SRC_ALPHA,
+        ONE_MINUS_SRC_ALPHA), which also squares the destination alpha; during this call its blend function
+        keeps alpha "over"-composited (ONE, ONE_MINUS_SRC_ALPHA) instead."""
         self.viewport_width, self.viewport_height = width, height
         self._target = (width, height, samples)
         flags |= RenderFlags.OFFSCREEN | RenderFlags.RGBA | RenderFlags.SKIP_CULL_FACES
@@ -893,6 +948,15 @@ class AntiAliasing:
         return {"mode": self.mode, "msaa": self.msaa, "supersample": self.supersample}
 
 
+def color_pass_linear(img: np.ndarray) -> np.ndarray:
+    """A colour pass (:meth:`FrameRenderer.render_color`) as linear premultiplied float32 (H, W, 4), writable:
+    the float pass as read (the MSAA resolve and the blending already average linear, premultiplied values),
+    the 8-bit fallback through :func:`linearise_rgba8`."""
+    if img.dtype == np.uint8:
+        return linearise_rgba8(img)
+    return np.array(img, dtype=np.float32, order="C")
+
+
 def linearise_rgba8(img: np.ndarray) -> np.ndarray:
     """pyrender's 8-bit colour (gamma 1/2.2, premultiplied by coverage when multisampled) to linear
     premultiplied float32: straight = C / A, linear = straight^2.2, times A (a table for opaque pixels)."""
@@ -1029,7 +1093,7 @@ def _color(engine: Engine, frame: Frame, w: int, h: int, aa: AntiAliasing, flags
         r.point_size = px
         r.sprite_conservative = aa.mode == "coverage"
         try:
-            rgba = linearise_rgba8(r.render_color(scene, w, h, 0, flags))
+            rgba = color_pass_linear(r.render_color(scene, w, h, 0, flags))
         finally:
             r.sprite_conservative = False
         if aa.mode == "coverage":
@@ -1042,10 +1106,10 @@ def _color(engine: Engine, frame: Frame, w: int, h: int, aa: AntiAliasing, flags
         return rgba
     if aa.mode == "msaa":
         r.point_size = px
-        return linearise_rgba8(r.render_color(scene, w, h, aa.msaa, flags))
+        return color_pass_linear(r.render_color(scene, w, h, aa.msaa, flags))
     k = max(1, aa.supersample)  # "ssaa"
     r.point_size = px * k
-    return box_downsample(linearise_rgba8(r.render_color(scene, w * k, h * k, 0, flags)), k)
+    return box_downsample(color_pass_linear(r.render_color(scene, w * k, h * k, 0, flags)), k)
 
 
 def _indirect_probe(engine: Engine, frame: Frame, flags: int) -> tuple[np.ndarray, str]:
@@ -1058,7 +1122,7 @@ def _indirect_probe(engine: Engine, frame: Frame, flags: int) -> tuple[np.ndarra
     if r.probe_cache is None or r.probe_cache[0] != key:
 
         def render_rgba(width: int, height: int) -> np.ndarray:
-            return linearise_rgba8(r.render_color(engine.pscene, width, height, 0, flags))
+            return color_pass_linear(r.render_color(engine.pscene, width, height, 0, flags))
 
         sh, note = probe_sh(engine, frame, flags, render_rgba)
         r.probe_cache = (key, sh.astype(np.float32), note)
@@ -1086,6 +1150,11 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
     catchers = [(i, e.node) for i, e in enumerate(frame.entries) if e.node is not None and e.catcher]
     want = set(settings.outputs)
     kinds = [type(node.light).__name__ for node, _, _ in frame.light_nodes]
+    if "rgb" in want and not renderer.float_color:
+        approximations.append(
+            "colour: 8-bit colour pass (this driver has no float render targets): radiance clipped at 1, dark "
+            "values quantised (linearised with (x/255)^2.2)"
+        )
     if any(kinds.count(k) > 4 for k in set(kinds)):
         approximations.append("lights: pyrender shades at most 4 lights of each type (the nearest are used)")
     if "rgb" in want and aa.mode == "coverage":

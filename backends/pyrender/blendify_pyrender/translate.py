@@ -564,8 +564,9 @@ class PyrenderTranslator(Translator):
         "object.no_shadow": exact("the object is left out of the shadow maps"),
         "light.no_shadow": exact("the light's shadow map stays empty"),
         "output.rgb": exact(
-            "8-bit colour pass linearised with (x/255)^2.2; anti-aliased with MSAA (EGL) or supersampling, "
-            "coverage alpha"
+            "linear radiance from a float (RGBA32F) colour pass, values above 1 kept (where the driver has no "
+            "float render targets: 8-bit, gamma 2.2, clipped at 1, listed in meta['approximations']); "
+            "anti-aliased with MSAA (EGL) or supersampling, coverage alpha"
         ),
         "output.depth": exact("planar z from a float G-buffer pass, one sample at the pixel centre"),
         "output.normal": exact("world-space shading normal facing the viewer, G-buffer pass"),
@@ -644,9 +645,7 @@ class PyrenderTranslator(Translator):
                 "the sphere's normal and depth); listed in result.meta['approximations']"
             ),
             "pointcloud.vertex_colors": approximate("per-point colours multiply the shaded colour (COLOR_0)"),
-            "pointcloud.emission": approximate(
-                "emission added to the shaded colour, clipped at 1; lights nothing else"
-            ),
+            "pointcloud.emission": approximate("emission added to the shaded colour; lights nothing else"),
         },
     )
     def pointcloud(self, pc: PointCloud, ctx: TranslationContext) -> Built:
@@ -819,7 +818,7 @@ class PyrenderTranslator(Translator):
             "material.metallic": approximate(
                 "GGX metal; reflects the world's light (9 SH coefficients) and, when the indirect-light probe is "
                 "rendered from inside the object, what the probe sees (a 32 x 64 equirectangular map, blurred "
-                "with roughness): the scene around it from its centre; highlights clip at 1"
+                "with roughness): the scene around it from its centre"
             ),
             "material.transmission": approximate(
                 "the transmitted share weight x (1 - F) (Schlick, F0 from the IOR): solid objects are opaque "
@@ -833,7 +832,7 @@ class PyrenderTranslator(Translator):
             "material.sheen": approximate("sheen ignored"),
             "material.subsurface": approximate("subsurface ignored (base colour shaded as diffuse)"),
             "material.emission": approximate(
-                "emission added to the shaded colour (clipped at 1 by the 8-bit pass); emissive surfaces light "
+                "emission added to the shaded colour; emissive surfaces light "
                 "the scene as lights of the same power (pi x radiance x area per side): a planar emitter as two "
                 "back-to-back rectangle area lights, any other as a point light at its area centroid"
             ),

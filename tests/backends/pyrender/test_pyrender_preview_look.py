@@ -255,12 +255,14 @@ def test_glass_shows_what_is_behind_tinted(pyr):
     clear = render(_glass_scene(), backend=pyr, quality="preview").rgba
     behind = clear[2, 2, :3]  # the plane beside the glass
     through = clear[16, 16, :3]  # the plane through the glass: (1 - F0) of it plus the reflection
-    np.testing.assert_allclose(through, behind, rtol=0.08, atol=0.02)
+    # F0 = 0.04 (IOR 1.5) of the unit sky reflected, the rest of the plane transmitted (blended in linear radiance)
+    np.testing.assert_allclose(through, 0.96 * behind + 0.04, rtol=0.03, atol=0.01)
     tinted = render(_glass_scene(tint=(0.9, 0.3, 0.9), behind=(0.5, 0.5, 0.5)), backend=pyr, quality="preview").rgba
     plane, glass = tinted[2, 2, :3], tinted[16, 16, :3]
     print(f"plane {plane}, through the tinted glass {glass}")
-    # green absorbed (as far as blending can: 1 - opacity = 0.86 for every channel), red passes
-    assert glass[1] < 0.8 * plane[1] and glass[0] > 0.85 * plane[0]
+    # green absorbed (as far as blending can: 1 - opacity = 1 - 0.96 x 0.9 = 0.864 for every channel, blended in
+    # linear radiance; the 8-bit pass blended gamma-encoded values, which darkened it to 0.73 by accident), red passes
+    assert glass[1] <= 0.87 * plane[1] and glass[0] > 0.85 * plane[0]
     alone = render(_glass_scene(with_plane=False), backend=pyr, quality="preview").rgba
     assert 0.0 < alone[16, 16, 3] < 0.1  # on a transparent film: opacity = the reflected share (F0 = 0.04)
     res = render(_glass_scene(), backend=pyr, quality="preview")

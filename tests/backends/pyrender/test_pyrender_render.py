@@ -11,8 +11,10 @@ from pyrender_test_utils import alpha_centroids
 
 from blendify_core import (
     DiffuseMaterial,
+    PrincipledBSDFMaterial,
     Scene,
     UniformColors,
+    VertexColors,
     render,
     testing,
 )
@@ -47,6 +49,10 @@ def test_markers_with_msaa_and_supersampling():
         with PyrenderBackend(antialias=aa, supersample=3) as be:
             res = render(scene, backend=be, quality="preview")
         assert np.abs(alpha_centroids(res.rgba, pixels) - pixels).max() < 0.1, aa
+        a = res.rgba[..., 3]
+        assert ((a > 0.05) & (a < 0.95)).sum() > 20, aa  # soft silhouettes
+        # premultiplied at the anti-aliased edges: the grey markers' colour never exceeds their alpha
+        assert np.all(res.rgba[..., :3] <= a[..., None] + 1e-6), aa
 
 
 # -- depth and geometric outputs -------------------------------------------------------------------------
@@ -131,7 +137,7 @@ def test_light_units_on_a_lambert_plane(pyr, light):
     if light == "sun":
         expected = rho / np.pi * 3.0 * np.cos(np.deg2rad(20.0))
         got = res.rgba[32, 32, 0]
-        tol = 0.04  # GGX F0 0.04 lobe + 8-bit
+        tol = 0.04  # GGX F0 0.04 lobe
     elif light == "point":
         # pixel (32, 32) centre: x = y = 1/64 world units from the axis, light 2 m above
         d2 = 2.0**2 + 2 * (1 / 64) ** 2
@@ -141,6 +147,79 @@ def test_light_units_on_a_lambert_plane(pyr, light):
     else:
         expected, got, tol = rho * 1.0, res.rgba[32, 32, 0], 0.02
     assert got == pytest.approx(expected, rel=tol)
+
+
+def _rectangle_form_factor(half_x: float, half_y: float, height: float) -> float:
+    """Point-to-rectangle form factor for a point under the rectangle's centre (four corner rectangles)."""
+    a, b = half_x / height, half_y / height
+    ra, rb = np.sqrt(1 + a * a), np.sqrt(1 + b * b)
+    return 4 * (a / ra * np.arctan(b / ra) + b / rb * np.arctan(a / rb)) / (2 * np.pi)
+
+
+@pytest.mark.parametrize("light", ["area", "area_disk"])
+def test_plane_radiance_above_one_is_kept(pyr, light):
+    """The colour pass is float: the plane under the canonical area light reaches radiance ~2.2 (the
+    8-bit pass clipped it at 1)."""
+    scene = testing.plane_scene(light, resolution=(32, 32))
+    res = render(scene, backend=pyr, quality="preview", outputs=("rgb",), samples=1)
+    assert not any("8-bit" in a for a in res.meta["approximations"]), res.meta["approximations"]
+    got = res.rgba[15:17, 15:17, :3].mean()
+    if light == "area":  # a 0.5 x 0.5 square of 100 W, 1.5 above the plane's centre, albedo 0.5
+        radiance = 100.0 / (np.pi * 0.25)
+        expected = 0.5 / np.pi * np.pi * radiance * _rectangle_form_factor(0.25, 0.25, 1.5)
+        assert got == pytest.approx(expected, rel=0.04)  # area integration within 2 %, F0 lobe -0.8 %
+    assert got > 1.9
+    # the whole image: above 1 wherever the irradiance is, no plateau at 1
+    assert np.count_nonzero(np.isclose(res.rgba[..., :3], 1.0, atol=1e-3)) < 0.01 * res.rgba[..., :3].size
+
+
+def test_emission_above_one_keeps_its_value(pyr):
+    scene = Scene()
+    black = UniformColors((0.0, 0.0, 0.0), color_space="linear")
+    mat = PrincipledBSDFMaterial(emission_color=(1.0, 0.5, 0.25, 1.0), emission_strength=3.0)
+    scene.renderables.add_plane_mesh(1.0, mat, black, tag="emitter")
+    scene.set_orthographic_camera((32, 32), ortho_scale=2.0, translation=(0, 0, 5.0))
+    res = render(scene, backend=pyr, quality="preview", outputs=("rgb",), samples=1)
+    expected = 3.0 * mat.linear("emission_color")[:3]
+    np.testing.assert_allclose(res.rgba[16, 16, :3], expected, rtol=1e-3)
+    assert res.rgba[16, 16, 0] > 2.9
+
+
+def test_dark_gradient_is_not_quantised(pyr):
+    """A dim gradient (radiance 0 .. 0.005) keeps its 64 distinct values in proportion to the albedo (the 8-bit
+    pass at gamma 2.2 gave 21 levels, up to 14 % off)."""
+    scene = Scene()
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=float)
+    ramp = np.repeat(((v[:, 0] + 1) / 2)[:, None], 3, axis=1)
+    scene.renderables.add_mesh(
+        v, np.array([[0, 1, 2], [0, 2, 3]]), DiffuseMaterial(), VertexColors(ramp, color_space="linear")
+    )
+    scene.set_orthographic_camera((64, 64), ortho_scale=2.0, translation=(0, 0, 5.0))
+    scene.lights.set_background_light(0.005)
+    res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "albedo"), samples=1)
+    row, albedo = res.rgba[32, :, 0].astype(np.float64), res.albedo[32, :, 0].astype(np.float64)
+    assert len(np.unique(row)) == 64
+    assert np.all(np.diff(row) > 0)
+    ratio = row[albedo > 0.05] / albedo[albedo > 0.05]
+    assert np.abs(ratio / np.median(ratio) - 1).max() < 0.005
+    assert np.median(ratio) == pytest.approx(0.005, rel=0.03)
+
+
+def test_eight_bit_fallback_clips_and_says_so(pyr):
+    """Where a driver has no float targets, the colour pass is pyrender's 8-bit output: clipped at 1 and
+    listed in the approximations (forced here on this driver)."""
+    renderer = pyr.engine_instance.renderer
+    assert renderer.float_color, f"{renderer.gl_renderer}: no float colour targets"
+    scene = testing.plane_scene("area", resolution=(32, 32))
+    renderer.float_color = False
+    try:
+        res = render(scene, backend=pyr, quality="preview", outputs=("rgb",), samples=1)
+    finally:
+        renderer.float_color = True
+    assert any("8-bit colour pass" in a for a in res.meta["approximations"])
+    assert res.rgba[..., :3].max() == pytest.approx(1.0, abs=1e-6)
+    again = render(scene, backend=pyr, quality="preview", outputs=("rgb",), samples=1)
+    assert again.rgba[..., :3].max() > 1.9
 
 
 def test_texture_orientation(pyr):
@@ -177,10 +256,11 @@ def test_translucent_alpha_is_composited_over(pyr, samples):
     scene.lights.set_background_light(1.0)
     res = render(scene, backend=pyr, quality="preview", samples=samples)
     over_bg, over_opaque = res.rgba[40, 20], res.rgba[20, 40]
-    assert over_bg[3] == pytest.approx(0.5, abs=0.01)
-    np.testing.assert_allclose(over_bg[:3] / over_bg[3], 0.5, rtol=0.03)  # straight colour kept
+    assert over_bg[3] == pytest.approx(0.5, abs=1e-4)
+    np.testing.assert_allclose(over_bg[:3] / over_bg[3], 0.5, rtol=1e-3)  # straight colour kept
     assert over_opaque[3] == 1.0
-    assert over_opaque[0] == pytest.approx(0.5 * 0.5 + 0.5 * 0.2, rel=0.1)  # blended in gamma space
+    # blended in linear radiance, as the path tracers (the 8-bit pass blended gamma-encoded values: 0.33)
+    assert over_opaque[0] == pytest.approx(0.5 * 0.5 + 0.5 * 0.2, rel=1e-3)
 
 
 def test_opaque_background_option(pyr):
@@ -363,8 +443,10 @@ def test_osmesa_platform_in_a_subprocess():
         "scene, px = testing.marker_scene()\n"
         "with PyrenderBackend(platform='osmesa') as be:\n"
         "    res = render(scene, backend=be, quality='preview', outputs=('rgb', 'depth'))\n"
+        "    lit = render(testing.plane_scene('area', resolution=(16, 16)), backend=be, outputs=('rgb',), samples=1)\n"
         "a = res.rgba[..., 3]\n"
         "assert ((a > 0.05) & (a < 0.95)).sum() > 20, 'no anti-aliased alpha'\n"
+        "assert lit.rgba[..., :3].max() > 1.9, ('float colour pass', lit.meta['approximations'])\n"
         "print('osmesa ok', res.meta['antialiasing'])\n"
     )
     env_code = "import os; os.environ.pop('PYOPENGL_PLATFORM', None)\n" + code
