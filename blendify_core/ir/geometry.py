@@ -226,6 +226,26 @@ def vertex_normals(vertices: ArrayLike, faces: IntArray) -> Float64Array:
     return out
 
 
+def leaning_area_fraction(vertices: ArrayLike, faces: IntArray, normals: ArrayLike, degrees: float) -> float:
+    """The fraction of a smooth mesh's area on triangles with a corner whose vertex normal leans more than
+    ``degrees`` from the triangle's own normal (sign-free: a flipped winding leans 0). Where shading
+    normals lean far from the faces, engines that pick a surface's side by different normals (Cycles by
+    the geometric one, Mitsuba's ``twosided`` by the shading one) shade differently."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    n = np.asarray(normals, dtype=np.float64)
+    if len(f) == 0:
+        return 0.0
+    p = v[f]
+    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    area = np.linalg.norm(fn, axis=1)
+    unit = np.divide(fn, area[:, None], out=np.zeros_like(fn), where=area[:, None] > 0)
+    cos = np.abs(np.einsum("fi,fki->fk", unit, n[f]))
+    leans = (cos < np.cos(np.deg2rad(degrees))).any(axis=1) & (area > 0)
+    total = float(area.sum())
+    return float(area[leans].sum() / total) if total > 0 else 0.0
+
+
 def uv_sphere(radius: float = 1.0, segments: int = 64, rings: int = 32) -> TriMesh:
     """A UV sphere (poles on +/-Z) with per-vertex normals and UVs (u around Z, v from south to north)."""
     theta = np.linspace(0.0, np.pi, rings + 1)  # from north pole

@@ -374,3 +374,18 @@ def test_mesh_vertex_normals_computed_once_per_geometry():
     assert n2 is not n1
     np.testing.assert_allclose(n2, vertex_normals(v * [1.0, 2.0, 3.0], f), atol=1e-15)
     assert not np.allclose(n2, n1)
+
+
+def test_leaning_area_fraction_finds_low_poly_smooth_meshes():
+    from blendify_core.ir.geometry import icosphere, leaning_area_fraction
+
+    v = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)])
+    f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1]])
+    f = np.concatenate([f, [[2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]])
+    box_normals = vertex_normals(v, f)  # every corner 54.7 deg off its faces
+    assert leaning_area_fraction(v, f, box_normals, 30.0) == 1.0
+    assert leaning_area_fraction(v, f, box_normals, 60.0) == 0.0
+    assert leaning_area_fraction(v, f[:, ::-1], box_normals, 30.0) == 1.0  # the winding does not matter
+    fine = icosphere(3)
+    assert leaning_area_fraction(fine.vertices, fine.faces, vertex_normals(fine.vertices, fine.faces), 30.0) == 0.0
+    assert leaning_area_fraction(v, f[:0], box_normals, 30.0) == 0.0
