@@ -137,6 +137,9 @@ POINTS_MIN_DRAWN = 100_000
 SUBPIXEL_DRAWN_DIAMETER = 0.7
 #: indirect light from a light probe (probe.py)
 PROBE = True
+#: every light in the colour pass: scenes with more lights of a type than pyrender binds per draw are rendered
+#: in groups of lights that fit and summed (FrameRenderer.light_groups); False: one pass, pyrender's nearest lights
+LIGHT_GROUPS = True
 #: the coverage pass of the "coverage" anti-aliasing is rendered at 3x the resolution (9 samples/pixel)
 COVERAGE_SUPERSAMPLE = 3
 _LIN8 = ((np.arange(256, dtype=np.float64) / 255.0) ** _GAMMA).astype(np.float32)
@@ -791,7 +794,8 @@ class FrameRenderer(pyrender.Renderer):
     def render_color(self, scene: Any, width: int, height: int, samples: int, flags: int) -> np.ndarray:
         """Lit colour pass, alpha = coverage x opacity, rows top to bottom (read-only): (H, W, 4) float32
         linear premultiplied radiance (``float_color``), else uint8 gamma 1/2.2 encoded (pyrender's shader;
-        see :func:`color_pass_linear`). pyrender blends translucent materials with glBlendFunc(SRC_ALPHA,
+        see :func:`color_pass_linear`); a scene with more lights of a type than pyrender binds per draw is
+        rendered in groups of lights and summed (:meth:`light_groups`): float32 linear. pyrender blends translucent materials with glBlendFunc(SRC_ALPHA,
         ONE_MINUS_SRC_ALPHA), which also squares the destination alpha; during this call its blend function
         keeps alpha "over"-composited (ONE, ONE_MINUS_SRC_ALPHA) instead."""
         self.viewport_width, self.viewport_height = width, height
@@ -799,13 +803,62 @@ class FrameRenderer(pyrender.Renderer):
         flags |= RenderFlags.OFFSCREEN | RenderFlags.RGBA | RenderFlags.SKIP_CULL_FACES
         if samples == 0:
             glDisable(GL_MULTISAMPLE)
+        groups = self.light_groups(scene, flags)
         original = _pyrender_renderer.glBlendFunc
         _pyrender_renderer.glBlendFunc = _blend_func_alpha_over
         try:
-            color, _ = self.render(scene, flags)
+            if len(groups) == 1:
+                color, _ = self.render(scene, flags)
+            else:
+                color = self._render_light_groups(scene, flags, groups)
         finally:
             _pyrender_renderer.glBlendFunc = original
         return color
+
+    # -- lights beyond pyrender's per-draw limits ----------------------------------------------------
+    def light_groups(self, scene: Any, flags: int) -> list[tuple[list[Any], list[Any], list[Any]]]:
+        """The scene's (directional, spot, point) light nodes in groups that each fit the number of lights of a
+        type pyrender binds per draw (``_compute_max_n_lights``: 4, more for a shadowed type where texture units
+        allow). One group (all lights) when the scene fits or ``LIGHT_GROUPS`` is off; otherwise as many as the
+        most demanding type needs, each type dealt round robin (lights in a fixed order: by pose)."""
+        kinds = (scene.directional_light_nodes, scene.spot_light_nodes, scene.point_light_nodes)
+        max_n = self._compute_max_n_lights(flags)
+        n = max([1] + [-(-len(k) // max(m, 1)) for k, m in zip(kinds, max_n)]) if LIGHT_GROUPS else 1
+        if n == 1:
+            return [(list(kinds[0]), list(kinds[1]), list(kinds[2]))]
+        poses = {node: tuple(scene.get_pose(node).ravel()) for k in kinds for node in k}
+        ordered = [sorted(k, key=poses.__getitem__) for k in kinds]
+        return [(ordered[0][g::n], ordered[1][g::n], ordered[2][g::n]) for g in range(n)]
+
+    def _render_light_groups(self, scene: Any, flags: int, groups: list[Any]) -> np.ndarray:
+        """The colour pass as the sum of one forward pass per light group (linear premultiplied float32). The
+        shadow maps of all lights are drawn (or kept) first, as ``render`` does; the light that comes from no
+        light node (the world's and the indirect-light probe's SH, the probe's map, emission) is in the first
+        pass only. Every pass draws the same surfaces with the same alpha (coverage x opacity), and blending
+        translucent surfaces is linear in radiance at a fixed alpha, so the radiance of the passes adds up to
+        that of one pass with every light; alpha is the first pass's."""
+        self.shadow_maps(scene, flags)
+        attrs = ("_directional_light_nodes", "_spot_light_nodes", "_point_light_nodes")
+        saved_nodes = [getattr(scene, a) for a in attrs]
+        saved = (self.env_sh, self.spec_sh, self.emission_scale, self.probe_scale)
+        total = np.zeros(0, dtype=np.float32)
+        try:
+            for g, group in enumerate(groups):
+                for attr, nodes in zip(attrs, group):
+                    setattr(scene, attr, set(nodes))
+                if g == 1:
+                    self.env_sh = self.spec_sh = np.zeros_like(saved[0])
+                    self.emission_scale = self.probe_scale = 0.0
+                color, _ = self._forward_pass(scene, flags)
+                if g == 0:
+                    total = color_pass_linear(color)
+                else:
+                    total[..., :3] += color_pass_linear(color)[..., :3]
+        finally:
+            for attr, nodes in zip(attrs, saved_nodes):
+                setattr(scene, attr, nodes)
+            self.env_sh, self.spec_sh, self.emission_scale, self.probe_scale = saved
+        return total
 
     def _draw_nodes(self, scene: Any, ids: dict[Any, int], shader: str, with_material: bool, width: int) -> None:
         """Draw the visible mesh nodes in ``ids`` (node -> instance id) with one of our shader pairs into a
@@ -1155,7 +1208,7 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
             "colour: 8-bit colour pass (this driver has no float render targets): radiance clipped at 1, dark "
             "values quantised (linearised with (x/255)^2.2)"
         )
-    if any(kinds.count(k) > 4 for k in set(kinds)):
+    if not LIGHT_GROUPS and any(kinds.count(k) > 4 for k in set(kinds)):
         approximations.append("lights: pyrender shades at most 4 lights of each type (the nearest are used)")
     if "rgb" in want and aa.mode == "coverage":
         approximations.append(
