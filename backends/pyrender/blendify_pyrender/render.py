@@ -795,9 +795,10 @@ class FrameRenderer(pyrender.Renderer):
         """Lit colour pass, alpha = coverage x opacity, rows top to bottom (read-only): (H, W, 4) float32
         linear premultiplied radiance (``float_color``), else uint8 gamma 1/2.2 encoded (pyrender's shader;
         see :func:`color_pass_linear`); a scene with more lights of a type than pyrender binds per draw is
-        rendered in groups of lights and summed (:meth:`light_groups`): float32 linear. pyrender blends translucent materials with glBlendFunc(SRC_ALPHA,
-        ONE_MINUS_SRC_ALPHA), which also squares the destination alpha; during this call its blend function
-        keeps alpha "over"-composited (ONE, ONE_MINUS_SRC_ALPHA) instead."""
+        rendered in groups of lights and summed (:meth:`light_groups`): float32 linear. pyrender blends
+        translucent materials with glBlendFunc(SRC_ALPHA, ONE_MINUS_SRC_ALPHA), which also squares the
+        destination alpha; during this call its blend function keeps alpha "over"-composited (ONE,
+        ONE_MINUS_SRC_ALPHA) instead."""
         self.viewport_width, self.viewport_height = width, height
         self._target = (width, height, samples)
         flags |= RenderFlags.OFFSCREEN | RenderFlags.RGBA | RenderFlags.SKIP_CULL_FACES

@@ -74,3 +74,125 @@ def test_no_shadow_acne_on_a_lit_plane(pyr, kind):
     diff = np.abs(images[0] - images[1])
     print(f"{kind}: max difference with/without shadows {diff.max():.4f}")
     assert diff.max() < 1.5 / 255
+
+
+# ---------------------------------------------------------------------------------------------------
+# more lights of a type than pyrender binds per draw (4; more for a shadowed type where texture units allow)
+# ---------------------------------------------------------------------------------------------------
+
+
+def _many(shadow: bool) -> list[tuple[str, bool, float, float]]:
+    """9 points, 6 spots, 5 suns and 6 area lights (3 square, 3 disc) spread over the plane, shadows as asked
+    (every third light casts none when ``shadow``)."""
+    out = []
+    counts = (("point", 9), ("spot", 6), ("sun", 5), ("area_square", 3), ("area_disk", 3))
+    i = 0
+    for kind, n in counts:
+        for k in range(n):
+            x = -0.9 + 1.8 * k / max(n - 1, 1)
+            out.append((kind, shadow and i % 3 != 0, x, 0.6 * (-1) ** i))
+            i += 1
+    return out
+
+
+def _many_scene(lights, strength_scale: float = 0.15):
+    scene = testing.occluder_scene("point", True, (32, 32))
+    for light in list(scene.lights):
+        scene.lights.remove(light.tag)
+    for kind, shadow, x, y in lights:
+        _add(scene, kind, shadow, x)
+        light = list(scene.lights)[-1]
+        light.strength *= strength_scale
+        if kind != "sun":
+            light.set_position(translation=light.translation + np.array([0.0, y, 0.0]))
+    return scene
+
+
+def _passes(pyr, monkeypatch) -> list[int]:
+    """Counts the renderer's forward passes (one per light group and colour render)."""
+    renderer = pyr.engine_instance.renderer
+    calls = [0]
+    original = renderer._forward_pass
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(renderer, "_forward_pass", counted)
+    return calls
+
+
+@pytest.mark.parametrize("shadow", [True, False], ids=["shadows", "shadowless"])
+def test_every_light_of_many_is_shaded(pyr, shadow):
+    """26 lights (9 points, 6 spots, 5 suns, 6 area lights; pyrender binds 4 of a type per draw, or more of a
+    shadowed type where texture units allow) light the plane and cube as the sum of the pictures of each light
+    alone: the colour pass is rendered in groups of lights that fit and summed, the indirect-light probe's own
+    renders included. Before, the nearest 4 of each type were shaded (the approximation line is gone)."""
+    lights = _many(shadow)
+    every = render(_many_scene(lights), backend=pyr, quality="preview", outputs=("rgb", "instance"))
+    assert not any(a.startswith("lights:") for a in every.meta["approximations"]), every.meta["approximations"]
+    total = np.zeros_like(every.rgba[..., :3])
+    for light in lights:
+        total += render(_many_scene([light]), backend=pyr, quality="preview").rgba[..., :3]
+    lit = every.instance >= 0
+    err = np.abs(every.rgba[..., :3][lit] - total[lit])
+    print(f"shadow={shadow}: mean |all - sum of each alone| / mean {err.mean() / total[lit].mean():.2e}")
+    assert err.mean() < 2e-3 * total[lit].mean()
+    assert err.max() < 2e-2 * total[lit].max()
+
+
+def test_lights_at_the_limit_render_in_one_pass(pyr, monkeypatch):
+    """4 lights of each type fit one pass: one forward pass per colour render, as before; a fifth point light
+    takes a second pass (light groups) and adds its light."""
+    import blendify_pyrender.render as pr
+
+    lights = [x for x in _many(False) if x[0] in ("point", "sun", "spot")]
+    at_limit = [x for k in ("point", "sun", "spot") for x in [y for y in lights if y[0] == k][:4]]
+    scene = _many_scene(at_limit)
+    calls = _passes(pyr, monkeypatch)
+    monkeypatch.setattr(pr, "PROBE", False)  # the colour render alone (the probe renders 6 more per bounce)
+    one = render(scene, backend=pyr, quality="preview", outputs=("rgb",))
+    assert calls[0] == 1
+    monkeypatch.setattr(pr, "LIGHT_GROUPS", False)
+    assert np.array_equal(render(scene, backend=pyr, quality="preview", outputs=("rgb",)).rgba, one.rgba)
+    monkeypatch.setattr(pr, "LIGHT_GROUPS", True)
+    fifth = [x for x in lights if x[0] == "point"][4]
+    calls[0] = 0
+    more = render(_many_scene(at_limit + [fifth]), backend=pyr, quality="preview", outputs=("rgb",))
+    assert calls[0] == 2
+    alone = render(_many_scene([fifth]), backend=pyr, quality="preview", outputs=("rgb",)).rgba[..., :3]
+    np.testing.assert_allclose(more.rgba[..., :3], one.rgba[..., :3] + alone, rtol=1e-4, atol=1e-5)
+
+
+@pytest.mark.parametrize("antialias,samples", [("coverage", 8), ("coverage", 1), ("msaa", 8), ("ssaa", 8)])
+def test_many_lights_in_every_antialiasing_mode(antialias, samples):
+    """Light groups in every anti-aliasing mode (samples=1: none), a translucent cube included: the colour is
+    the sum of each light's alone and the alpha (coverage x opacity) that of one pass."""
+    from blendify_pyrender import PyrenderBackend
+
+    from blendify_core import DiffuseMaterial, UniformColors
+
+    lights = [x for x in _many(True) if x[0] == "point"]
+
+    def scene_of(subset):
+        scene = _many_scene(subset)
+        for tag in ("plane", "cube"):
+            scene.renderables.remove(tag)
+        grey = UniformColors((0.5,) * 3)
+        scene.renderables.add_plane_mesh(1.2, DiffuseMaterial(), grey, tag="plane")  # edges in view
+        scene.renderables.add_cube_mesh(0.4, DiffuseMaterial(alpha=0.4), grey, translation=(0.75, 0.1, 0.5))
+        return scene
+
+    kw = dict(quality="preview", samples=samples, transparent_background=True)
+    with PyrenderBackend(antialias=antialias, supersample=2) as be:
+        every = render(scene_of(lights), backend=be, **kw)
+        alone = [render(scene_of([x]), backend=be, **kw).rgba for x in lights]
+    assert every.meta["antialiasing"]["mode"] == ("none" if samples == 1 else antialias)
+    total = np.sum([a[..., :3] for a in alone], axis=0)
+    err = np.abs(every.rgba[..., :3] - total)
+    print(f"{antialias}/{samples}: mean |all - sum of each alone| / mean {err.mean() / total.mean():.2e}")
+    assert err.mean() < 2e-3 * total.mean()
+    np.testing.assert_allclose(every.rgba[..., 3], alone[0][..., 3], atol=1e-6)
+    a = every.rgba[..., 3]
+    assert ((a > 0.5) & (a < 0.8)).sum() > 10, "the translucent cube (two faces: alpha 0.64) over the background"
+    assert ((a > 0.02) & (a < 0.98)).sum() > 20, "anti-aliased edges"
