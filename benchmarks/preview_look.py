@@ -320,7 +320,7 @@ def main() -> None:
     ap.add_argument("--tag", default="round2", choices=TAGS)
     ap.add_argument("--size", default="96x72")
     ap.add_argument("--samples", type=int, default=512)
-    ap.add_argument("--only", default="")
+    ap.add_argument("--only", default="", help="comma-separated scenes: re-measure these rows of --tag's run")
     ap.add_argument("--table", action="store_true", help="only rewrite the table and sheet from the JSON files")
     args = ap.parse_args()
     size = tuple(int(x) for x in args.size.lower().split("x"))
@@ -336,11 +336,16 @@ def main() -> None:
             rows.append(row)
         RESULTS.mkdir(parents=True, exist_ok=True)
         images = {f"{r['scene']}_{k}": to_display_uint8(r[f"_{k}"]) for r in rows for k in ("ref", "prev")}
+        date = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+        if args.only and _has(args.tag):  # re-measured rows replace theirs in the tag's run, in place
+            old = json.loads((RESULTS / f"preview_look_{args.tag}.json").read_text())
+            fresh = {r["scene"]: r for r in rows}
+            rows = [fresh.pop(r["scene"], r) for r in old["rows"]] + list(fresh.values())
+            with np.load(RESULTS / f"preview_look_{args.tag}_images.npz") as z:
+                images = {k: z[k] for k in z.files} | images
+            date = f"{old['date']}, rows {args.only} {date}"
         np.savez_compressed(RESULTS / f"preview_look_{args.tag}_images.npz", **images)
-        data = {
-            "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-            "rows": [{k: v for k, v in r.items() if not k.startswith("_")} for r in rows],
-        }
+        data = {"date": date, "rows": [{k: v for k, v in r.items() if not k.startswith("_")} for r in rows]}
         (RESULTS / f"preview_look_{args.tag}.json").write_text(json.dumps(data, indent=1) + "\n")
     write_table(size, args.samples)  # type: ignore[arg-type]
 

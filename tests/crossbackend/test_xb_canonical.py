@@ -20,8 +20,6 @@ KNOWN = {
     ("fuze", "cycles"): "the albedo differs by 3.4 % (Cycles filters its albedo pass over the pixel, Mitsuba "
     "looks the texture up at the pixel centre); the smooth normals agree since every backend gets the IR's "
     "angle-weighted vertex normals (tests/crossbackend/test_xb_geometry.py)",
-    ("pointcloud", "pyrender"): "pyrender approximates points by coarser spheres (level of detail): depth "
-    "q99 1.2e-3, 9 interior mask pixels",
     ("shadow_catcher", "cycles"): "Cycles' albedo pass on the catcher is 1.205 where Mitsuba and pyrender give "
     "the material's 0.604 (twice as much: the catcher's shader mix is counted twice?), and the shadow alpha "
     "differs (mean over the catcher: Cycles 0.024, Mitsuba 0.028, pyrender 0.017); Cycles hides the catcher from "

@@ -15,7 +15,9 @@ Differences of :class:`FrameRenderer` from pyrender's stock renderer (0.1.45):
   bug of pyrender's depth linearisation does not arise;
 - pyrender's ``mesh.frag`` is used with one patch: back faces are shaded with the flipped normal
   (two-sided shading, as Cycles);
-- shadow maps skip objects that cast no shadow and lights that cast none.
+- shadow maps skip objects that cast no shadow and lights that cast none;
+- point clouds are exact spheres (ray-sphere intersection per pixel centre, or per sample when multisampled)
+  in every pass: colour, G-buffer, coverage and shadow maps (BLENDIFY_SPHERE shader variants).
 
 The colour pass is linear premultiplied radiance (:func:`color_pass_linear`); where the driver cannot render
 into float targets it falls back to pyrender's 8-bit output (gamma 1/2.2, clipped at 1), linearised by
@@ -71,9 +73,11 @@ from OpenGL.GL import (
     GL_RGBA,
     GL_RGBA8,
     GL_RGBA32F,
+    GL_SAMPLE_SHADING,
     GL_SRC_ALPHA,
     GL_UNSIGNED_BYTE,
     GL_UNSIGNED_INT,
+    GL_VIEWPORT,
     glBindFramebuffer,
     glBindRenderbuffer,
     glBlendFunc,
@@ -98,6 +102,7 @@ from OpenGL.GL import (
     glGenRenderbuffers,
     glGetIntegerv,
     glGetString,
+    glMinSampleShading,
     glPixelStorei,
     glPointSize,
     glPolygonMode,
@@ -168,58 +173,20 @@ _AREA_PATCH = """        vec3 res = bf_area_u[i].w > 0.5
 _BIAS_ANCHOR = "float bias = max(0.001 * (1.0 - nl), 0.0001) / proj_coords.w;"
 _BIAS_PATCH = "float bias = max(0.005 * (1.0 - nl), 0.0005) / proj_coords.w;"
 
-# Sphere impostors (point clouds drawn as GL points): pyrender's mesh shaders get a BLENDIFY_SPRITE variant.
-# The vertex shader sizes the point sprite to the sphere's projected diameter (the point's diameter is in
-# texcoord_0.x, world units); the fragment shader keeps the pixel centres inside the projected disc (exact
-# for sub-pixel spheres too: a 1-px sprite keeps its one pixel when the centre falls in the disc), shades
-# with the sphere's normal at that pixel (an orthographic impostor) and writes the sphere's depth.
-_SPRITE_VERT_DECL = """
-#ifdef BLENDIFY_SPRITE
-uniform float sprite_viewport;
-uniform float sprite_diameter_scale;
-flat out float sprite_diam_px;
-flat out float sprite_radius_world;
+# Point clouds as exact spheres: pyrender's mesh and depth shaders get a BLENDIFY_SPHERE variant (the library
+# shaders/blendify_sphere_{vert,frag}.glsl inserted before their main()). Each point is a quad spread over the
+# sphere's projected box; each fragment intersects its pixel centre's ray with the sphere, shades the hit with
+# the sphere's normal (frag_position is the hit point) and writes its depth.
+_SPHERE_VERT_MAIN = """
+#ifdef BLENDIFY_SPHERE
+    gl_Position = bf_sphere_corner(M * inst_m, position, texcoord_0.x, texcoord_0.y);
 #endif
 """
-_SPRITE_VERT_MAIN = """
-#ifdef BLENDIFY_SPRITE
-    float sprite_d_world = texcoord_0.x * sprite_diameter_scale * length(vec3((M * inst_m)[0]));
-    sprite_radius_world = 0.5 * sprite_d_world;
-    sprite_diam_px = sprite_d_world * P[0][0] * 0.5 * sprite_viewport / gl_Position.w;
-    gl_PointSize = max(sprite_diam_px, 1.0);
-#endif
-"""
-_SPRITE_FRAG_DECL = """
-#ifdef BLENDIFY_SPRITE
-uniform mat4 V;
-uniform mat4 P;
-uniform float sprite_conservative;
-flat in float sprite_diam_px;
-flat in float sprite_radius_world;
-vec3 sprite_centre() { return frag_position; }
-vec3 sprite_pos;
-vec3 sprite_normal;
-#define frag_position sprite_pos
-#endif
-"""
-_SPRITE_FRAG_MAIN = """
-#ifdef BLENDIFY_SPRITE
-    vec2 sprite_q = (gl_PointCoord - 0.5) * max(sprite_diam_px, 1.0);
-    float sprite_r = 0.5 * sprite_diam_px;
-    // the "coverage" anti-aliasing takes alpha from its own pass: its colour pass keeps every sub-pixel
-    // sphere's pixel (conservative), so that pixels it covers in part have a colour
-    if (dot(sprite_q, sprite_q) > sprite_r * sprite_r && !(sprite_conservative > 0.5 && sprite_diam_px < 1.0)) {
-        discard;
-    }
-    vec2 sprite_u = sprite_q / max(sprite_r, 1e-12);
-    sprite_u /= max(length(sprite_u), 1.0);
-    vec3 sprite_nv = vec3(sprite_u.x, -sprite_u.y, sqrt(max(1.0 - dot(sprite_u, sprite_u), 0.0)));
-    sprite_normal = normalize(transpose(mat3(V)) * sprite_nv);
-    sprite_pos = sprite_centre() + sprite_radius_world * sprite_normal;
-    vec4 sprite_clip = P * V * vec4(sprite_pos, 1.0);
-    gl_FragDepth = 0.5 * sprite_clip.z / sprite_clip.w + 0.5;
-#endif
-"""
+_SPHERE_FRAG_DECL = "\n#ifdef BLENDIFY_SPHERE\n#define frag_position bf_sphere_pos\n#endif\n"
+_SPHERE_FRAG_MAIN = "#ifdef BLENDIFY_SPHERE\n    bf_sphere_hit();\n#endif\n"
+_SPHERE_TEXCOORD = "#ifdef BLENDIFY_SPHERE\nlayout(location = TEXCOORD_0_LOC) in vec2 texcoord_0;\n#endif\n"
+#: the markers our own shaders hold where the sphere library goes
+_SPHERE_MARKERS = ("// @BLENDIFY_SPHERE_VERT@\n", "// @BLENDIFY_SPHERE_FRAG@\n")
 _GLASS_DIFFUSE = "    vec3 c_diff = mix(vec3(0.0), base_color.rgb * (1 - min_roughness), 1.0 - metallic);\n"
 _GLASS_ALPHA = "    frag_color = clamp(vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a), 0.0, 1.0);\n"
 #: the float colour pass (BLENDIFY_FLOAT_COLOR, see FrameRenderer.float_color): linear radiance as shaded, only
@@ -261,7 +228,7 @@ _GLASS_OPACITY = """    if (bf_glass.x > 0.0) {
     }
 """
 #: (file, anchor, replacement) applied to pyrender's shaders after the patches above: the world's light from
-#: spherical harmonics (diffuse and glossy, shaders/blendify_env.glsl), glass, sphere impostors
+#: spherical harmonics (diffuse and glossy, shaders/blendify_env.glsl), glass, point clouds as exact spheres
 _PATCHES = (
     (
         "mesh.frag",
@@ -281,15 +248,29 @@ _PATCHES = (
         "    color.xyz += base_color.xyz * ambient_light;\n",
         "    color.xyz += bf_environment(n, normalize(cam_pos - frag_position), roughness, metallic, f0, c_diff);\n",
     ),
-    ("mesh.frag", _TWO_SIDED_PATCH, _TWO_SIDED_PATCH + "\n#ifdef BLENDIFY_SPRITE\n    n = sprite_normal;\n#endif"),
-    ("mesh.frag", "in vec3 frag_position;\n", "in vec3 frag_position;\n" + _SPRITE_FRAG_DECL),
-    ("mesh.frag", "void main()\n{\n", "void main()\n{\n" + _SPRITE_FRAG_MAIN),
-    ("mesh.vert", "out vec3 frag_position;\n", "out vec3 frag_position;\n" + _SPRITE_VERT_DECL),
+    ("mesh.frag", _TWO_SIDED_PATCH, _TWO_SIDED_PATCH + "\n#ifdef BLENDIFY_SPHERE\n    n = bf_sphere_normal;\n#endif"),
+    ("mesh.frag", "void main()\n{\n", "void main()\n{\n" + _SPHERE_FRAG_MAIN),
+    (
+        "mesh.frag",
+        _GLASS_ALPHA,
+        _GLASS_ALPHA + "#ifdef BLENDIFY_SPHERE\n    frag_color.a *= bf_sphere_cover;\n#endif\n",
+    ),
     (
         "mesh.vert",
         "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n",
-        "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n" + _SPRITE_VERT_MAIN,
+        "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n" + _SPHERE_VERT_MAIN,
     ),
+    (
+        "mesh_depth.vert",
+        "layout(location = 0) in vec3 position;\n",
+        "layout(location = 0) in vec3 position;\n" + _SPHERE_TEXCOORD,
+    ),
+    (
+        "mesh_depth.vert",
+        "    gl_Position = light_matrix * M * inst_m * vec4(position, 1.0);\n",
+        "    gl_Position = light_matrix * M * inst_m * vec4(position, 1.0);\n" + _SPHERE_VERT_MAIN,
+    ),
+    ("mesh_depth.frag", "void main()\n{\n", "void main()\n{\n" + _SPHERE_FRAG_MAIN),
     # last: the output line, after the glass patch put its code before it
     ("mesh.frag", _GLASS_ALPHA, _FLOAT_OUT),
 )
@@ -332,7 +313,7 @@ _NO_GLASS = np.zeros(4, dtype=np.float32)
 
 def _shader_dir() -> str:
     """A per-process folder holding pyrender's shaders (mesh.frag patched for two-sided shading, Blender's
-    spot cone, area lights and sphere impostors) and ours."""
+    spot cone, area lights and exact spheres; mesh_depth.* for the spheres' shadows) and ours."""
     global _patched_dir
     if _patched_dir is not None and os.path.isdir(_patched_dir):
         return _patched_dir
@@ -369,26 +350,58 @@ def _shader_dir() -> str:
                 "supports pyrender 0.1.45"
             )
         path.write_text(text.replace(anchor, replacement, 1))
+    # the sphere library: before main() in pyrender's shaders, at the markers in ours
+    vert_lib = (_SHADER_DIR / "blendify_sphere_vert.glsl").read_text()
+    frag_lib = (_SHADER_DIR / "blendify_sphere_frag.glsl").read_text()
+    for name, anchor, lib in (
+        ("mesh.vert", "\nvoid main()", vert_lib),
+        ("mesh_depth.vert", "\nvoid main()", vert_lib),
+        ("mesh_depth.frag", "\nvoid main()", frag_lib),
+        ("mesh.frag", "in vec3 frag_position;\n", frag_lib + _SPHERE_FRAG_DECL),
+    ):
+        path = Path(dst) / name
+        text = path.read_text()
+        at = text.index(anchor) + (len(anchor) if anchor.startswith("in ") else 0)
+        path.write_text(text[:at] + "\n" + lib + text[at:])
     for f in _SHADER_DIR.iterdir():
         if f.suffix in (".vert", ".frag"):
-            shutil.copyfile(f, os.path.join(dst, f.name))
+            text = f.read_text().replace(_SPHERE_MARKERS[0], vert_lib).replace(_SPHERE_MARKERS[1], frag_lib)
+            Path(dst, f.name).write_text(text)
     atexit.register(shutil.rmtree, dst, True)
     _patched_dir = dst
     return dst
 
 
-def is_sprite(primitive: Any) -> bool:
-    """Whether a pyrender primitive is a point cloud drawn as sphere impostors (see translate.pointcloud)."""
+def is_sphere_cloud(primitive: Any) -> bool:
+    """Whether a pyrender primitive is a point cloud drawn as exact spheres (see translate.pointcloud)."""
     return getattr(primitive, "point_diameter", None) is not None
 
 
-class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore[misc]
-    """pyrender's program cache adding the BLENDIFY_SPRITE define to mesh.vert/mesh.frag while ``sprite``,
-    BLENDIFY_SOFT while ``soft`` (the frame has a light with soft shadows), BLENDIFY_PROBE_MAP while
-    ``probe_map`` (metals reflect the probe's map) and BLENDIFY_FLOAT_COLOR while ``float_color`` (linear output
-    for the float colour pass). Unused code still costs llvmpipe: each is a variant."""
+#: bf_sphere_mode (shaders/blendify_sphere_frag.glsl): pixel centres on the sphere only; also the pixel holding
+#: a sub-pixel sphere's projected centre; also every pixel a sphere covers in part, alpha = covered fraction
+SPHERE_EXACT, SPHERE_CONSERVATIVE, SPHERE_COVERAGE = 0.0, 1.0, 2.0
+#: pixels the quads of the modes grow by around the spheres' projected boxes
+_SPHERE_GROW = {SPHERE_EXACT: 0.0, SPHERE_CONSERVATIVE: 0.6, SPHERE_COVERAGE: 1.0}
 
-    sprite = False
+
+def _bind_sphere_uniforms(program: Any, primitive: Any, mode: float, full: bool) -> None:
+    """The sphere variant's uniforms for the current viewport: the mode, and the diameter factor of the drawn
+    subset (``full``: every point at its own diameter)."""
+    vp = glGetIntegerv(GL_VIEWPORT)
+    program.set_uniform("bf_viewport", np.array([vp[2], vp[3]], dtype=np.float32))
+    program.set_uniform("bf_sphere_scale", 1.0 if full else float(getattr(primitive, "sphere_scale", 1.0)))
+    program.set_uniform("bf_sphere_mode", float(mode))
+    program.set_uniform("bf_sphere_grow", _SPHERE_GROW[mode])
+
+
+class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore[misc]
+    """pyrender's program cache adding the BLENDIFY_SPHERE define to mesh.vert/mesh.frag and to the
+    shadow maps' mesh_depth.vert/frag while ``sphere``, BLENDIFY_SOFT while ``soft`` (the frame has a light with
+    soft shadows), BLENDIFY_PROBE_MAP while ``probe_map`` (metals reflect the probe's map) and
+    BLENDIFY_FLOAT_COLOR while ``float_color`` (linear output for the float colour pass). Unused code still costs
+    llvmpipe: each is a variant."""
+
+    sphere = False
     soft = False
     probe_map = False
     float_color = False
@@ -396,8 +409,8 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
     def get_program(
         self, vertex_shader: str, fragment_shader: str, geometry_shader: Any = None, defines: Any = None
     ) -> Any:
-        if self.sprite and vertex_shader == "mesh.vert":
-            defines = {**(defines or {}), "BLENDIFY_SPRITE": 1}
+        if self.sphere and vertex_shader in ("mesh.vert", "mesh_depth.vert"):
+            defines = {**(defines or {}), "BLENDIFY_SPHERE": 1}
         if self.soft and vertex_shader == "mesh.vert":
             defines = {**(defines or {}), "BLENDIFY_SOFT": 1}
         if self.probe_map and vertex_shader == "mesh.vert":
@@ -518,8 +531,9 @@ class FrameRenderer(pyrender.Renderer):
         #: view independent, so while it stays the same they are reused instead of re-rendered (None = always)
         self.shadow_key: Any = None
         self._shadow_done: dict[Any, Any] = {}
-        #: sphere impostors keep every sub-pixel sphere's pixel in the colour pass (the "coverage" scheme)
-        self.sprite_conservative = False
+        #: how the colour pass draws the spheres of point clouds (SPHERE_EXACT, SPHERE_CONSERVATIVE for the
+        #: "coverage" scheme, SPHERE_COVERAGE)
+        self.sphere_mode = SPHERE_EXACT
         #: the world's light as 9 SH coefficients (A_l / pi) L_lm, linear RGB (translate.environment_sh)
         self.env_sh = np.zeros((9, 3), dtype=np.float32)
         #: the light glossy and metal surfaces reflect (the world's; env_sh may be the indirect-light probe's)
@@ -729,14 +743,14 @@ class FrameRenderer(pyrender.Renderer):
         self.probe_texture._add_to_context()
         self.probe_map_scale = scale
 
-    # -- sphere impostors -------------------------------------------------------------------------
+    # -- point clouds as exact spheres ------------------------------------------------------------
     def _get_primitive_program(self, primitive: Any, flags: int, program_flags: int) -> Any:
-        self._program_cache.sprite = is_sprite(primitive)
+        self._program_cache.sphere = is_sphere_cloud(primitive)
         self._program_cache.probe_map = self.probe_texture is not None and self.probe_scale > 0.0
         try:
             return super()._get_primitive_program(primitive, flags, program_flags)
         finally:
-            self._program_cache.sprite = False
+            self._program_cache.sphere = False
 
     def _bind_and_draw_primitive(self, primitive: Any, pose: Any, program: Any, flags: int) -> None:
         glass = getattr(primitive.material, "blendify_glass", None)
@@ -746,15 +760,31 @@ class FrameRenderer(pyrender.Renderer):
         program.set_uniform("bf_glass", _NO_GLASS if glass is None else glass)
         program.set_uniform("bf_emission", float(self.emission_scale))
         program.set_uniform("bf_probe_inside", 1.0 if getattr(primitive, "blendify_probe_inside", False) else 0.0)
-        if is_sprite(primitive):
-            program.set_uniform("sprite_viewport", float(self.viewport_width))
-            program.set_uniform("sprite_diameter_scale", float(getattr(primitive, "sprite_scale", 1.0)))
-            program.set_uniform("sprite_conservative", 1.0 if self.sprite_conservative else 0.0)
-        super()._bind_and_draw_primitive(primitive, pose, program, flags)
+        if not is_sphere_cloud(primitive):
+            super()._bind_and_draw_primitive(primitive, pose, program, flags)
+            return
+        shadow = self._shadow_light is not None  # shadow maps: every sphere, exact
+        _bind_sphere_uniforms(program, primitive, SPHERE_EXACT if shadow else self.sphere_mode, shadow)
+        drawn = primitive._indices
+        if shadow:
+            primitive._indices = primitive.point_all_indices
+        # multisampled colour: the sphere is intersected at every sample (gl_FragCoord is the sample's
+        # position under sample shading), so its silhouette is anti-aliased like a mesh's (llvmpipe shades
+        # every sample of a multisampled pass anyway)
+        per_sample = not shadow and self._target[2] > 0
+        if per_sample:
+            glEnable(GL_SAMPLE_SHADING)
+            glMinSampleShading(1.0)
+        try:
+            super()._bind_and_draw_primitive(primitive, pose, program, flags)
+        finally:
+            primitive._indices = drawn
+            if per_sample:
+                glDisable(GL_SAMPLE_SHADING)
 
     # -- shadow control --------------------------------------------------------------------------
     def _shadow_mapping_pass(self, scene: Any, light_node: Any, flags: int) -> None:
-        key = None if self.shadow_key is None else (self.shadow_key, self.point_size)
+        key = self.shadow_key
         texture = light_node.light.shadow_texture
         if key is not None and self._shadow_done.get(light_node) == (key, id(texture)):
             return  # the map of this light is still valid (only the camera moved)
@@ -861,9 +891,9 @@ class FrameRenderer(pyrender.Renderer):
             self.env_sh, self.spec_sh, self.emission_scale, self.probe_scale = saved
         return total
 
-    def _draw_nodes(self, scene: Any, ids: dict[Any, int], shader: str, with_material: bool, width: int) -> None:
-        """Draw the visible mesh nodes in ``ids`` (node -> instance id) with one of our shader pairs into a
-        viewport ``width`` pixels wide."""
+    def _draw_nodes(self, scene: Any, ids: dict[Any, int], shader: str, with_material: bool, full: bool) -> None:
+        """Draw the visible mesh nodes in ``ids`` (node -> instance id) with one of our shader pairs (``full``:
+        every point of a cloud at its own diameter, else the subset the colour pass draws)."""
         V, P = self._get_camera_matrices(scene)  # noqa: N806
         cam_pos = scene.get_pose(scene.main_camera_node)[:3, 3]
         program = None
@@ -874,9 +904,9 @@ class FrameRenderer(pyrender.Renderer):
             pose = scene.get_pose(node)
             for prim in node.mesh.primitives:
                 defines = _buffer_defines(prim)
-                sprite = is_sprite(prim)
-                if sprite:
-                    defines["BLENDIFY_SPRITE"] = 1
+                sphere = is_sphere_cloud(prim)
+                if sphere:
+                    defines["BLENDIFY_SPHERE"] = 1
                 tex = getattr(prim.material, "baseColorTexture", None) if with_material else None
                 if tex is not None and "TEXCOORD_0_LOC" in defines:
                     defines["HAS_BASE_COLOR_TEX"] = 1
@@ -896,18 +926,16 @@ class FrameRenderer(pyrender.Renderer):
                         self._bind_texture(tex, "base_color_texture", program)
                 if with_material:
                     program.set_uniform("cam_pos", cam_pos)
-                if sprite:
-                    program.set_uniform("sprite_viewport", float(width))
-                    program.set_uniform("sprite_diameter_scale", float(getattr(prim, "sprite_scale", 1.0)))
+                if sphere:
+                    _bind_sphere_uniforms(program, prim, SPHERE_EXACT, full)
                 prim._bind()
                 n_inst = 1 if prim.poses is None else len(prim.poses)
                 glDisable(GL_PROGRAM_POINT_SIZE)
-                if sprite:
-                    glEnable(GL_PROGRAM_POINT_SIZE)
-                elif prim.mode == GLTF.POINTS:
+                if prim.mode == GLTF.POINTS:
                     glPointSize(self.point_size)
-                if prim.indices is not None:
-                    glDrawElementsInstanced(prim.mode, prim.indices.size, GL_UNSIGNED_INT, ctypes.c_void_p(0), n_inst)
+                indices = prim.point_all_indices if sphere and full else prim.indices
+                if indices is not None:
+                    glDrawElementsInstanced(prim.mode, indices.size, GL_UNSIGNED_INT, ctypes.c_void_p(0), n_inst)
                 else:
                     glDrawArraysInstanced(prim.mode, 0, len(prim.positions), n_inst)
                 prim._unbind()
@@ -938,7 +966,7 @@ class FrameRenderer(pyrender.Renderer):
         glClear(GL_DEPTH_BUFFER_BIT)
         glDisable(GL_MULTISAMPLE)
         self._begin_pass(width, height)
-        self._draw_nodes(scene, ids, "blendify_gbuffer", True, width)
+        self._draw_nodes(scene, ids, "blendify_gbuffer", True, True)
         glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["read"])
         out = []
         for att in (GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1):
@@ -958,7 +986,7 @@ class FrameRenderer(pyrender.Renderer):
         glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT)
         glEnable(GL_MULTISAMPLE)
         self._begin_pass(width, height)
-        self._draw_nodes(scene, ids, "blendify_coverage", False, width)
+        self._draw_nodes(scene, ids, "blendify_coverage", False, False)
         if samples > 0:
             glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["draw"])
             glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb["read"])
@@ -1093,15 +1121,14 @@ def _shadow_flags(frame: Frame) -> int:
     return flags
 
 
-def _point_pixels(scene: Any, frame: Frame) -> tuple[float, list[str]]:
-    """Pixel size (at the camera resolution) of clouds drawn as sphere impostors: the projected diameter at
-    the cloud centre's planar depth (the largest over such clouds; 1 if there are none), and the notes. Also
-    chooses how many points of each such cloud are drawn: at most ``POINTS_PER_PIXEL`` points per covered
-    pixel (a prefix of the randomly ordered points), all of them when the cloud is not that dense; a thinned
-    cloud of sub-pixel spheres draws them larger by sqrt(all / drawn) (same summed area, same coverage), and
-    a cloud of spheres under ``SUBPIXEL_DRAWN_DIAMETER`` pixels is thinned to spheres of about that size."""
+def _thin_clouds(scene: Any, frame: Frame) -> list[str]:
+    """Choose how many points of each cloud the colour passes draw (the G-buffer and the shadow maps draw
+    all): at most ``POINTS_PER_PIXEL`` points per covered pixel (a prefix of the randomly ordered points,
+    never fewer than ``POINTS_MIN_DRAWN``), all of them when the cloud is not that dense; a cloud of spheres
+    under ``SUBPIXEL_DRAWN_DIAMETER`` pixels is thinned to spheres of about that size, and a thinned cloud of
+    sub-pixel spheres draws them larger by sqrt(all / drawn) (same summed area, same coverage). Returns the
+    notes (approximations) of the thinned clouds."""
     cam = frame.camera
-    best = 1.0
     notes: list[str] = []
     for node in frame.nodes:
         if node is None:
@@ -1112,8 +1139,7 @@ def _point_pixels(scene: Any, frame: Frame) -> tuple[float, list[str]]:
                 continue
             centre = scene.get_pose(node)[:3, 3]
             px, extent_px = cam.screen_size(d, centre), cam.screen_size(prim.point_extent, centre)
-            best = max(best, px)
-            n = len(prim.point_all_indices)
+            n = len(prim.point_all_indices) // 2  # two triangles per point
             area = min(np.pi * extent_px**2, float(cam.width * cam.height))
             if px < SUBPIXEL_DRAWN_DIAMETER:
                 # sub-pixel spheres each cost a whole pixel's shading: draw fewer, larger ones
@@ -1122,47 +1148,43 @@ def _point_pixels(scene: Any, frame: Frame) -> tuple[float, list[str]]:
                 m = int(min(n, max(POINTS_MIN_DRAWN, np.ceil(POINTS_PER_PIXEL * area / max(px, 1.0) ** 2))))
             if not prim._in_context():
                 m = n  # the element buffer is uploaded from the current indices: upload all of them
-            prim._indices = prim.point_all_indices[:m]  # the element buffer holds all; draw a prefix
+            prim._indices = prim.point_all_indices[: 2 * m]  # the element buffer holds all; draw a prefix
             # a sub-pixel sphere covers a pixel with probability ~ its area: the drawn ones are enlarged so that
             # the thinned cloud keeps the summed area (and so the coverage) of the whole cloud
-            prim.sprite_scale = float(np.sqrt(n / m)) if px < 1.0 else 1.0
+            prim.sphere_scale = float(np.sqrt(n / m)) if px < 1.0 else 1.0
             if m < n and px < 1.0:
                 notes.append(
-                    f"pointcloud LOD: {m} of {n} points drawn (sub-pixel spheres: a random subset, drawn "
-                    f"{prim.sprite_scale:.2g}x wider so that it covers what the whole cloud does)"
+                    f"pointcloud: colour from {m} of {n} points (sub-pixel spheres: a random subset, drawn "
+                    f"{prim.sphere_scale:.2g}x wider so that it covers what the whole cloud does; depth, normal "
+                    "and instance from every point)"
                 )
             elif m < n:
                 notes.append(
-                    f"pointcloud LOD: {m} of {n} points drawn (a random subset: about {POINTS_PER_PIXEL} "
-                    "points per covered pixel at this view)"
+                    f"pointcloud: colour from {m} of {n} points (a random subset: about {POINTS_PER_PIXEL} "
+                    "points per covered pixel at this view; depth, normal and instance from every point)"
                 )
-    return best, notes
+    return notes
 
 
 def _color(engine: Engine, frame: Frame, w: int, h: int, aa: AntiAliasing, flags: int) -> np.ndarray:
     """Linear premultiplied (H, W, 4) colour with the anti-aliasing scheme ``aa``."""
     r, scene = engine.renderer, engine.pscene
-    px, _ = _point_pixels(scene, frame)
     if aa.mode in ("none", "coverage"):
-        r.point_size = px
-        r.sprite_conservative = aa.mode == "coverage"
+        r.sphere_mode = SPHERE_CONSERVATIVE if aa.mode == "coverage" else SPHERE_EXACT
         try:
             rgba = color_pass_linear(r.render_color(scene, w, h, 0, flags))
         finally:
-            r.sprite_conservative = False
+            r.sphere_mode = SPHERE_EXACT
         if aa.mode == "coverage":
             ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
             # supersampled, not multisampled: llvmpipe's MSAA is 4x slower even for a trivial shader
             k = COVERAGE_SUPERSAMPLE
-            r.point_size = px * k
             cov = box_downsample(r.render_coverage(scene, w * k, h * k, 0, ids), k)
             rgba = apply_coverage(rgba, cov)
         return rgba
     if aa.mode == "msaa":
-        r.point_size = px
         return color_pass_linear(r.render_color(scene, w, h, aa.msaa, flags))
     k = max(1, aa.supersample)  # "ssaa"
-    r.point_size = px * k
     return box_downsample(color_pass_linear(r.render_color(scene, w * k, h * k, 0, flags)), k)
 
 
@@ -1195,12 +1217,8 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
     renderer._program_cache.soft = any(
         casts and float(getattr(node.light, "blendify_soft", 0.0)) > 0.0 for node, _, casts in frame.light_nodes
     )
-    point_px, point_notes = _point_pixels(scene, frame)
-    counts = tuple(
-        len(p.indices) for n in frame.nodes if n is not None for p in n.mesh.primitives if hasattr(p, "point_diameter")
-    )
-    approximations += point_notes
-    renderer.shadow_key = (frame.shadow_key, "all", counts, round(point_px, 3))
+    approximations += _thin_clouds(scene, frame)
+    renderer.shadow_key = (frame.shadow_key, "all")
     catchers = [(i, e.node) for i, e in enumerate(frame.entries) if e.node is not None and e.catcher]
     want = set(settings.outputs)
     kinds = [type(node.light).__name__ for node, _, _ in frame.light_nodes]
@@ -1223,7 +1241,6 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
         if want & {"depth", "normal", "albedo", "instance"} or catchers:
             t0 = time.perf_counter()
             ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
-            renderer.point_size = _point_pixels(scene, frame)[0]
             gbuf = renderer.render_gbuffer(scene, w, h, ids)
             timings["gbuffer"] = time.perf_counter() - t0
         if "rgb" in want:

@@ -26,7 +26,7 @@ from blendify_core.ir.attachments import Attachment
 from blendify_core.ir.cameras import OrthographicCamera, PerspectiveCamera
 from blendify_core.ir.colors import FacesUV, FileTextureColors, TextureColors, UniformColors, VertexColors, VertexUV
 from blendify_core.ir.colorspace import linear_to_srgb8
-from blendify_core.ir.geometry import TriMesh, face_normals, icosphere
+from blendify_core.ir.geometry import TriMesh, face_normals
 from blendify_core.ir.lights import AreaLight, BackgroundLight, EnvironmentMap, PointLight, SpotLight, SunLight
 from blendify_core.ir.materials import (
     DiffuseMaterial,
@@ -59,8 +59,7 @@ __all__ = [
     "CameraBuild",
     "Surface",
     "PBR",
-    "PointLOD",
-    "point_lod",
+    "sphere_quads",
     "environment_mean",
     "emitter_lights",
     "environment_light",
@@ -121,7 +120,7 @@ class LightBuild:
 class CameraBuild:
     """A translated camera: the OpenGL projection (any principal point, fx != fy, orthographic with an
     offset principal point), clip distances, pose and resolution, and ``screen_size(size, at)``: the size
-    in pixels of ``size`` world units at the world point ``at`` (for clouds drawn as sphere impostors)."""
+    in pixels of ``size`` world units at the world point ``at`` (for the per-frame thinning of dense point clouds)."""
 
     projection: np.ndarray
     znear: float
@@ -260,50 +259,20 @@ def _wire_tubes(vertices: np.ndarray, faces: np.ndarray, thickness: float) -> tu
 
 
 # ---------------------------------------------------------------------------------------------------
-# point clouds: level of detail
+# point clouds: exact spheres
 # ---------------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class PointLOD:
-    """Point-cloud tessellation: the sphere mesh per point and whether it is a level-of-detail fallback."""
-
-    name: str
-    subdivisions: int  # icosphere subdivisions, -1 = octahedron, -2 = sphere impostors (point sprites)
-    reduced: bool
+#: two triangles per point: corners 0-1-2 and 0-2-3 of the quad the shaders spread over the projected sphere
+_QUAD = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
 
 
-#: thresholds chosen by measurement (benchmarks/bench_pyrender_points.py)
-_LODS = (
-    (20_000, PointLOD("icosphere-1 (80 triangles per point)", 1, False)),
-    (50_000, PointLOD("icosphere-0 (20 triangles per point)", 0, True)),
-    (100_000, PointLOD("octahedron (8 triangles per point)", -1, True)),
-)
-_LOD_LARGE = PointLOD(
-    "sphere impostors (point sprites of each sphere's projected diameter, shaded with the sphere's normal, "
-    "writing its depth)",
-    -2,
-    True,
-)
-
-
-def point_lod(n_points: int) -> PointLOD:
-    """The tessellation used for a cloud of ``n_points`` points."""
-    for limit, lod in _LODS:
-        if n_points <= limit:
-            return lod
-    return _LOD_LARGE
-
-
-def _unit_sphere(lod: PointLOD) -> tuple[np.ndarray, np.ndarray]:
-    if lod.subdivisions < 0:
-        v = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64)
-        f = np.array(
-            [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]], dtype=np.int64
-        )
-        return v, f
-    s = icosphere(lod.subdivisions)
-    return s.vertices, s.faces.astype(np.int64)
+def sphere_quads(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The corner numbers (4 per point: 0, 1, 2, 3) and the triangle indices (2 per point, (2n, 3)) of n
+    point quads (shaders/blendify_sphere_vert.glsl places the corners)."""
+    corners = np.tile(np.arange(4, dtype=np.float32), n)
+    tris = (_QUAD[None] + (np.arange(n, dtype=np.uint32) * 4)[:, None, None]).reshape(-1, 3)
+    return corners, tris
 
 
 def environment_mean(env: EnvironmentMap) -> np.ndarray:
@@ -638,65 +607,56 @@ class PyrenderTranslator(Translator):
     @handles(
         PointCloud,
         features={
-            "pointcloud": approximate(
-                "spheres tessellated as merged icospheres (subdivision 1, the shared tessellation); larger "
-                "clouds use a level of detail: icosphere-0 up to 50k points, octahedra up to 100k, sphere "
-                "impostors beyond (point sprites of the projected diameter, exact coverage at pixel centres, "
-                "the sphere's normal and depth); listed in result.meta['approximations']"
+            "pointcloud": exact(
+                "exact spheres at pixel centres: one quad per point over the sphere's projected box, the ray "
+                "through each pixel centre intersected with the sphere (depth, normal, instance and shadow maps; "
+                "perspective and orthographic cameras); the colour of clouds denser than 8 points per covered "
+                "pixel or of sub-pixel spheres comes from a random subset, listed in result.meta['approximations']"
             ),
             "pointcloud.vertex_colors": approximate("per-point colours multiply the shaded colour (COLOR_0)"),
             "pointcloud.emission": approximate("emission added to the shaded colour; lights nothing else"),
         },
     )
     def pointcloud(self, pc: PointCloud, ctx: TranslationContext) -> Built:
-        """Merged spheres (level of detail by point count) or, for the largest clouds, sphere impostors."""
+        """Exact spheres: one quad per point (4 vertices at the centre, texcoord_0 = (diameter, corner)) that
+        the BLENDIFY_SPHERE shaders spread over the sphere's projected box and intersect per pixel centre."""
         pyrender = _pyrender()
         pts = pc.vertices
         n = len(pts)
         if n == 0:  # nothing to draw (pyrender cannot bound an empty primitive)
             return Built(None, np.zeros(3))
-        lod = point_lod(n)
-        if lod.reduced:
-            ctx.approximate(f"pointcloud LOD: {n} points drawn as {lod.name} instead of icosphere-1 spheres")
         centre = (pts.min(axis=0) + pts.max(axis=0)) / 2.0
         local = (pts - centre).astype(np.float32)
-        radii = pc.radii().astype(np.float32)
+        radii = np.broadcast_to(pc.radii().astype(np.float32), (n,))
         surf = self.dispatch(pc.colors_list[0], ctx)
         pm, albedo = self.pyrender_material(pc.materials[0], surf, False, ctx)
         if pc.particle_emission_strength > 0:
             pm.emissiveFactor = np.sqrt(surf.rgba[:3] * pc.particle_emission_strength)
-        if lod.subdivisions == -2:
-            # GL points, in a fixed random order so that any prefix is a uniform subset (drawn per frame when
-            # the cloud is so dense on screen that most points would be overdrawn)
-            perm = np.random.default_rng(0).permutation(n)
-            diameters = np.zeros((n, 2), dtype=np.float32)
-            diameters[:, 0] = 2.0 * np.broadcast_to(radii, (n,))[perm]
-            prim = pyrender.Primitive(
-                positions=local[perm],
-                texcoord_0=diameters,  # the sphere impostors' diameters (world units), read by the shaders
-                color_0=None if surf.vertex_rgba is None else surf.vertex_rgba[perm].astype(np.float32),
-                indices=np.arange(n, dtype=np.uint32),
-                material=pm,
-                mode=pyrender.constants.GLTF.POINTS,
-            )
-            prim._indices = np.arange(n, dtype=np.uint32)  # not pyrender's float32 copy (inexact above 2^24)
-            prim.albedo_factor = albedo
-            prim.point_diameter = float(np.mean(radii) * 2.0)  # world units (marks the sphere impostors)
-            prim.sprite_scale = 1.0  # diameter factor keeping the coverage of a thinned cloud (set per frame)
-            prim.point_all_indices = prim._indices
-            prim.point_extent = float(np.max(np.linalg.norm(local, axis=1))) + float(radii.max(initial=0))
-            # the spheres' bounds, not the centres' (pyrender frames the sun's shadow camera with them)
-            r_max = float(radii.max(initial=0))
-            prim._bounds = np.stack([local.min(axis=0) - r_max, local.max(axis=0) + r_max]).astype(np.float64)
-            return Built(pyrender.Mesh(primitives=[prim]), centre)
-        unit, tris = _unit_sphere(lod)
-        nv = len(unit)
-        unit32 = unit.astype(np.float32)
-        positions = (unit32[None] * radii[:, None, None] + local[:, None, :]).reshape(-1, 3)
-        normals = np.broadcast_to(unit32, (n, nv, 3)).reshape(-1, 3)
-        indices = (tris[None].astype(np.uint32) + (np.arange(n, dtype=np.uint32) * nv)[:, None, None]).reshape(-1, 3)
-        color_0 = None if surf.vertex_rgba is None else np.repeat(surf.vertex_rgba, nv, axis=0)
-        prim = _primitive(positions, normals, indices, pm, albedo, color_0=color_0)
+        # a fixed random order, so that any prefix is a uniform subset (the colour pass draws a prefix when the
+        # cloud is so dense on screen that most points would be overdrawn)
+        perm = np.random.default_rng(0).permutation(n)
+        corners, tris = sphere_quads(n)
+        texcoord = np.empty((4 * n, 2), dtype=np.float32)
+        texcoord[:, 0] = np.repeat(2.0 * radii[perm], 4)  # the spheres' diameters (object units)
+        texcoord[:, 1] = corners
+        colors = None if surf.vertex_rgba is None else np.repeat(surf.vertex_rgba[perm].astype(np.float32), 4, axis=0)
+        prim = pyrender.Primitive(
+            positions=np.repeat(local[perm], 4, axis=0),
+            texcoord_0=texcoord,
+            color_0=colors,
+            indices=tris,
+            material=pm,
+            mode=pyrender.constants.GLTF.TRIANGLES,
+        )
+        prim._indices = tris  # not pyrender's float32 copy (inexact above 2^24)
+        prim.albedo_factor = albedo
+        prim.point_diameter = float(np.mean(radii) * 2.0)  # world units (marks the sphere clouds)
+        prim.sphere_scale = 1.0  # diameter factor keeping the coverage of a thinned cloud (set per frame)
+        prim.point_all_indices = tris
+        prim.point_extent = float(np.max(np.linalg.norm(local, axis=1))) + float(radii.max(initial=0))
+        # the spheres' bounds, not the centres' (pyrender frames the sun's shadow camera with them)
+        r_max = float(radii.max(initial=0))
+        prim._bounds = np.stack([local.min(axis=0) - r_max, local.max(axis=0) + r_max]).astype(np.float64)
         return Built(pyrender.Mesh(primitives=[prim]), centre)
 
     def _triangles(

@@ -1,5 +1,5 @@
-"""The preview's look against the path tracers: sphere impostors for large point clouds (coverage, depth,
-normals), tiny renders."""
+"""The preview's look against the path tracers: point clouds as exact spheres (coverage, depth, normals),
+tiny renders."""
 
 from __future__ import annotations
 
@@ -8,14 +8,6 @@ import pytest
 
 from blendify_core import DiffuseMaterial, PrincipledBSDFMaterial, Scene, UniformColors, render, testing
 from blendify_core.registry import available_backends
-
-
-@pytest.fixture
-def impostors(monkeypatch):
-    """Every point cloud drawn as sphere impostors (the level of the largest clouds) however small."""
-    from blendify_pyrender import translate as tr
-
-    monkeypatch.setattr(tr, "point_lod", lambda n: tr._LOD_LARGE)
 
 
 def _one_point_scene(diameter_px: float, centre=(0.0, 0.0, 0.0)) -> Scene:
@@ -34,7 +26,7 @@ def _one_point_scene(diameter_px: float, centre=(0.0, 0.0, 0.0)) -> Scene:
 
 
 @pytest.mark.parametrize("diameter_px", [6.0, 15.0])
-def test_impostor_is_a_sphere_of_the_ir_diameter(pyr, impostors, diameter_px):
+def test_impostor_is_a_sphere_of_the_ir_diameter(pyr, diameter_px):
     scene = _one_point_scene(diameter_px)
     res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "depth", "normal", "instance"))
     hit = res.instance == 0
@@ -57,7 +49,7 @@ def test_impostor_is_a_sphere_of_the_ir_diameter(pyr, impostors, diameter_px):
     assert lum[nz > 0.9].mean() > 1.5 * lum[(nz < 0.5) & (nz > 0)].mean()
 
 
-def test_impostor_writes_the_sphere_depth(pyr, impostors):
+def test_impostor_writes_the_sphere_depth(pyr):
     """A plane cutting the sphere (radius 0.375) at z = 0.34: the sphere's cap pokes through it near the
     axis (z = 0.373 at the centre pixel), the plane hides the sphere 0.23 from the axis (z = 0.30 there); a
     flat sprite at the centre's (or the front's) depth would show one of them everywhere."""
@@ -69,8 +61,35 @@ def test_impostor_writes_the_sphere_depth(pyr, impostors):
     assert res.instance[24, 38] == 0  # beyond the plane's edge (0.25): the sphere again
 
 
+def test_sphere_casts_its_exact_shadow(pyr):
+    """A sphere (radius 0.3) 1 above a floor under a tilted sun: the floor pixels in shadow are those whose
+    ray towards the sun meets the sphere (the shadow maps intersect the exact sphere too)."""
+    scene = Scene()
+    scene.set_orthographic_camera((64, 48), ortho_scale=3.2, translation=(0, 0, 5.0), near=0.1, far=20)
+    scene.renderables.add_plane_mesh(4.0, DiffuseMaterial(), UniformColors((0.8, 0.8, 0.8)), tag="floor")
+    centre = np.array([-0.6, 0.0, 1.0])
+    scene.renderables.add_pointcloud(
+        centre[None], DiffuseMaterial(), UniformColors((0.8, 0.2, 0.2)), point_size=0.6, tag="point"
+    )
+    sun = scene.lights.add_sun(3.0, angular_diameter=0.0, rotation_mode="eulerXYZ", rotation=(0, 40, 0))
+    res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))
+    floor = res.instance == 0
+    lum = res.rgba[..., :3].mean(axis=-1)
+    shadow = floor & (lum < 0.5 * np.median(lum[floor]))
+    ys, xs = np.mgrid[0:48, 0:64]
+    x = np.stack([(xs + 0.5 - 32) * 0.05, (24 - ys - 0.5) * 0.05, np.zeros_like(xs, dtype=float)], axis=-1)
+    to_sun = -np.asarray(sun.direction)
+    off = centre - x
+    dist = np.linalg.norm(np.cross(off, to_sun), axis=-1)  # from the sphere's centre to each pixel's sun ray
+    expected = floor & (dist < 0.3)
+    near_edge = np.abs(dist - 0.3) < 0.05  # a pixel from the shadow's edge
+    assert expected.sum() > 80
+    assert not np.any((shadow != expected) & ~near_edge)
+    assert abs(int(shadow.sum()) - int(expected.sum())) <= 0.05 * expected.sum()
+
+
 @pytest.mark.parametrize("d_px", [0.4, 0.8])
-def test_sub_pixel_spheres_cover_their_area(pyr, impostors, d_px):
+def test_sub_pixel_spheres_cover_their_area(pyr, d_px):
     """Spheres far below a pixel: each covers the pixel whose centre falls in its disc, so a cloud of them
     covers 1 - exp(-sum of their projected areas per pixel) of the image, as a path tracer's alpha."""
     rng = np.random.default_rng(3)
@@ -93,7 +112,7 @@ def test_sub_pixel_spheres_cover_their_area(pyr, impostors, d_px):
 
 
 @pytest.mark.slow
-def test_small_point_cloud_coverage_matches_cycles(pyr, impostors):
+def test_small_point_cloud_coverage_matches_cycles(pyr):
     st = available_backends().get("cycles")
     if st is None or not st.available:
         reason = f"Cycles unavailable: {st.reason if st else 'not registered'}"

@@ -215,13 +215,23 @@ def test_indices_stay_exact_uint32():
     assert int(prim.indices[0, 0]) == 2**24 + 1
 
 
-def test_point_cloud_lod_choice():
+def test_point_cloud_is_one_quad_per_point():
+    """Every cloud size: 4 vertices at each centre (texcoord_0 = diameter, corner 0..3), 2 triangles."""
     from blendify_pyrender import translate as tr
 
-    assert not tr.point_lod(1000).reduced and tr.point_lod(1000).subdivisions == 1
-    assert tr.point_lod(50_000).reduced and tr.point_lod(50_000).subdivisions == 0
-    assert tr.point_lod(100_000).subdivisions == -1
-    assert tr.point_lod(1_000_000).subdivisions == -2  # sphere impostors
+    from blendify_core.pipeline.translator import TranslationContext
+
+    corners, tris = tr.sphere_quads(3)
+    assert corners.tolist() == [0, 1, 2, 3] * 3
+    assert tris.dtype == np.uint32 and tris.shape == (6, 3) and tris.max() == 11
+    scene = testing.pointcloud_scene(n=1000, point_size=0.05)
+    ctx = TranslationContext()
+    built = tr.PyrenderTranslator().dispatch(scene.renderables["points"], ctx)
+    (prim,) = built.mesh.primitives
+    assert prim.positions.shape == (4000, 3) and prim.indices.shape == (2000, 3)
+    np.testing.assert_allclose(prim.texcoord_0[:, 0], 0.05)
+    assert prim.texcoord_0[:4, 1].tolist() == [0, 1, 2, 3]
+    np.testing.assert_array_equal(prim.positions[0::4], prim.positions[3::4])  # the 4 corners share the centre
 
 
 def test_capability_table_declares_every_feature():

@@ -1,14 +1,13 @@
 #version 330 core
 out vec4 frag_color;
-#ifdef BLENDIFY_SPRITE
-flat in float sprite_diam_px;
-#endif
+// @BLENDIFY_SPHERE_FRAG@
 void main()
 {
-#ifdef BLENDIFY_SPRITE
-    // sphere impostor: pixel centres inside the projected disc only
-    vec2 q = (gl_PointCoord - 0.5) * max(sprite_diam_px, 1.0);
-    if (dot(q, q) > 0.25 * sprite_diam_px * sprite_diam_px) { discard; }
+    float cover = 1.0;
+#ifdef BLENDIFY_SPHERE
+    // a point of a cloud: pixel centres on the exact sphere (mode 0), or the covered fraction (mode 2)
+    bf_sphere_hit();
+    cover = bf_sphere_cover;
 #endif
-    frag_color = vec4(1.0);
+    frag_color = vec4(cover);
 }

@@ -10,12 +10,7 @@ in vec4 g_color;
 uniform vec4 albedo_factor;
 uniform vec3 cam_pos;
 uniform float instance_id;
-#ifdef BLENDIFY_SPRITE
-uniform mat4 V;
-uniform mat4 P;
-flat in float sprite_diam_px;
-flat in float sprite_radius_world;
-#endif
+// @BLENDIFY_SPHERE_FRAG@
 #ifdef HAS_BASE_COLOR_TEX
 uniform sampler2D base_color_texture;
 #endif
@@ -34,19 +29,11 @@ void main()
 {
     vec3 n = g_world_normal;
     float depth = g_view_depth;
-#ifdef BLENDIFY_SPRITE
-    // sphere impostor: pixel centres inside the projected disc, the sphere's normal and depth there
-    vec2 q = (gl_PointCoord - 0.5) * max(sprite_diam_px, 1.0);
-    float r = 0.5 * sprite_diam_px;
-    if (dot(q, q) > r * r) { discard; }
-    vec2 u = q / max(r, 1e-12);
-    vec3 nv = vec3(u.x, -u.y, sqrt(max(1.0 - dot(u, u), 0.0)));
-    n = normalize(transpose(mat3(V)) * nv);
-    vec3 p = g_world_position + sprite_radius_world * n;
-    vec4 view = V * vec4(p, 1.0);
-    depth = -view.z;
-    vec4 clip = P * view;
-    gl_FragDepth = 0.5 * clip.z / clip.w + 0.5;
+#ifdef BLENDIFY_SPHERE
+    // a point of a cloud: the exact sphere at the pixel centre
+    bf_sphere_hit();
+    n = bf_sphere_normal;
+    depth = bf_sphere_depth;
 #else
     if (dot(n, n) < 1e-20) {
         // no normals (points drawn as screen-space squares): face the camera, as pyrender shades them

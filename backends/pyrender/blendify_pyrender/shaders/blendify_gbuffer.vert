@@ -21,13 +21,7 @@ out vec3 g_world_normal;
 out float g_view_depth;
 out vec2 g_uv;
 out vec4 g_color;
-#ifdef BLENDIFY_SPRITE
-// sphere impostors: the sprite's size in pixels from the point's diameter (texcoord_0.x, world units)
-uniform float sprite_viewport;
-uniform float sprite_diameter_scale;
-flat out float sprite_diam_px;
-flat out float sprite_radius_world;
-#endif
+// @BLENDIFY_SPHERE_VERT@
 
 void main()
 {
@@ -37,11 +31,8 @@ void main()
     gl_Position = P * view;
     g_world_position = world.xyz;
     g_view_depth = -view.z;
-#ifdef BLENDIFY_SPRITE
-    float d_world = texcoord_0.x * sprite_diameter_scale * length(vec3(model[0]));
-    sprite_radius_world = 0.5 * d_world;
-    sprite_diam_px = d_world * P[0][0] * 0.5 * sprite_viewport / gl_Position.w;
-    gl_PointSize = max(sprite_diam_px, 1.0);
+#ifdef BLENDIFY_SPHERE
+    gl_Position = bf_sphere_corner(model, position, texcoord_0.x, texcoord_0.y);
 #endif
 #ifdef NORMAL_LOC
     g_world_normal = mat3(transpose(inverse(model))) * normal;

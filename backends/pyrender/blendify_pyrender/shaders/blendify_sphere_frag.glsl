@@ -1,0 +1,78 @@
+// Point clouds as exact spheres (fragment side, BLENDIFY_SPHERE): the ray through this pixel's centre
+// (gl_FragCoord, perspective or orthographic P) meets the sphere of blendify_sphere_vert.glsl exactly;
+// bf_sphere_hit() sets the hit's world position and normal, planar depth and gl_FragDepth.
+// bf_sphere_mode: 0 = exact (pixel centres off the sphere are discarded); 1 = conservative (a sub-pixel
+// sphere keeps the pixel holding its projected centre, shaded facing the eye); 2 = coverage (also pixels the
+// sphere covers in part, bf_sphere_cover = covered fraction of the pixel, shaded at the nearest silhouette point).
+#ifdef BLENDIFY_SPHERE
+uniform mat4 V;
+uniform mat4 P;
+uniform vec2 bf_viewport;
+uniform float bf_sphere_mode;
+flat in vec4 bf_sphere;
+flat in vec3 bf_sphere_px;
+vec3 bf_sphere_pos;
+vec3 bf_sphere_normal;
+float bf_sphere_depth;
+float bf_sphere_cover;
+
+// the view-space point at view depth z on the ray through ndc
+vec3 bf_view_at(vec2 ndc, float z)
+{
+    float w = P[2][3] * z + P[3][3];
+    return vec3((ndc.x * w - P[2][0] * z - P[3][0]) / P[0][0], (ndc.y * w - P[2][1] * z - P[3][1]) / P[1][1], z);
+}
+
+// the fraction of this pixel a disc of radius rho (pixels) covers: an edge ramp for discs of a pixel or more,
+// for smaller ones the overlap of the pixel with the square of the disc's area around its centre
+float bf_disc_cover(float dist_px)
+{
+    float rho = bf_sphere_px.z;
+    if (rho >= 0.75) {
+        return clamp(rho - dist_px + 0.5, 0.0, 1.0);
+    }
+    vec2 d = bf_sphere_px.xy - gl_FragCoord.xy;
+    float a = 0.5 * 1.7724539 * rho;
+    vec2 o = clamp(min(d + a, vec2(0.5)) - max(d - a, vec2(-0.5)), 0.0, 1.0);
+    return o.x * o.y;
+}
+
+void bf_sphere_hit()
+{
+    vec2 ndc = 2.0 * gl_FragCoord.xy / bf_viewport - 1.0;
+    vec3 o = bf_view_at(ndc, 0.0);
+    vec3 d = normalize(bf_view_at(ndc, -1.0) - o);
+    vec3 c = bf_sphere.xyz;
+    float r = bf_sphere.w;
+    float tc = dot(c - o, d);
+    vec3 q = o + tc * d - c;  // from the centre to the ray's closest approach
+    float q2 = dot(q, q);
+    float h2 = r * r - q2;
+    vec3 nv;
+    bf_sphere_cover = 1.0;
+    if (bf_sphere_mode > 1.5) {
+        bf_sphere_cover = bf_disc_cover(sqrt(q2) * bf_sphere_px.z / max(r, 1e-30));
+        if (bf_sphere_cover <= 0.0) {
+            discard;
+        }
+    }
+    if (h2 >= 0.0) {
+        nv = (q - sqrt(h2) * d) / r;
+    } else if (bf_sphere_mode > 1.5 && bf_sphere_px.z >= 0.75) {
+        nv = normalize(q);  // the silhouette point nearest the pixel centre
+    } else if (bf_sphere_mode > 0.5 && bf_sphere_px.z < 0.5
+               && all(lessThanEqual(abs(bf_sphere_px.xy - gl_FragCoord.xy), vec2(0.5)))
+               || bf_sphere_mode > 1.5) {
+        nv = -d;  // a sub-pixel sphere: the point facing the eye
+    } else {
+        discard;
+    }
+    vec3 p = c + r * nv;
+    vec4 clip = P * vec4(p, 1.0);
+    gl_FragDepth = clamp(0.5 * clip.z / clip.w + 0.5, 0.0, 1.0);
+    bf_sphere_depth = -p.z;
+    mat3 rt = transpose(mat3(V));
+    bf_sphere_normal = rt * nv;
+    bf_sphere_pos = rt * (p - V[3].xyz);
+}
+#endif
