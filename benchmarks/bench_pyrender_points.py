@@ -1,18 +1,21 @@
-"""Coloured point clouds in the pyrender backend: build and warm-frame times per sphere tessellation.
+"""Coloured point clouds in the pyrender backend: build and warm-frame times of the backend's own drawing,
+one code version against another.
 
-Compares, at 512x512, merged per-point spheres with per-vertex colours (icosphere-1, icosphere-0,
-octahedron: what the backend's level of detail chooses between) against pyrender's instancing
-(``Primitive(poses=...)``, one icosphere-1 drawn N times: fast to build but pyrender has no per-instance
-colour, so it cannot show per-point colours). Each variant runs in a fresh process; "build" = translation
-+ upload + first frame (the OpenGL context is created before timing), "warm" = median of 5 frames with
-the camera orbiting.
+At 512x512, clouds of 2k to 1M points on a shell (diameter 0.01, per-point colours, sun with shadows +
+background). Each (version, size) runs in a fresh process; "build" = translation + upload + first frame
+(the OpenGL context and shaders are created before timing), "warm" = median of 5 frames with the camera
+orbiting, as plain frames (``samples=1``) and as the default preview (coverage anti-aliasing on llvmpipe).
+A version is a label and the checkout whose packages are imported: ``--label after`` (this checkout) or
+``--label before --checkout DIR`` (e.g. ``git archive <rev> | tar -x -C DIR``). Each label's rows are kept in
+``results/pyrender_points_<label>.json``; the table compares the labels present.
 
-Run: ``uv run --no-sync python benchmarks/bench_pyrender_points.py``; writes
+Run: ``nice python benchmarks/bench_pyrender_points.py --label after``; writes
 ``benchmarks/results/pyrender_points.md`` and ``pyrender_points.png``.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -23,17 +26,23 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
 RESULTS = HERE / "results"
 RES = (512, 512)
 N_WARM = 5
-VARIANTS = ("icosphere-1", "icosphere-0", "octahedron", "GL points", "instanced icosphere-1 (no colours)")
-#: (variant, minimum size) combinations not attempted: too much memory / minutes per frame on 2 cores
-SKIP = {
-    ("icosphere-1", 1_000_000): "80M triangles, 1.7 GB of vertex data",
-    ("icosphere-0", 1_000_000): "20M triangles",
-    ("instanced icosphere-1 (no colours)", 1_000_000): "measured in an earlier run: build 40.8 s, warm 25.6 s",
+SIZES = (2_000, 30_000, 100_000, 150_000, 1_000_000)
+LABELS = ("before", "after")
+#: what each version drew (by the backend's level of detail in "before")
+DRAWN = {
+    "before": {
+        2_000: "icosphere-1 (80 triangles)",
+        30_000: "icosphere-0 (20 triangles)",
+        100_000: "octahedra (8 triangles)",
+        150_000: "orthographic GL point sprites",
+        1_000_000: "orthographic GL point sprites",
+    },
+    "after": {n: "exact spheres (quads, 2 triangles)" for n in SIZES},
 }
-SIZES = (100_000, 1_000_000)
 
 
 def build_scene(n: int):  # type: ignore[no-untyped-def]
@@ -53,141 +62,121 @@ def build_scene(n: int):  # type: ignore[no-untyped-def]
     return scene
 
 
-def child(variant: str, n: int) -> dict:
+def child(n: int) -> dict:
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     sys.path.insert(0, str(HERE))
     from bench_pyrender import orbit
     from blendify_pyrender import PyrenderBackend
 
     import blendify_core as bf
+    from blendify_core import testing
 
     scene = build_scene(n)
     be = PyrenderBackend(platform="egl")
-    from blendify_core import testing
-
     bf.render(testing.depth_plane_scene(), backend=be, samples=1)  # context + shaders outside the timing
-    if variant.startswith("instanced"):
-        return instanced(be, scene, n)
-    from blendify_pyrender import translate as tr
-
-    lod = {
-        "icosphere-1": tr.PointLOD("icosphere-1", 1, False),
-        "icosphere-0": tr.PointLOD("icosphere-0", 0, True),
-        "octahedron": tr.PointLOD("octahedron", -1, True),
-        "GL points": tr.PointLOD("GL points", -2, True),
-    }[variant]
-    tr.point_lod = lambda _n: lod  # force the tessellation under test
     t0 = time.perf_counter()
     bf.render(scene, backend=be, quality="preview", samples=1)
     build = time.perf_counter() - t0
-    warm = []
-    for i in range(N_WARM):
-        orbit(scene, i)
-        t = time.perf_counter()
-        bf.render(scene, backend=be, quality="preview", samples=1)
-        warm.append(time.perf_counter() - t)
+    out = {"build": build}
+    for key, kwargs in (("warm", {"samples": 1}), ("preview", {})):
+        times = []
+        for i in range(N_WARM):
+            orbit(scene, i)
+            t = time.perf_counter()
+            bf.render(scene, backend=be, quality="preview", **kwargs)
+            times.append(time.perf_counter() - t)
+        out[key] = float(np.median(times))
     be.close()
-    return {"build": build, "warm": float(np.median(warm))}
+    return out
 
 
-def instanced(be, scene, n: int) -> dict:  # type: ignore[no-untyped-def]
-    """pyrender instancing of one icosphere-1 through the backend's renderer (same passes, no colours)."""
-    import pyrender
-    from bench_pyrender import orbit
-
-    from blendify_core.ir.geometry import icosphere
-
-    eng = be.engine_instance
-    pts = scene.renderables["points"]
-    t0 = time.perf_counter()
-    s = icosphere(1)
-    r = pts.radii()
-    poses = np.tile(np.eye(4, dtype=np.float32), (n, 1, 1))
-    poses[:, 0, 0] = poses[:, 1, 1] = poses[:, 2, 2] = r
-    poses[:, :3, 3] = pts.vertices
-    prim = pyrender.Primitive(
-        positions=s.vertices.astype(np.float32),
-        normals=s.normals.astype(np.float32),
-        indices=s.faces.astype(np.uint32),
-        poses=poses,
-        material=pyrender.MetallicRoughnessMaterial(baseColorFactor=[0.5, 0.5, 0.5, 1.0], metallicFactor=0.0),
-    )
-    prim.albedo_factor = np.array([0.5, 0.5, 0.5, 1.0])
-    scene.renderables.remove("points")
-    from blendify_core import render
-
-    eng.pscene.add(pyrender.Mesh([prim]))
-    render(scene, backend=be, quality="preview", samples=1)
-    build = time.perf_counter() - t0
-    warm = []
-    for i in range(N_WARM):
-        orbit(scene, i)
-        t = time.perf_counter()
-        render(scene, backend=be, quality="preview", samples=1)
-        warm.append(time.perf_counter() - t)
-    return {"build": build, "warm": float(np.median(warm))}
+def _pythonpath(checkout: Path) -> str:
+    parts = [
+        checkout,
+        checkout / "backends" / "blender",
+        checkout / "backends" / "mitsuba",
+        checkout / "backends" / "pyrender",
+    ]
+    return os.pathsep.join(str(p) for p in parts)
 
 
-def main() -> None:
-    RESULTS.mkdir(parents=True, exist_ok=True)
+def measure(label: str, checkout: Path, sizes: tuple[int, ...]) -> None:
+    env = dict(os.environ, PYTHONPATH=_pythonpath(checkout))
     rows = []
-    for n in SIZES:
-        for variant in VARIANTS:
-            if (variant, n) in SKIP:
-                rows.append((n, variant, None))
-                continue
-            for attempt in range(3):  # the checkout is shared with other jobs: retry a transient failure
-                p = subprocess.run(
-                    [sys.executable, __file__, "--child", variant, str(n)], capture_output=True, text=True, timeout=3600
-                )
-                line = [x for x in p.stdout.splitlines() if x.startswith("RESULT ")]
-                if p.returncode == 0 and line:
-                    break
-                print(f"{variant} {n}: attempt {attempt + 1} failed:\n{p.stderr[-2000:]}", flush=True)
-                time.sleep(30)
-            else:
-                raise SystemExit(f"{variant} {n} failed")
-            r = json.loads(line[0][7:])
-            rows.append((n, variant, r))
-            print(f"{n:>9d} {variant:40s} build {r['build']:.2f} s  warm {r['warm'] * 1000:.0f} ms", flush=True)
-    write_report(rows)
+    for n in sizes:
+        for attempt in range(3):  # the machine is shared with other jobs: retry a transient failure
+            p = subprocess.run(
+                [sys.executable, __file__, "--child", str(n)], capture_output=True, text=True, timeout=3600, env=env
+            )
+            line = [x for x in p.stdout.splitlines() if x.startswith("RESULT ")]
+            if p.returncode == 0 and line:
+                break
+            print(f"{label} {n}: attempt {attempt + 1} failed:\n{p.stderr[-2000:]}", flush=True)
+            time.sleep(30)
+        else:
+            raise SystemExit(f"{label} {n} failed")
+        r = json.loads(line[0][7:])
+        rows.append({"points": n, **r})
+        print(
+            f"{label} {n:>9d} build {r['build']:.2f} s  warm {r['warm'] * 1000:.0f} ms  "
+            f"preview {r['preview'] * 1000:.0f} ms",
+            flush=True,
+        )
+    load = os.getloadavg()[0]
+    data = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "load_1min": load, "rows": rows}
+    (RESULTS / f"pyrender_points_{label}.json").write_text(json.dumps(data, indent=1) + "\n")
 
 
-def write_report(rows: list) -> None:
+def write_report() -> None:
+    runs = {t: json.loads(p.read_text()) for t in LABELS if (p := RESULTS / f"pyrender_points_{t}.json").exists()}
+    if not runs:
+        return
     lines = [
         "# pyrender backend: coloured point clouds at 512x512",
         "",
-        f"Machine: {os.cpu_count()} CPU cores, Mesa llvmpipe through EGL (shared with other jobs: +-30%). Generated by "
-        f"`benchmarks/bench_pyrender_points.py` on {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}. Points on "
-        "a shell, diameter 0.01, per-point colours, sun (with shadows) + background, plain frames "
-        "(samples=1; the default coverage anti-aliasing adds one cheap coverage pass).",
+        f"Machine: {os.cpu_count()} CPU cores, Mesa llvmpipe through EGL, shared with other jobs (+-30%; 1-minute "
+        "load average at the end of each run: "
+        + ", ".join(f"{t} {r['load_1min']:.1f} ({r['date']})" for t, r in runs.items())
+        + "). Generated by `benchmarks/bench_pyrender_points.py`. Points on a shell, diameter 0.01, per-point "
+        "colours, sun (with shadows) + background. Build = translation + upload + first frame; plain = warm frame "
+        "with samples=1; preview = warm frame of the default preview (coverage anti-aliasing); medians of 5 frames "
+        "with the camera orbiting.",
         "",
-        "| points | tessellation | triangles | build + first frame (s) | warm frame (ms) |",
-        "|---:|---|---:|---:|---:|",
+        "| points | version | drawn as | build + first frame (s) | plain frame (ms) | preview frame (ms) |",
+        "|---:|---|---|---:|---:|---:|",
     ]
-    tris = {
-        "icosphere-1": 80,
-        "icosphere-0": 20,
-        "octahedron": 8,
-        "GL points": 0,
-        "instanced icosphere-1 (no colours)": 80,
-    }
-    for n, variant, r in rows:
-        if r is None:
-            lines.append(f"| {n:,} | {variant} | {tris[variant] * n:,} | not attempted ({SKIP[(variant, n)]}) | |")
-        else:
-            lines.append(f"| {n:,} | {variant} | {tris[variant] * n:,} | {r['build']:.2f} | {r['warm'] * 1000:.0f} |")
+    for n in SIZES:
+        for t, run in runs.items():
+            r = next((x for x in run["rows"] if x["points"] == n), None)
+            if r is not None:
+                lines.append(
+                    f"| {n:,} | {t} | {DRAWN[t][n]} | {r['build']:.2f} | {r['warm'] * 1000:.0f} | "
+                    f"{r['preview'] * 1000:.0f} |"
+                )
+    if len(runs) == 2:
+        lines += [
+            "",
+            "| points | preview after / before | plain after / before | build after / before |",
+            "|---:|---:|---:|---:|",
+        ]
+        before = {x["points"]: x for x in runs["before"]["rows"]}
+        for x in runs["after"]["rows"]:
+            b = before.get(x["points"])
+            if b is not None:
+                lines.append(
+                    f"| {x['points']:,} | {x['preview'] / b['preview']:.2f} | {x['warm'] / b['warm']:.2f} | "
+                    f"{x['build'] / b['build']:.2f} |"
+                )
     lines += [
         "",
-        "Choice (``blendify_pyrender.translate.point_lod``): merged spheres with per-vertex colours, because "
-        "pyrender's instancing has no per-instance colour (it would need one draw per colour); icosphere-1 "
-        "(the shared tessellation) up to 20,000 points, icosphere-0 up to 50,000, octahedra up to 100,000, "
-        "beyond that GL points (one square sprite per point, the projected diameter at the cloud's centre, "
-        "shaded facing the camera; 0 triangles in the table), of which a random subset of about 8 points per "
-        "covered pixel is drawn when the cloud is denser on screen (never fewer than 100,000; at 1M points "
-        "in this view about 250k are drawn). The coarser levels are listed in "
-        "``result.meta['approximations']``. llvmpipe's cost is roughly per primitive, so triangles per point "
-        "decide the frame time.",
+        "Before: the level of detail chose merged icospheres (subdivision 1 up to 20k points, 0 up to 50k), "
+        "octahedra up to 100k and orthographic point sprites beyond. After: every cloud is one quad per point "
+        "that the shaders spread over the sphere's projected box and intersect exactly per pixel centre "
+        "(`blendify_pyrender.translate.pointcloud`). In both, the colour pass of a cloud denser than about 8 "
+        "points per covered pixel draws a random subset (never fewer than 100,000 points); after, the G-buffer "
+        "and the shadow maps draw every point.",
+        "",
+        "![point cloud timings](pyrender_points.png)",
         "",
     ]
     (RESULTS / "pyrender_points.md").write_text("\n".join(lines))
@@ -199,12 +188,14 @@ def write_report(rows: list) -> None:
     except ImportError:
         print("matplotlib is not installed: no plot written")
         return
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for ax, key, title in ((axes[0], "build", "build + first frame (s)"), (axes[1], "warm", "warm frame (s)")):
-        for variant in VARIANTS:
-            pts = [(n, r[key]) for n, v, r in rows if v == variant and r is not None]
-            if pts:
-                ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=variant)
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4))
+    for ax, key, title in (
+        (axes[0], "build", "build + first frame (s)"),
+        (axes[1], "warm", "plain frame (s)"),
+        (axes[2], "preview", "preview frame (s)"),
+    ):
+        for t, run in runs.items():
+            ax.plot([x["points"] for x in run["rows"]], [x[key] for x in run["rows"]], "o-", label=t)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("points")
@@ -215,8 +206,21 @@ def write_report(rows: list) -> None:
     fig.savefig(RESULTS / "pyrender_points.png", dpi=110)
 
 
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--label", choices=LABELS, default="after")
+    ap.add_argument("--checkout", type=Path, default=ROOT, help="the checkout whose packages are measured")
+    ap.add_argument("--sizes", default=",".join(str(n) for n in SIZES))
+    ap.add_argument("--table", action="store_true", help="only rewrite the table and plot from the JSON files")
+    args = ap.parse_args()
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    if not args.table:
+        measure(args.label, args.checkout.resolve(), tuple(int(x) for x in args.sizes.split(",")))
+    write_report()
+
+
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "--child":
-        print("RESULT " + json.dumps(child(sys.argv[2], int(sys.argv[3]))), flush=True)
+        print("RESULT " + json.dumps(child(int(sys.argv[2]))), flush=True)
     else:
         main()

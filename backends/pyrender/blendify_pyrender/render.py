@@ -47,6 +47,7 @@ from OpenGL.GL import (
     GL_COLOR_ATTACHMENT0,
     GL_COLOR_ATTACHMENT1,
     GL_COLOR_BUFFER_BIT,
+    GL_COPY_WRITE_BUFFER,
     GL_CULL_FACE,
     GL_DEPTH_ATTACHMENT,
     GL_DEPTH_BUFFER_BIT,
@@ -78,11 +79,13 @@ from OpenGL.GL import (
     GL_UNSIGNED_BYTE,
     GL_UNSIGNED_INT,
     GL_VIEWPORT,
+    glBindBuffer,
     glBindFramebuffer,
     glBindRenderbuffer,
     glBlendFunc,
     glBlendFuncSeparate,
     glBlitFramebuffer,
+    glBufferSubData,
     glCheckFramebufferStatus,
     glClear,
     glClearBufferfv,
@@ -139,7 +142,9 @@ _GAMMA = 2.2
 POINTS_PER_PIXEL = 8
 POINTS_MIN_DRAWN = 100_000
 #: clouds of sub-pixel spheres are thinned to spheres of about this diameter (pixels) of the same summed area
-SUBPIXEL_DRAWN_DIAMETER = 0.7
+#: (small_points of benchmarks/preview_look.py, 150k points of 0.12 px: 0.7 -> 12k points drawn, SSIM 0.63;
+#: 0.5 -> 24k; 0.35 -> 46k, 0.79; all 142k, 0.91 at 4-6x the time)
+SUBPIXEL_DRAWN_DIAMETER = 0.5
 #: indirect light from a light probe (probe.py)
 PROBE = True
 #: every light in the colour pass: scenes with more lights of a type than pyrender binds per draw are rendered
@@ -148,6 +153,10 @@ LIGHT_GROUPS = True
 #: the coverage pass of the "coverage" anti-aliasing is rendered at 3x the resolution (9 samples/pixel)
 COVERAGE_SUPERSAMPLE = 3
 _LIN8 = ((np.arange(256, dtype=np.float64) / 255.0) ** _GAMMA).astype(np.float32)
+#: the coverage of pixels a cloud's blended spheres cover in part: this share from the blended colour pass (low
+#: noise, but a dense cloud's edge saturates whole pixels: +5 % coverage on testing.pointcloud_scene(20000)),
+#: the rest from the supersampled coverage pass (exact samples: unbiased, noisy)
+OWN_WEIGHT = 0.5
 _ALPHA8 = (np.arange(256, dtype=np.float64) / 255.0).astype(np.float32)
 
 _SHADER_DIR = Path(__file__).resolve().parent / "shaders"
@@ -248,29 +257,6 @@ _PATCHES = (
         "    color.xyz += base_color.xyz * ambient_light;\n",
         "    color.xyz += bf_environment(n, normalize(cam_pos - frag_position), roughness, metallic, f0, c_diff);\n",
     ),
-    ("mesh.frag", _TWO_SIDED_PATCH, _TWO_SIDED_PATCH + "\n#ifdef BLENDIFY_SPHERE\n    n = bf_sphere_normal;\n#endif"),
-    ("mesh.frag", "void main()\n{\n", "void main()\n{\n" + _SPHERE_FRAG_MAIN),
-    (
-        "mesh.frag",
-        _GLASS_ALPHA,
-        _GLASS_ALPHA + "#ifdef BLENDIFY_SPHERE\n    frag_color.a *= bf_sphere_cover;\n#endif\n",
-    ),
-    (
-        "mesh.vert",
-        "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n",
-        "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n" + _SPHERE_VERT_MAIN,
-    ),
-    (
-        "mesh_depth.vert",
-        "layout(location = 0) in vec3 position;\n",
-        "layout(location = 0) in vec3 position;\n" + _SPHERE_TEXCOORD,
-    ),
-    (
-        "mesh_depth.vert",
-        "    gl_Position = light_matrix * M * inst_m * vec4(position, 1.0);\n",
-        "    gl_Position = light_matrix * M * inst_m * vec4(position, 1.0);\n" + _SPHERE_VERT_MAIN,
-    ),
-    ("mesh_depth.frag", "void main()\n{\n", "void main()\n{\n" + _SPHERE_FRAG_MAIN),
     # last: the output line, after the glass patch put its code before it
     ("mesh.frag", _GLASS_ALPHA, _FLOAT_OUT),
 )
@@ -307,6 +293,37 @@ _SOFT_PATCHES = (
 """ + _SPOT_SHADOW + "\n#endif",
     ),
 )
+_FRAG_COLOR = "    frag_color = clamp(vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a), 0.0, 1.0);\n"
+#: (file, anchor, replacement) applied before _PATCHES: the sphere's normal, hit and coverage in mesh.frag (a sphere
+#: shaded as a whole scales its direct light, summed before the world's light), its quad in mesh.vert and the
+#: shadow maps' mesh_depth.*
+_SPHERE_PATCHES = (
+    (
+        "mesh.frag",
+        "    color.xyz += base_color.xyz * ambient_light;\n",
+        "#ifdef BLENDIFY_SPHERE\n    color.xyz *= bf_sphere_direct;\n#endif\n"
+        "    color.xyz += base_color.xyz * ambient_light;\n",
+    ),
+    ("mesh.frag", _TWO_SIDED_PATCH, _TWO_SIDED_PATCH + "\n#ifdef BLENDIFY_SPHERE\n    n = bf_sphere_normal;\n#endif"),
+    ("mesh.frag", "void main()\n{\n", "void main()\n{\n" + _SPHERE_FRAG_MAIN),
+    ("mesh.frag", _FRAG_COLOR, _FRAG_COLOR + "#ifdef BLENDIFY_SPHERE\n    frag_color.a *= bf_sphere_cover;\n#endif\n"),
+    (
+        "mesh.vert",
+        "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n",
+        "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n" + _SPHERE_VERT_MAIN,
+    ),
+    (
+        "mesh_depth.vert",
+        "layout(location = 0) in vec3 position;\n",
+        "layout(location = 0) in vec3 position;\n" + _SPHERE_TEXCOORD,
+    ),
+    (
+        "mesh_depth.vert",
+        "    gl_Position = light_matrix * M * inst_m * vec4(position, 1.0);\n",
+        "    gl_Position = light_matrix * M * inst_m * vec4(position, 1.0);\n" + _SPHERE_VERT_MAIN,
+    ),
+    ("mesh_depth.frag", "void main()\n{\n", "void main()\n{\n" + _SPHERE_FRAG_MAIN),
+)
 _patched_dir: str | None = None
 _NO_GLASS = np.zeros(4, dtype=np.float32)
 
@@ -341,7 +358,7 @@ def _shader_dir() -> str:
     soft = (_SHADER_DIR / "blendify_shadow.glsl").read_text()
     text = text.replace(_MAIN_ANCHOR, soft + _MAIN_ANCHOR, 1)
     mesh_frag.write_text(text)
-    for name, anchor, replacement in _PATCHES + _SOFT_PATCHES:
+    for name, anchor, replacement in _SPHERE_PATCHES + _PATCHES + _SOFT_PATCHES:
         path = Path(dst) / name
         text = path.read_text()
         if anchor not in text:
@@ -377,21 +394,49 @@ def is_sphere_cloud(primitive: Any) -> bool:
     return getattr(primitive, "point_diameter", None) is not None
 
 
-#: bf_sphere_mode (shaders/blendify_sphere_frag.glsl): pixel centres on the sphere only; also the pixel holding
-#: a sub-pixel sphere's projected centre; also every pixel a sphere covers in part, alpha = covered fraction
-SPHERE_EXACT, SPHERE_CONSERVATIVE, SPHERE_COVERAGE = 0.0, 1.0, 2.0
+#: bf_sphere_mode (shaders/blendify_sphere_frag.glsl): pixel centres on the sphere; pixel centres more than half a
+#: pixel inside it, opaque (spheres of 1.5 px and more); the rest of what a sphere covers, with alpha = covered
+#: fraction of the pixel (blended)
+SPHERE_EXACT, SPHERE_FRINGE, SPHERE_SOLID = 0.0, 2.0, 3.0
 #: pixels the quads of the modes grow by around the spheres' projected boxes
-_SPHERE_GROW = {SPHERE_EXACT: 0.0, SPHERE_CONSERVATIVE: 0.6, SPHERE_COVERAGE: 1.0}
+_SPHERE_GROW = {SPHERE_EXACT: 0.0, SPHERE_FRINGE: 0.55, SPHERE_SOLID: 0.0}
 
 
 def _bind_sphere_uniforms(program: Any, primitive: Any, mode: float, full: bool) -> None:
-    """The sphere variant's uniforms for the current viewport: the mode, and the diameter factor of the drawn
-    subset (``full``: every point at its own diameter)."""
+    """The sphere variant's uniforms for the current viewport: the mode, the diameter factor of the drawn
+    subset (``full``: every point at its own diameter) and whether ``primitive`` is GL points (sprites)."""
     vp = glGetIntegerv(GL_VIEWPORT)
     program.set_uniform("bf_viewport", np.array([vp[2], vp[3]], dtype=np.float32))
     program.set_uniform("bf_sphere_scale", 1.0 if full else float(getattr(primitive, "sphere_scale", 1.0)))
     program.set_uniform("bf_sphere_mode", float(mode))
     program.set_uniform("bf_sphere_grow", _SPHERE_GROW[mode])
+    program.set_uniform("bf_sphere_sprite", 1.0 if primitive.mode == GLTF.POINTS else 0.0)
+
+
+def point_sprites(primitive: Any) -> Any:
+    """The GL-points twin of a sphere cloud's quads (one vertex per sphere, same order and attributes), built
+    on first use: the blended colour pass draws clouds of sub-pixel spheres with it (a quarter of the vertices
+    and half the primitives; the sprites of such spheres are a few pixels, far below GL's point size limit)."""
+    twin = getattr(primitive, "point_twin", None)
+    if twin is None:
+        colors = primitive.color_0
+        twin = pyrender.Primitive(
+            positions=primitive.positions[::4],
+            texcoord_0=primitive.texcoord_0[::4],
+            color_0=None if colors is None else colors[::4],
+            indices=np.arange(len(primitive.positions) // 4, dtype=np.uint32),
+            material=primitive.material,
+            mode=GLTF.POINTS,
+        )
+        twin.point_all_indices = np.arange(len(primitive.positions) // 4, dtype=np.uint32)
+        twin._indices = twin.point_all_indices  # uploaded whole; a prefix is drawn
+        twin.albedo_factor = primitive.albedo_factor
+        primitive.point_twin = twin
+    if not twin._in_context():
+        twin._add_to_context()
+    twin._indices = twin.point_all_indices[: len(primitive.indices) // 2]  # the points the quads draw
+    twin.sphere_scale = getattr(primitive, "sphere_scale", 1.0)
+    return twin
 
 
 class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore[misc]
@@ -531,9 +576,9 @@ class FrameRenderer(pyrender.Renderer):
         #: view independent, so while it stays the same they are reused instead of re-rendered (None = always)
         self.shadow_key: Any = None
         self._shadow_done: dict[Any, Any] = {}
-        #: how the colour pass draws the spheres of point clouds (SPHERE_EXACT, SPHERE_CONSERVATIVE for the
-        #: "coverage" scheme, SPHERE_COVERAGE)
-        self.sphere_mode = SPHERE_EXACT
+        #: single-sample colour passes draw point clouds' spheres exactly at pixel centres (False) or as opaque
+        #: interiors plus edges and sub-pixel spheres blended by the fraction of the pixel they cover (True)
+        self.sphere_blend = False
         #: the world's light as 9 SH coefficients (A_l / pi) L_lm, linear RGB (translate.environment_sh)
         self.env_sh = np.zeros((9, 3), dtype=np.float32)
         #: the light glossy and metal surfaces reflect (the world's; env_sh may be the indirect-light probe's)
@@ -764,23 +809,63 @@ class FrameRenderer(pyrender.Renderer):
             super()._bind_and_draw_primitive(primitive, pose, program, flags)
             return
         shadow = self._shadow_light is not None  # shadow maps: every sphere, exact
-        _bind_sphere_uniforms(program, primitive, SPHERE_EXACT if shadow else self.sphere_mode, shadow)
-        drawn = primitive._indices
-        if shadow:
-            primitive._indices = primitive.point_all_indices
         # multisampled colour: the sphere is intersected at every sample (gl_FragCoord is the sample's
         # position under sample shading), so its silhouette is anti-aliased like a mesh's (llvmpipe shades
         # every sample of a multisampled pass anyway)
         per_sample = not shadow and self._target[2] > 0
+        blend = not shadow and not per_sample and self.sphere_blend
+        drawn = primitive._indices
+        if shadow:
+            primitive._indices = primitive.point_all_indices
         if per_sample:
             glEnable(GL_SAMPLE_SHADING)
             glMinSampleShading(1.0)
+        sub_pixel = blend and getattr(primitive, "point_px_max", np.inf) < 1.5
         try:
-            super()._bind_and_draw_primitive(primitive, pose, program, flags)
+            if not sub_pixel:  # (else the solid part is empty)
+                _bind_sphere_uniforms(program, primitive, SPHERE_SOLID if blend else SPHERE_EXACT, shadow)
+                super()._bind_and_draw_primitive(primitive, pose, program, flags)
+            if blend:
+                # the fringe over what is drawn (the cloud is drawn after the opaque objects: translate.py), not
+                # writing depth; pyrender blends a "BLEND" material (alpha "over" during render_color); spheres
+                # all under 1.5 px as GL points
+                fringe = point_sprites(primitive) if sub_pixel else primitive
+                _bind_sphere_uniforms(program, fringe, SPHERE_FRINGE, False)
+                material, alpha_mode = primitive.material, primitive.material.alphaMode
+                material.alphaMode = "BLEND"
+                glDepthMask(False)
+                try:
+                    super()._bind_and_draw_primitive(fringe, pose, program, flags)
+                finally:
+                    material.alphaMode = alpha_mode
+                    glDepthMask(True)
         finally:
             primitive._indices = drawn
             if per_sample:
                 glDisable(GL_SAMPLE_SHADING)
+
+    def sort_clouds(self, scene: Any, nodes: list[Any]) -> None:
+        """Order the drawn points of each cloud of sub-pixel spheres (``point_px_max`` < 1.5, set per frame: drawn
+        as GL points, :func:`point_sprites`) far to near in its element buffer: their blended coverage then
+        composites front over back, as a path tracer sees them (unsorted, the points behind would weigh as
+        much as those in front)."""
+        self._update_context(scene, RenderFlags.NONE)
+        cam = scene.get_pose(scene.main_camera_node)
+        for node in nodes:
+            if node is None:
+                continue
+            for prim in node.mesh.primitives:
+                if not is_sphere_cloud(prim) or getattr(prim, "point_px_max", np.inf) >= 1.5:
+                    continue
+                twin = point_sprites(prim)
+                m = len(twin.indices)
+                pose = scene.get_pose(node)
+                centres = prim.positions[0 : 4 * m : 4].astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]
+                depth = (centres - cam[:3, 3]) @ -cam[:3, 2]
+                order = np.argsort(-depth, kind="stable").astype(np.uint32)
+                glBindBuffer(GL_COPY_WRITE_BUFFER, twin._buffers[-1])  # the element buffer (pyrender's last)
+                glBufferSubData(GL_COPY_WRITE_BUFFER, 0, order.nbytes, order)
+                glBindBuffer(GL_COPY_WRITE_BUFFER, 0)
 
     # -- shadow control --------------------------------------------------------------------------
     def _shadow_mapping_pass(self, scene: Any, light_node: Any, flags: int) -> None:
@@ -1057,11 +1142,14 @@ def linearise_rgba8(img: np.ndarray) -> np.ndarray:
     return out
 
 
-def apply_coverage(rgba: np.ndarray, coverage: np.ndarray) -> np.ndarray:
+def apply_coverage(rgba: np.ndarray, coverage: np.ndarray, own: np.ndarray | None = None) -> np.ndarray:
     """Anti-aliased silhouettes from a plain (one sample per pixel) colour pass and a supersampled
     coverage. The plain pass gives each pixel's straight colour and opacity (alpha < 1 only for
     translucent materials); pixels whose centre missed every surface take the mean of their covered
-    8-neighbours; the output alpha is coverage x opacity (premultiplied colour)."""
+    8-neighbours; the output alpha is coverage x opacity (premultiplied colour). Pixels in ``own`` (H, W)
+    keep the plain pass's straight colour and take ``OWN_WEIGHT`` of their alpha from it (it blended them by
+    their coverage: point clouds; a translucent material's pixels among them lose some of the coverage of
+    their silhouette)."""
     opacity = rgba[..., 3].copy()
     hit = opacity > 0
     h, w = hit.shape
@@ -1090,6 +1178,10 @@ def apply_coverage(rgba: np.ndarray, coverage: np.ndarray) -> np.ndarray:
     out = np.empty_like(rgba)
     out[..., :3] = straight * alpha[..., None]
     out[..., 3] = alpha
+    if own is not None:
+        a_own = OWN_WEIGHT * rgba[..., 3][own] + (1.0 - OWN_WEIGHT) * cov[own]
+        out[own, :3] = rgba[own, :3] / rgba[own, 3:4] * a_own[:, None]
+        out[own, 3] = a_own
     return out
 
 
@@ -1129,6 +1221,7 @@ def _thin_clouds(scene: Any, frame: Frame) -> list[str]:
     sub-pixel spheres draws them larger by sqrt(all / drawn) (same summed area, same coverage). Returns the
     notes (approximations) of the thinned clouds."""
     cam = frame.camera
+    eye = scene.get_pose(scene.main_camera_node)[:3, 3]
     notes: list[str] = []
     for node in frame.nodes:
         if node is None:
@@ -1152,6 +1245,12 @@ def _thin_clouds(scene: Any, frame: Frame) -> list[str]:
             # a sub-pixel sphere covers a pixel with probability ~ its area: the drawn ones are enlarged so that
             # the thinned cloud keeps the summed area (and so the coverage) of the whole cloud
             prim.sphere_scale = float(np.sqrt(n / m)) if px < 1.0 else 1.0
+            prim.point_px = px * prim.sphere_scale
+            # the largest sphere at the cloud's nearest point: are all spheres under 1.5 px (blended whole)?
+            toward = eye - centre
+            dist = float(np.linalg.norm(toward))
+            near = centre + toward / max(dist, 1e-30) * min(prim.point_extent, 0.999 * dist)
+            prim.point_px_max = cam.screen_size(prim.point_diameter_max, near) * prim.sphere_scale
             if m < n and px < 1.0:
                 notes.append(
                     f"pointcloud: colour from {m} of {n} points (sub-pixel spheres: a random subset, drawn "
@@ -1170,17 +1269,25 @@ def _color(engine: Engine, frame: Frame, w: int, h: int, aa: AntiAliasing, flags
     """Linear premultiplied (H, W, 4) colour with the anti-aliasing scheme ``aa``."""
     r, scene = engine.renderer, engine.pscene
     if aa.mode in ("none", "coverage"):
-        r.sphere_mode = SPHERE_CONSERVATIVE if aa.mode == "coverage" else SPHERE_EXACT
+        # the coverage scheme: point clouds' edges and sub-pixel spheres blended by the fraction of each pixel
+        # they cover in the colour pass (its alpha)
+        r.sphere_blend = aa.mode == "coverage"
+        if r.sphere_blend:
+            r.sort_clouds(scene, frame.nodes)
         try:
             rgba = color_pass_linear(r.render_color(scene, w, h, 0, flags))
         finally:
-            r.sphere_mode = SPHERE_EXACT
+            r.sphere_blend = False
         if aa.mode == "coverage":
             ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
             # supersampled, not multisampled: llvmpipe's MSAA is 4x slower even for a trivial shader
             k = COVERAGE_SUPERSAMPLE
             cov = box_downsample(r.render_coverage(scene, w * k, h * k, 0, ids), k)
-            rgba = apply_coverage(rgba, cov)
+            # pixels a cloud's blended spheres cover in part keep the colour pass's alpha (their coverage)
+            own = None
+            if any(is_sphere_cloud(p) for n in frame.nodes if n is not None for p in n.mesh.primitives):
+                own = (rgba[..., 3] > 0.0) & (rgba[..., 3] < 1.0)
+            rgba = apply_coverage(rgba, cov, own=own)
         return rgba
     if aa.mode == "msaa":
         return color_pass_linear(r.render_color(scene, w, h, aa.msaa, flags))

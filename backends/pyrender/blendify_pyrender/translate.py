@@ -649,8 +649,12 @@ class PyrenderTranslator(Translator):
             mode=pyrender.constants.GLTF.TRIANGLES,
         )
         prim._indices = tris  # not pyrender's float32 copy (inexact above 2^24)
+        # drawn after the opaque objects (pyrender's order for transparent ones): the blended edges of the spheres
+        # (render.py, the coverage scheme) then lie over what is behind them
+        prim._is_transparent = True
         prim.albedo_factor = albedo
         prim.point_diameter = float(np.mean(radii) * 2.0)  # world units (marks the sphere clouds)
+        prim.point_diameter_max = float(radii.max(initial=0) * 2.0)
         prim.sphere_scale = 1.0  # diameter factor keeping the coverage of a thinned cloud (set per frame)
         prim.point_all_indices = tris
         prim.point_extent = float(np.max(np.linalg.norm(local, axis=1))) + float(radii.max(initial=0))

@@ -3,11 +3,8 @@ out vec4 frag_color;
 // @BLENDIFY_SPHERE_FRAG@
 void main()
 {
-    float cover = 1.0;
 #ifdef BLENDIFY_SPHERE
-    // a point of a cloud: pixel centres on the exact sphere (mode 0), or the covered fraction (mode 2)
-    bf_sphere_hit();
-    cover = bf_sphere_cover;
+    bf_sphere_hit();  // a point of a cloud: pixel centres on the exact sphere
 #endif
-    frag_color = vec4(cover);
+    frag_color = vec4(1.0);
 }

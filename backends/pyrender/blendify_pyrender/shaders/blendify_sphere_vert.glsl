@@ -1,7 +1,8 @@
 // Point clouds as exact spheres (vertex side, BLENDIFY_SPHERE): every point is a quad of 4 vertices at the
 // sphere's centre (texcoord_0 = (diameter in object units, corner 0..3)) that this function spreads over
 // the sphere's projected bounding box in screen space (perspective or orthographic P; the tangent planes
-// of the sphere through the eye bound it exactly), grown by bf_sphere_grow pixels. The fragment side
+// of the sphere through the eye bound it exactly), grown by bf_sphere_grow pixels; or (bf_sphere_sprite) one
+// GL point whose square sprite covers that box (clouds of spheres of a few pixels: a quarter of the vertices). The fragment side
 // (blendify_sphere_frag.glsl) intersects each pixel centre's ray with the sphere.
 #ifdef BLENDIFY_SPHERE
 #ifndef TEXCOORD_0_LOC
@@ -10,6 +11,7 @@
 uniform vec2 bf_viewport;        // viewport size in pixels
 uniform float bf_sphere_scale;   // diameter factor (thinned clouds of sub-pixel spheres)
 uniform float bf_sphere_grow;    // pixels added around the projected box
+uniform float bf_sphere_sprite;  // 1: one GL point per sphere (a square sprite over the box), not a quad
 flat out vec4 bf_sphere;         // view-space centre, radius
 flat out vec3 bf_sphere_px;      // projected centre (window pixels), radius in pixels at the centre's depth
 
@@ -46,6 +48,10 @@ vec4 bf_sphere_corner(mat4 model, vec3 centre, float diameter, float corner)
     vec4 cc = P * vec4(c, 1.0);
     float px_world = 2.0 * abs(w) / (f.x * bf_viewport.x);  // world size of a pixel at the centre's depth
     bf_sphere_px = vec3((0.5 * cc.xy / cc.w + 0.5) * bf_viewport, r / max(px_world, 1e-30));
+    if (bf_sphere_sprite > 0.5) {
+        gl_PointSize = max((hi.x - lo.x) * bf_viewport.x, (hi.y - lo.y) * bf_viewport.y) * 0.5;
+        return vec4(0.5 * (lo + hi), 0.0, 1.0);
+    }
     int k4 = int(corner + 0.5);
     vec2 ndc = vec2((k4 == 1 || k4 == 2) ? hi.x : lo.x, (k4 >= 2) ? hi.y : lo.y);
     return vec4(ndc, 0.0, 1.0);  // depth comes from the fragment (gl_FragDepth)
