@@ -150,6 +150,9 @@ PROBE = True
 #: every light in the colour pass: scenes with more lights of a type than pyrender binds per draw are rendered
 #: in groups of lights that fit and summed (FrameRenderer.light_groups); False: one pass, pyrender's nearest lights
 LIGHT_GROUPS = True
+#: lights of a type without shadow maps in a pass need no texture units: up to this many are bound per draw
+#: (pyrender: 4), the shader's arrays sized to the next power of two above the scene's count (a variant each)
+MAX_UNSHADOWED_LIGHTS = 64
 #: the coverage pass of the "coverage" anti-aliasing is rendered at 3x the resolution (9 samples/pixel)
 COVERAGE_SUPERSAMPLE = 3
 _LIN8 = ((np.arange(256, dtype=np.float64) / 255.0) ** _GAMMA).astype(np.float32)
@@ -561,6 +564,9 @@ class GBuffer:
 class FrameRenderer(pyrender.Renderer):
     """pyrender's renderer with per-frame framebuffers (see the module docstring)."""
 
+    #: the scene's (directional, spot, point) light counts of the current colour pass (light_groups)
+    _light_counts: tuple[int, int, int] = (0, 0, 0)
+
     def __init__(self) -> None:
         super().__init__(1, 1)
         self._program_cache = _ProgramCache(shader_dir=_shader_dir())
@@ -934,10 +940,12 @@ class FrameRenderer(pyrender.Renderer):
     # -- lights beyond pyrender's per-draw limits ----------------------------------------------------
     def light_groups(self, scene: Any, flags: int) -> list[tuple[list[Any], list[Any], list[Any]]]:
         """The scene's (directional, spot, point) light nodes in groups that each fit the number of lights of a
-        type pyrender binds per draw (``_compute_max_n_lights``: 4, more for a shadowed type where texture units
-        allow). One group (all lights) when the scene fits or ``LIGHT_GROUPS`` is off; otherwise as many as the
-        most demanding type needs, each type dealt round robin (lights in a fixed order: by pose)."""
+        type bound per draw (``_compute_max_n_lights``: pyrender's 4, more for a shadowed type where texture
+        units allow, a type without shadow maps up to ``MAX_UNSHADOWED_LIGHTS``). One group (all lights) when
+        the scene fits or ``LIGHT_GROUPS`` is off; otherwise as many as the most demanding type needs, each type
+        dealt round robin (lights in a fixed order: by pose)."""
         kinds = (scene.directional_light_nodes, scene.spot_light_nodes, scene.point_light_nodes)
+        self._light_counts = (len(kinds[0]), len(kinds[1]), len(kinds[2]))
         max_n = self._compute_max_n_lights(flags)
         n = max([1] + [-(-len(k) // max(m, 1)) for k, m in zip(kinds, max_n)]) if LIGHT_GROUPS else 1
         if n == 1:
@@ -945,6 +953,19 @@ class FrameRenderer(pyrender.Renderer):
         poses = {node: tuple(scene.get_pose(node).ravel()) for k in kinds for node in k}
         ordered = [sorted(k, key=poses.__getitem__) for k in kinds]
         return [(ordered[0][g::n], ordered[1][g::n], ordered[2][g::n]) for g in range(n)]
+
+    def _compute_max_n_lights(self, flags: int) -> list[int]:
+        """pyrender's lights of each type (directional, spot, point) per draw; a type without shadow maps in
+        this pass and more lights than that in the scene (``light_groups`` counts them) takes up to
+        ``MAX_UNSHADOWED_LIGHTS``, the next power of two above its count."""
+        max_n: list[int] = super()._compute_max_n_lights(flags)
+        if not LIGHT_GROUPS:
+            return max_n
+        shadows = (RenderFlags.SHADOWS_DIRECTIONAL, RenderFlags.SHADOWS_SPOT, RenderFlags.SHADOWS_POINT)
+        for t, (count, shadow) in enumerate(zip(self._light_counts, shadows)):
+            if count > max_n[t] and not flags & shadow:
+                max_n[t] = min(MAX_UNSHADOWED_LIGHTS, 1 << (count - 1).bit_length())
+        return max_n
 
     def _render_light_groups(self, scene: Any, flags: int, groups: list[Any]) -> np.ndarray:
         """The colour pass as the sum of one forward pass per light group (linear premultiplied float32). The

@@ -122,12 +122,17 @@ def _passes(pyr, monkeypatch) -> list[int]:
     return calls
 
 
+@pytest.mark.parametrize("wide", [64, 4], ids=["wide-arrays", "groups"])
 @pytest.mark.parametrize("shadow", [True, False], ids=["shadows", "shadowless"])
-def test_every_light_of_many_is_shaded(pyr, shadow):
+def test_every_light_of_many_is_shaded(pyr, monkeypatch, shadow, wide):
     """26 lights (9 points, 6 spots, 5 suns, 6 area lights; pyrender binds 4 of a type per draw, or more of a
     shadowed type where texture units allow) light the plane and cube as the sum of the pictures of each light
-    alone: the colour pass is rendered in groups of lights that fit and summed, the indirect-light probe's own
-    renders included. Before, the nearest 4 of each type were shaded (the approximation line is gone)."""
+    alone, the indirect-light probe's own renders included: types without shadow maps bound up to 64 per
+    draw, or (``wide`` = 4, as pyrender) in groups of lights that fit, rendered and summed. Before, the nearest
+    4 of each type were shaded (the approximation line is gone)."""
+    import blendify_pyrender.render as pr
+
+    monkeypatch.setattr(pr, "MAX_UNSHADOWED_LIGHTS", wide)
     lights = _many(shadow)
     every = render(_many_scene(lights), backend=pyr, quality="preview", outputs=("rgb", "instance"))
     assert not any(a.startswith("lights:") for a in every.meta["approximations"]), every.meta["approximations"]
@@ -142,8 +147,8 @@ def test_every_light_of_many_is_shaded(pyr, shadow):
 
 
 def test_lights_at_the_limit_render_in_one_pass(pyr, monkeypatch):
-    """4 lights of each type fit one pass: one forward pass per colour render, as before; a fifth point light
-    takes a second pass (light groups) and adds its light."""
+    """4 lights of each type fit one pass: one forward pass per colour render, the picture as before; a fifth
+    point light still renders in one pass (its shader binds up to 8) and adds its light."""
     import blendify_pyrender.render as pr
 
     lights = [x for x in _many(False) if x[0] in ("point", "sun", "spot")]
@@ -159,9 +164,29 @@ def test_lights_at_the_limit_render_in_one_pass(pyr, monkeypatch):
     fifth = [x for x in lights if x[0] == "point"][4]
     calls[0] = 0
     more = render(_many_scene(at_limit + [fifth]), backend=pyr, quality="preview", outputs=("rgb",))
-    assert calls[0] == 2
+    assert calls[0] == 1
     alone = render(_many_scene([fifth]), backend=pyr, quality="preview", outputs=("rgb",)).rgba[..., :3]
     np.testing.assert_allclose(more.rgba[..., :3], one.rgba[..., :3] + alone, rtol=1e-4, atol=1e-5)
+
+
+@pytest.mark.slow  # ~20 s: 27 shadow maps
+def test_shadowed_spots_beyond_the_texture_units(pyr, monkeypatch):
+    """Spot lights with shadow maps are bound as many as texture units allow (pyrender's count on this driver);
+    one more takes a second pass, and every spot keeps its shadow: the picture is the sum of each alone."""
+    import blendify_pyrender.render as pr
+    from pyrender.constants import RenderFlags
+
+    monkeypatch.setattr(pr, "PROBE", False)
+    render(_many_scene([("spot", True, 0.0, 0.0)]), backend=pyr, quality="preview")  # the context exists
+    fit = pyr.engine_instance.renderer._compute_max_n_lights(RenderFlags.SHADOWS_SPOT)[1]
+    spots = [("spot", True, -0.9 + 1.8 * k / fit, 0.5 * (-1) ** k) for k in range(fit + 1)]
+    calls = _passes(pyr, monkeypatch)
+    every = render(_many_scene(spots, 1.0 / len(spots)), backend=pyr, quality="preview", outputs=("rgb",))
+    assert calls[0] == 2
+    total = sum(render(_many_scene([x], 1.0 / len(spots)), backend=pyr, quality="preview").rgba[..., :3] for x in spots)
+    err = np.abs(every.rgba[..., :3] - total)
+    print(f"{len(spots)} shadowed spots: mean |all - sum of each alone| / mean {err.mean() / total.mean():.2e}")
+    assert err.mean() < 1e-4 * total.mean()
 
 
 @pytest.mark.parametrize("antialias,samples", [("coverage", 8), ("coverage", 1), ("msaa", 8), ("ssaa", 8)])
