@@ -190,13 +190,17 @@ def test_shadowed_spots_beyond_the_texture_units(pyr, monkeypatch):
 
 
 @pytest.mark.parametrize("antialias,samples", [("coverage", 8), ("coverage", 1), ("msaa", 8), ("ssaa", 8)])
-def test_many_lights_in_every_antialiasing_mode(antialias, samples):
-    """Light groups in every anti-aliasing mode (samples=1: none), a translucent cube included: the colour is
-    the sum of each light's alone and the alpha (coverage x opacity) that of one pass."""
+def test_many_lights_in_every_antialiasing_mode(monkeypatch, antialias, samples):
+    """Light groups (4 lights per pass, as pyrender) in every anti-aliasing mode (samples=1: none), a
+    translucent cube and a cloud of spheres (blended edges) included: the colour is the sum of each light's
+    alone and the alpha (coverage x opacity) that of one pass."""
+    import blendify_pyrender.render as pr
     from blendify_pyrender import PyrenderBackend
 
     from blendify_core import DiffuseMaterial, UniformColors
 
+    monkeypatch.setattr(pr, "MAX_UNSHADOWED_LIGHTS", 4)
+    pts = np.random.default_rng(3).uniform((-0.8, -0.8, 0.05), (-0.2, -0.2, 0.4), size=(40, 3))
     lights = [x for x in _many(True) if x[0] == "point"]
 
     def scene_of(subset):
@@ -206,6 +210,7 @@ def test_many_lights_in_every_antialiasing_mode(antialias, samples):
         grey = UniformColors((0.5,) * 3)
         scene.renderables.add_plane_mesh(1.2, DiffuseMaterial(), grey, tag="plane")  # edges in view
         scene.renderables.add_cube_mesh(0.4, DiffuseMaterial(alpha=0.4), grey, translation=(0.75, 0.1, 0.5))
+        scene.renderables.add_pointcloud(pts, DiffuseMaterial(), grey, point_size=0.06)
         return scene
 
     kw = dict(quality="preview", samples=samples, transparent_background=True)
