@@ -111,19 +111,57 @@ def floating_bunny_scene(res: int) -> bf.Scene:
     return s
 
 
+def _plastic(res: int, roughness: float, sky: float) -> bf.Scene:
+    s = bf.Scene()
+    m = bf.PlasticMaterial(roughness=roughness)
+    s.renderables.add_sphere_nurbs(0.3, m, bf.UniformColors((0.8, 0.3, 0.2)), translation=(0, 0, 0.3), tag="ball")
+    s.renderables.add_cube_mesh(0.3, m, bf.UniformColors((0.2, 0.4, 0.8)), translation=(0.45, 0.35, 0.15), tag="box")
+    _floor(s)
+    _camera(s, res)
+    s.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(30, 20, 0))
+    if sky:
+        s.lights.set_background_light(sky)
+    return s
+
+
+def plastic_sun_scene(res: int) -> bf.Scene:
+    """A smooth plastic ball and cube (roughness 0.1) on a diffuse floor under a sun: the floor sees the sun in
+    their 4 % coats (caustics: rare, very bright samples), light far below the target (the pilot drops it)."""
+    return _plastic(res, 0.1, 0.0)
+
+
+def plastic_sky_scene(res: int) -> bf.Scene:
+    """Rougher plastic (0.3) under a sun and a sky: the floor sees the sky in the coats too, caustics at about
+    the target (the pilot keeps them)."""
+    return _plastic(res, 0.3, 0.3)
+
+
 SCENES: dict[str, tuple[Callable[[int], bf.Scene], tuple[str, ...]]] = {
     "lambert": (lambert_scene, ("rgb",)),
     "no_shadow": (no_shadow_scene, ("rgb",)),
     "floating": (floating_scene, ("rgb",)),
     "floating_bunny": (floating_bunny_scene, ("rgb",)),
     "dark_floor": (dark_floor_scene, ("rgb",)),
+    "plastic_sun": (plastic_sun_scene, ("rgb",)),
+    "plastic_sky": (plastic_sky_scene, ("rgb",)),
     "glass": (glass_scene, ("rgb",)),
     "depth_normal": (lambert_scene, ("depth", "normal")),
 }
 
 
-#: why the effect-aware settings save what they save (or nothing) on each scene
-WHY = {
+#: why the effect-aware settings save what they save (or nothing) on each scene (a dict: per engine)
+WHY: dict[str, str | dict[str, str]] = {
+    "plastic_sun": {
+        "cycles": "the caustics pilot bounds the light reaching the floor through the coats below half the target "
+        "and drops it (caustics_reflective/refractive off): those paths are the rare, very bright samples, so the "
+        "target needs a few hundred samples instead of tens of thousands",
+        "mitsuba": "Mitsuba's path has no caustics switch: caustics=False runs blendify's Python integrator, "
+        "12-38x the time per sample of path in scalar_rgb (the only variant here: llvm needs libLLVM >= 16), so "
+        "the pilot (its samples weighed 30x) is tried only when the full passes need >= 16 x 30 x 32 = 15360 "
+        "more samples and drops only at >= 30x fewer samples",
+    },
+    "plastic_sky": "the floor also sees the sky in the coats: the pilot bounds the caustics at about the target "
+    "(above half of it) and keeps them; its passes are the whole cost difference",
     "lambert": "drops glossy/transmission/transparent bounces and caustics, but no material has those lobes, so the "
     "full settings never take those bounces either; the indirect diffuse light is needed (the floor lights them)",
     "no_shadow": "the lights' use_shadow=False is the scene's own and applies in both settings (Cycles' light "
@@ -167,6 +205,22 @@ TRIED = [
 ]
 
 
+def _diff_cell(row: dict[str, Any]) -> str:
+    """The median relative RMS difference of the paired pictures and the noise it is expected to have (the
+    hypot of both renders' estimated errors): a dropped effect's light must stay within it."""
+    pairs = [p for p in row["pairs"] if p.get("rel_rms_diff") is not None and p.get("err_eff") and p.get("err_full")]
+    if not pairs:
+        return "-"
+    diff = float(np.median([p["rel_rms_diff"] for p in pairs]))
+    noise = float(np.median([np.hypot(p["err_eff"], p["err_full"]) for p in pairs]))
+    return f"{diff:.4f} / {noise:.4f}"
+
+
+def _why(scene: str, backend: str) -> str:
+    why = WHY.get(scene, "")
+    return why.get(backend, "") if isinstance(why, dict) else why
+
+
 def _dropped(row: dict[str, Any]) -> str:
     """What the effect-aware render left out, from its meta."""
     e, f = row["effect_aware"], row["full"]
@@ -174,6 +228,9 @@ def _dropped(row: dict[str, Any]) -> str:
     pilot = e.get("indirect_pilot") or {}
     if pilot.get("dropped"):
         out.append(f"indirect light (pilot: {pilot['indirect_error']:.2g} rel. RMS)")
+    caustics = e.get("caustics_pilot") or {}
+    if caustics.get("dropped"):
+        out.append(f"caustics (pilot: {caustics['caustics_error']:.2g} rel. RMS)")
     es, fs = e.get("engine_settings") or {}, f.get("engine_settings") or {}
     out += [k.replace("_bounces", "").replace("max_", "") for k in es if es.get(k) != fs.get(k) and k != "effects_used"]
     if e.get("max_depth") != f.get("max_depth"):
@@ -191,14 +248,17 @@ def write_report(data: dict[str, Any], out: Path) -> None:
         f"{info['reps']} paired repetitions per row (effect-aware and full back to back, order alternating, same "
         f"seed); ratio = full time / effect-aware time within each pair: median (min-max). {THREADS} threads, "
         f"load average {info['load'][0]:.1f} -> {info['load'][1]:.1f} on {info['cpus']} cores (a shared, loaded "
-        "machine: the absolute times are slow and noisy; ratios within 0.7-1.4 are noise at this load).",
+        "machine: the absolute times are slow and noisy; ratios within 0.7-1.4 are noise at this load). The picture "
+        "column compares each pair's effect-aware and full renders (different noise, same target): a dropped "
+        "effect's light must stay within the noise.",
         "",
         "Run: `wtpy benchmarks/effects_pay.py --res 64 --reps 5` (``--quick``: 64 px, 3 repetitions)"
         + (f"; this table merges {', '.join(info['sources'])} (later runs replace rows)" if info.get("sources") else "")
         + ".",
         "",
-        "| scene | engine | effect-aware drops | spp eff / full | time eff / full (s, median) | ratio full/eff | why |",
-        "|---|---|---|---|---|---|---|",
+        "| scene | engine | effect-aware drops | spp eff / full | time eff / full (s, median) | ratio full/eff "
+        "| eff vs full: rel. RMS diff / noise | why |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         spp_e = int(np.median([p["spp_eff"] or 0 for p in r["pairs"]]))
@@ -206,7 +266,8 @@ def write_report(data: dict[str, Any], out: Path) -> None:
         lines.append(
             f"| {r['scene']} | {r['backend']} | {_dropped(r)} | {spp_e} / {spp_f} | "
             f"{r['t_eff_median']:.2f} / {r['t_full_median']:.2f} | "
-            f"{r['ratio_median']:.2f} ({r['ratio_min']:.2f}-{r['ratio_max']:.2f}) | {WHY.get(r['scene'], '')}"
+            f"{r['ratio_median']:.2f} ({r['ratio_min']:.2f}-{r['ratio_max']:.2f}) | {_diff_cell(r)} | "
+            f"{_why(r['scene'], r['backend'])}"
             + (
                 f" ({r['res']} px, {r['reps']} pairs)"
                 if (r.get("res", info["res"]), r.get("reps", info["reps"])) != (info["res"], info["reps"])
@@ -218,7 +279,7 @@ def write_report(data: dict[str, Any], out: Path) -> None:
     missing = [sc for sc in SCENES if not any(r["scene"] == sc for r in rows)]
     if missing:
         lines += ["", "Not timed in this run:", ""]
-        lines += [f"- {sc}: {NOT_TIMED.get(sc, WHY.get(sc, ''))}" for sc in missing]
+        lines += [f"- {sc}: {NOT_TIMED.get(sc, _why(sc, 'cycles'))}" for sc in missing]
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
     import matplotlib
 
@@ -263,6 +324,7 @@ def _one(scene: bf.Scene, backend: str, effects: bool, seed: int, outputs: tuple
         "integrator": meta.get("integrator"),
         "max_depth": meta.get("max_depth"),
         "indirect_pilot": meta.get("indirect_pilot"),
+        "caustics_pilot": meta.get("caustics_pilot"),
         "rgba": None if res.rgba is None else res.rgba,
     }
 

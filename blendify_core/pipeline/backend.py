@@ -115,6 +115,12 @@ class Backend(abc.ABC):
                 names |= {p.name for p in params if p.kind is p.KEYWORD_ONLY or p.kind is p.POSITIONAL_OR_KEYWORD}
         return sorted(names - {"self", "extra"})
 
+    def pilot_sample_cost(self, settings: RenderSettings) -> float:
+        """The time of one sample with ``settings`` (a pilot's: e.g. ``caustics=False``) relative to one with
+        the full settings, as measured for this engine; ``final``'s pilots weigh the samples of each choice by
+        it (a fixed number, not a timing, so a seed still gives the same picture). 1.0: no dearer."""
+        return 1.0
+
     # -- discovery ---------------------------------------------------------------------------------
     @classmethod
     def probe(cls) -> BackendStatus:

@@ -368,7 +368,7 @@ def _record_meta(
     meta.setdefault("engine_version", inst.engine_version())
     meta["settings"] = settings.to_dict()
     meta.setdefault("effects", pre.effects.to_dict())
-    meta["simulated"] = _simulated(settings, pre.effects, meta.get("indirect_pilot"))
+    meta["simulated"] = _simulated(settings, pre.effects, meta.get("indirect_pilot"), meta.get("caustics_pilot"))
     meta.setdefault("bias", settings_bias(settings) if inst.path_tracer else [])
     meta["approximations"] = sorted(set(pre.approximations) | set(meta.get("approximations", [])))
     if pre.fallback_notes:
@@ -387,7 +387,12 @@ def _record_meta(
     _error_meta(meta, settings, meta["path_tracer"])
 
 
-def _simulated(settings: RenderSettings, effects: Effects, pilot: dict[str, Any] | None = None) -> Simulated:
+def _simulated(
+    settings: RenderSettings,
+    effects: Effects,
+    pilot: dict[str, Any] | None = None,
+    caustics_pilot: dict[str, Any] | None = None,
+) -> Simulated:
     """What light transport was simulated and why (``meta["simulated"]``)."""
     if "rgb" not in settings.outputs:
         return {"lighting": False, "why": "only geometric outputs requested: no lighting needed"}
@@ -402,6 +407,12 @@ def _simulated(settings: RenderSettings, effects: Effects, pilot: dict[str, Any]
     if pilot is not None and pilot.get("dropped"):
         sim["effects"] = [f for f in on if f not in ("indirect_diffuse", "caustics")]
         sim["dropped"] = {"indirect light": str(pilot["why"])}
+    elif caustics_pilot is not None and caustics_pilot.get("dropped"):
+        sim["effects"] = [f for f in on if f != "caustics"]
+        sim["dropped"] = {"caustics": str(caustics_pilot["why"])}
+    elif not settings.caustics and "caustics" in on:
+        sim["effects"] = [f for f in on if f != "caustics"]
+        sim["dropped"] = {"caustics": "caustics=False requested"}
     return sim
 
 
@@ -645,8 +656,8 @@ def _add_timings(total: dict[str, float], more: dict[str, float]) -> None:
             total[key] = total.get(key, 0.0) + float(value)
 
 
-#: the pilot of the indirect light renders this many direct-light passes (same seeds and samples as the first
-#: full passes: the same first samples, so their difference is mostly the indirect light; measured: half the
+#: a pilot (:data:`PILOTS`) renders this many passes without its effect (same seeds and samples as the first
+#: full passes: the same first samples, so their difference is mostly the effect's light; measured: half the
 #: samples loosened the estimate's upper bound 3.5x on a ball over a dark floor)
 PILOT_PASSES = 2
 #: ... and up to this many (one more per round, paired with the next full pass) while its 90 % interval still
@@ -658,15 +669,18 @@ PILOT_PASSES = 2
 #: 0.0031 with 3, 0.0014 with 4. (Mitsuba's ``ldsampler`` shares the numbers, 0.0011, but has 1.0-1.5x the
 #: noise of the default ``multijitter`` on every benchmark scene: not worth it for a pilot.)
 PILOT_MAX_PASSES = FIRST_PASSES
-#: ... and only when the full passes still need this many times the pilot's samples (it costs <= 1/16 of them;
+#: ... and only when the full passes still need this many times the pilots' samples, weighed by their cost
+#: (they cost <= 1/16 of them;
 #: measured at 4x: 10-15 % slower on a floating bunny, whose indirect light it rightly kept; Mitsuba also
 #: loads the direct-light scene once more)
 PILOT_MIN_GAIN = 16.0
-#: direct light may need this many times the full settings' samples. 1: a direct sample is barely cheaper (Russian
+#: direct light (or the render without caustics) may need this many times the full settings' samples, weighed by
+#: their cost. 1: a direct sample is barely cheaper (Russian
 #: roulette already ends the paths that carry little), and without the indirect light the relative noise of dark
 #: pixels is higher (measured on a ball over a 5 % floor: 1.1x the samples, 0.85x the speed with a slack of 1.25)
 DIRECT_SAMPLES_SLACK = 1.0
-#: indirect light may be left out when its estimated relative RMS (90 % upper bound) is <= this x target
+#: indirect light or caustics may be left out when their estimated relative RMS (90 % upper bound) is <= this x
+#: target
 INDIRECT_SHARE = 0.5
 
 
@@ -685,7 +699,39 @@ def _indirect_bounds(colours: list[FloatArray], direct: list[FloatArray]) -> tup
     return float(np.sqrt(max(mean + half, 0.0))), float(np.sqrt(max(mean - half, 0.0)))
 
 
-def _indirect_pilot(
+#: what each pilot of ``render_to_target`` leaves out: the settings it renders instead and its name in meta
+#: (``meta["<kind>_pilot"]``, ``"<kind>_error"``)
+#: (in the order tried: caustics first, as the noisiest light; measured on a plastic ball and cube under a sun,
+#: Cycles at 64 px: 25152 samples with caustics, 96 without)
+PILOTS: dict[str, dict[str, Any]] = {
+    "caustics": {"changes": {"caustics": False}, "label": "caustics"},
+    "indirect": {"changes": {"max_bounces": 0}, "label": "indirect light"},
+}
+
+
+def _pilot_applies(kind: str, settings: RenderSettings, eff: Effects) -> str | None:
+    """Why pilot ``kind`` is not tried on a scene with effects ``eff`` (None: it is)."""
+    if not settings.effects:
+        return "not tried: effects=False"
+    if kind == "indirect":
+        if settings.max_bounces == 0:
+            return "not tried: no bounces anyway"
+        if eff.transmission:
+            return "not tried: light passes through a transmissive material (needs bounces)"
+        if not (eff.indirect_diffuse or eff.glossy or eff.caustics):
+            return "not tried: the effect analysis already renders direct light only"
+        return None
+    if not settings.caustics or settings.max_bounces == 0:
+        return "not tried: caustics off or no bounces anyway"
+    if not eff.caustics:
+        return "not tried: the effect analysis already found no caustics"
+    if eff.transmission:
+        return "not tried: light passes through a transmissive material (refraction lights what is behind it)"
+    return None
+
+
+def _effect_pilot(
+    kind: str,
     inst: Backend,
     scene: Scene,
     settings: RenderSettings,
@@ -693,90 +739,96 @@ def _indirect_pilot(
     colours: list[FloatArray],
     counts: list[int],
     estimate: float,
+    spent: float = 0.0,
 ) -> dict[str, Any]:
-    """Decide from pixels whether direct light alone reaches ``settings.target_error`` in fewer samples.
+    """Decide from pixels whether the settings without one effect (:data:`PILOTS`: ``indirect`` = direct
+    light alone, ``max_bounces=0``; ``caustics`` = ``caustics=False``) reach ``settings.target_error`` sooner.
 
-    Renders ``PILOT_PASSES`` passes without bounces (``max_bounces=0``) with the seeds and samples of the first
-    full passes (the same first samples: the difference is mostly the indirect light),
-    estimates the relative RMS of the indirect light (full - direct; its squared mean less its noise, 90 %
-    interval over pixel-channels) and the samples direct light needs for the rest of the error budget. While
-    the interval straddles the threshold, one more pass is paired with the next full pass, up to
-    ``PILOT_MAX_PASSES`` and as long as the pilot costs at most 1/``PILOT_MIN_GAIN`` of the full passes' samples.
-    Direct light is chosen when the indirect light is <= ``INDIRECT_SHARE`` x target and it needs at most
-    ``DIRECT_SAMPLES_SLACK`` x the full settings' samples (a direct sample never costs more than a full one). Stopping
-    depends only on pixels, so a seed still gives the same picture. Returns the decision and its numbers
-    (``meta["indirect_pilot"]``); with ``dropped`` also the direct passes to continue from."""
+    Renders ``PILOT_PASSES`` passes with the pilot's settings and the seeds and samples of the first full passes
+    (the same first samples: the difference is mostly the light left out), estimates the relative RMS of that
+    light (full - pilot; its squared mean less its noise, 90 % interval over pixel-channels) and the samples the
+    pilot's settings need for the rest of the error budget. While the interval straddles the threshold, one more
+    pass is paired with the next full pass, up to ``PILOT_MAX_PASSES`` and as long as the pilot costs at most
+    1/``PILOT_MIN_GAIN`` of the full passes' samples (with ``spent``, the samples earlier pilots of this render
+    cost, weighed by their cost). The effect is left out when its light is <= ``INDIRECT_SHARE``
+    x target and the pilot's settings need at most ``DIRECT_SAMPLES_SLACK`` x the full settings' samples, each
+    sample weighed by its cost (:meth:`Backend.pilot_sample_cost`: e.g. Mitsuba renders caustics=False with a
+    Python integrator). Stopping depends only on pixels, so a seed still gives the same picture. Returns the
+    decision and its numbers (``meta["<kind>_pilot"]``); with ``dropped`` also the passes to continue from."""
+    spec = PILOTS[kind]
     target = float(settings.target_error or 0.0)
     base = settings.samples
     total = sum(counts)
     need_full = total * (estimate / target) ** 2 * 1.1 - total
     out: dict[str, Any] = {"dropped": False}
-    if not settings.effects or settings.max_bounces == 0:
-        out["why"] = "not tried: effects=False or no bounces anyway"
-        return out
-    eff = analyse_effects(scene)
-    if not (eff.indirect_diffuse or eff.glossy or eff.caustics) or eff.transmission:
-        out["why"] = (
-            "not tried: light passes through a transmissive material (needs bounces)"
-            if eff.transmission
-            else "not tried: the effect analysis already renders direct light only"
-        )
+    skip = _pilot_applies(kind, settings, analyse_effects(scene))
+    if skip is not None:
+        out["why"] = skip
         return out
     pilot_spp = base
-    if need_full < PILOT_MIN_GAIN * PILOT_PASSES * pilot_spp:
+    pilot_settings = pass_settings.replace(**spec["changes"])
+    cost = float(inst.pilot_sample_cost(pilot_settings))
+    if need_full < PILOT_MIN_GAIN * (spent + cost * PILOT_PASSES * pilot_spp):
+        out["retry"] = True  # tried again after the next pass, if the estimate grows
         out["why"] = f"not tried: the full passes need only {need_full:.0f} more samples"
+        if cost != 1:
+            out["why"] += f" (a pilot sample costs {cost:g} full ones)"
         return out
-    direct_settings = pass_settings.replace(max_bounces=0)
-    direct: list[FloatArray] = []
+    passes: list[FloatArray] = []
     alphas: list[FloatArray] = []
     timings: dict[str, float] = {}
     threshold = INDIRECT_SHARE * target
     max_passes = min(PILOT_MAX_PASSES, len(colours))
     while True:
-        i = len(direct)
-        r = inst.render_scene(scene, direct_settings.replace(seed=pass_seed(settings.seed, i), samples=pilot_spp))
+        i = len(passes)
+        r = inst.render_scene(scene, pilot_settings.replace(seed=pass_seed(settings.seed, i), samples=pilot_spp))
         if r.rgba is None:
-            raise RenderError(f"backend {inst.name!r} returned no 'rgb' output for the indirect-light pilot")
-        direct.append(r.rgba[..., :3].astype(np.float64))
+            raise RenderError(f"backend {inst.name!r} returned no 'rgb' output for the {spec['label']} pilot")
+        passes.append(r.rgba[..., :3].astype(np.float64))
         alphas.append(r.rgba[..., 3:4].astype(np.float64))
         _add_timings(timings, r.meta.get("timings", {}))
-        k = len(direct)
+        k = len(passes)
         if k < PILOT_PASSES:
             continue
-        bias, low = _indirect_bounds(colours, direct)
+        bias, low = _indirect_bounds(colours, passes)
         undecided = low <= threshold < bias
-        if not undecided or k >= max_passes or need_full < PILOT_MIN_GAIN * (k + 1) * pilot_spp:
+        if not undecided or k >= max_passes or need_full < PILOT_MIN_GAIN * (spent + cost * (k + 1) * pilot_spp):
             break
-    counts_d = [pilot_spp] * k
-    est_d = relative_error_estimate(np.stack(direct), np.array(counts_d, dtype=np.float64))
+    counts_p = [pilot_spp] * k
+    est_p = relative_error_estimate(np.stack(passes), np.array(counts_p, dtype=np.float64))
     out.update(
-        indirect_error=bias,
-        indirect_error_low=low,
+        {f"{kind}_error": bias, f"{kind}_error_low": low},
         passes=k,
         full_samples_needed=int(total + need_full),
+        sample_cost=cost,
         timings=timings,
     )
     if bias > threshold:
-        out["why"] = f"kept: indirect light {bias:.3g} relative RMS > {INDIRECT_SHARE:g} x target {target:g}"
+        out["why"] = f"kept: {spec['label']} {bias:.3g} relative RMS > {INDIRECT_SHARE:g} x target {target:g}"
         return out
     noise_target = float(np.sqrt(target**2 - bias**2))
-    need_direct = k * pilot_spp * (est_d / noise_target) ** 2 * 1.1
-    out["direct_samples_needed"] = int(need_direct)
-    if need_direct > DIRECT_SAMPLES_SLACK * (total + need_full):
+    need = k * pilot_spp * (est_p / noise_target) ** 2 * 1.1
+    out["pilot_samples_needed"] = int(need)
+    if kind == "indirect":
+        out["direct_samples_needed"] = int(need)
+    costed = f" (each {cost:g}x the cost of a full one)" if cost != 1 else ""
+    if need * cost > DIRECT_SAMPLES_SLACK * (total + need_full):
         out["why"] = (
-            f"kept: direct light alone needs {need_direct:.0f} samples, the full passes {total + need_full:.0f}"
+            f"kept: without {spec['label']} the render needs {need:.0f} samples{costed}, the full passes "
+            f"{total + need_full:.0f}"
         )
         return out
+    changes = ", ".join(f"{k_}={v}" for k_, v in spec["changes"].items())
     out.update(
         dropped=True,
         why=(
-            f"indirect light dropped (max_bounces=0): estimated at {bias:.3g} relative RMS (90 % upper bound) "
-            f"<= {INDIRECT_SHARE:g} x target {target:g}; direct light needs ~{need_direct:.0f} samples, "
+            f"{spec['label']} dropped ({changes}): estimated at {bias:.3g} relative RMS (90 % upper bound) "
+            f"<= {INDIRECT_SHARE:g} x target {target:g}; without it ~{need:.0f} samples{costed}, "
             f"the full settings ~{total + need_full:.0f}"
         ),
-        colours=direct,
+        colours=passes,
         alphas=alphas,
-        counts=counts_d,
+        counts=counts_p,
     )
     return out
 
@@ -804,21 +856,34 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     counts = [_rendered_samples(first, base)]
     estimate = float("inf")
     stopped = "pass cap"
-    noise_target, pilot, bias = target, None, 0.0
+    noise_target, bias = target, 0.0
+    pilots: dict[str, dict[str, Any]] = {}
+    # the pilots not decided yet; one whose gain is too small yet is tried again after each pass (an estimate
+    # may grow as rare bright samples turn up: a plastic ball under a sun, Cycles at 64 px, needed 355 more
+    # samples after 4 passes, 2880 in all)
+    pending, spent = list(PILOTS), 0.0
     while True:
         if len(colours) >= FIRST_PASSES:
             estimate = relative_error_estimate(np.stack(colours), np.array(counts))
-            if pilot is None and estimate > noise_target:
-                pilot = _indirect_pilot(inst, scene, settings, pass_settings, colours, counts, estimate)
-                if pilot.get("dropped"):
-                    _add_timings(first.meta.setdefault("timings", {}), pilot.pop("timings"))
-                    colours, alphas, counts = pilot.pop("colours"), pilot.pop("alphas"), pilot.pop("counts")
-                    pass_settings = pass_settings.replace(max_bounces=0)
-                    bias = float(pilot["indirect_error"])
-                    noise_target = float(np.sqrt(target**2 - bias**2))
-                    estimate = relative_error_estimate(np.stack(colours), np.array(counts))
-                elif "timings" in pilot:
-                    _add_timings(first.meta.setdefault("timings", {}), pilot.pop("timings"))
+            if pending and estimate > noise_target:
+                for kind in list(pending):  # caustics first; if kept, direct light alone
+                    pilot = pilots[kind] = _effect_pilot(
+                        kind, inst, scene, settings, pass_settings, colours, counts, estimate, spent
+                    )
+                    if pilot.pop("retry", False):
+                        continue
+                    pending.remove(kind)
+                    spent += pilot.get("passes", 0) * pilot.get("sample_cost", 1.0) * base
+                    if "timings" in pilot:
+                        _add_timings(first.meta.setdefault("timings", {}), pilot.pop("timings"))
+                    if pilot.get("dropped"):
+                        colours, alphas, counts = pilot.pop("colours"), pilot.pop("alphas"), pilot.pop("counts")
+                        pass_settings = pass_settings.replace(**PILOTS[kind]["changes"])
+                        bias = float(pilot[f"{kind}_error"])
+                        noise_target = float(np.sqrt(target**2 - bias**2))
+                        estimate = relative_error_estimate(np.stack(colours), np.array(counts))
+                        pending.clear()
+                        break
             if estimate <= noise_target:
                 stopped = "target reached"
                 break
@@ -861,11 +926,11 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     meta["estimated_error_interval"] = list(confidence_interval(estimate, spread, bias))
     meta["target_reached"] = bool(estimate <= target)
     meta["stopped"] = stopped
-    if pilot is not None:
-        meta["indirect_pilot"] = pilot
+    for kind, pilot in pilots.items():
+        meta[f"{kind}_pilot"] = pilot  # type: ignore[literal-required]
         if pilot.get("dropped"):
             meta["estimated_error_kind"] += (
-                "; plus the indirect light left out (estimated from the pilot, added in quadrature)"
+                f"; plus the {PILOTS[kind]['label']} left out (estimated from the pilot, added in quadrature)"
             )
     if not meta["target_reached"]:
         meta.setdefault("warnings", []).append(

@@ -96,6 +96,9 @@ class RenderSettings:
     bounce; 0 = off, unbiased). ``diffuse_bounces`` / ``glossy_bounces`` / ``transmission_bounces`` /
     ``transparent_bounces``: per-kind limits (None = ``max_bounces``; the transparent default: 8 or more).
     ``effects``: True = simulate only what the scene needs (effect analysis); False = full settings.
+    ``caustics``: False leaves out light that reaches a diffuse surface through a glossy or refractive one
+    (Cycles' caustics switches; Mitsuba's ``blendify_path`` integrator): biased, far less noisy; ``final``'s
+    pilot chooses it where it estimates that light below half the target.
     """
 
     quality: str = "final"
@@ -119,6 +122,7 @@ class RenderSettings:
     transparent_bounces: int | None = None
     transparent_background: bool = True
     effects: bool = True
+    caustics: bool = True
     strict: bool = False
     extra: dict[str, object] = field(default_factory=dict, compare=False)
 
@@ -148,7 +152,16 @@ ENGINE_LIMIT_PREFIX = "setting the engine cannot apply: "
 #: ``meta["engine_only_settings"]``, e.g. Cycles' ``cycles_settings`` from an attached .blend)
 ENGINE_ONLY_PREFIX = "setting only one engine applies: "
 #: the keys of :func:`settings_bias`'s items (what ``Backend.unapplied_settings`` names)
-BIAS_KEYS = ("denoise", "clamp_direct", "clamp_indirect", "filter_glossy", "adaptive", "time_limit", "bounce_limits")
+BIAS_KEYS = (
+    "denoise",
+    "clamp_direct",
+    "clamp_indirect",
+    "filter_glossy",
+    "adaptive",
+    "time_limit",
+    "bounce_limits",
+    "caustics",
+)
 
 
 def _bias_items(settings: RenderSettings) -> list[tuple[str, str]]:
@@ -183,6 +196,13 @@ def _bias_items(settings: RenderSettings) -> list[tuple[str, str]]:
         out.append(("adaptive", "adaptive: pixels stop sampling at a noise threshold (0.01), not at the sample count"))
     if settings.time_limit:
         out.append(("time_limit", f"time_limit={settings.time_limit:g}: sampling stops at the time limit"))
+    if not settings.caustics:
+        out.append(
+            (
+                "caustics",
+                "caustics=False: light reaching a diffuse surface through a glossy or refractive one is left out",
+            )
+        )
     capped = [
         f"{kind} {settings.bounces(kind)}"
         for kind in ("diffuse", "glossy", "transmission")
@@ -245,6 +265,7 @@ def resolve_settings(
     adaptive: bool | None = None,
     transparent_background: bool = True,
     effects: bool = True,
+    caustics: bool = True,
     strict: bool = False,
     diffuse_bounces: int | None = None,
     glossy_bounces: int | None = None,
@@ -308,6 +329,7 @@ def resolve_settings(
         adaptive=as_bool("adaptive", defaults.get("adaptive", False) if adaptive is None else adaptive),
         transparent_background=as_bool("transparent_background", transparent_background),
         effects=as_bool("effects", effects),
+        caustics=as_bool("caustics", caustics),
         strict=as_bool("strict", strict),
         diffuse_bounces=per_kind("diffuse_bounces", diffuse_bounces),
         glossy_bounces=per_kind("glossy_bounces", glossy_bounces),

@@ -14,7 +14,7 @@ import pytest
 
 import blendify_core as bf
 from blendify_core.pipeline import render as render_module
-from blendify_core.pipeline.render import FIRST_PASSES, PILOT_PASSES, _indirect_pilot, pass_seed
+from blendify_core.pipeline.render import FIRST_PASSES, PILOT_PASSES, _effect_pilot, pass_seed
 from blendify_core.pipeline.result import RenderResult
 from blendify_core.pipeline.settings import resolve_settings
 
@@ -32,20 +32,31 @@ def _scene() -> bf.Scene:
     return s
 
 
+def _plastic_scene() -> bf.Scene:
+    """A plastic ball on a diffuse floor under an area light: the effect analysis finds caustics."""
+    s = _scene()
+    s.renderables.add_sphere_nurbs(0.2, bf.PlasticMaterial(roughness=0.1), bf.UniformColors((0.8, 0.2, 0.2)))
+    return s
+
+
 class _Engine:
-    """Passes of a known picture: full = picture x (1 + indirect) + noise(seed); direct = picture + noise(seed)
-    + remainder x fresh noise (0: the same random numbers, 1: as many again of its own)."""
+    """Passes of a known picture: full = picture x (1 + indirect) + noise(seed); the pilot's (direct light, or
+    no caustics) = picture + noise(seed) + remainder x fresh noise (0: the same random numbers, 1: as many again
+    of its own); a pilot's sample costs ``cost`` full ones."""
 
     name = "stand-in"
 
-    def __init__(self, indirect: float, remainder: float) -> None:
-        self.indirect, self.remainder = indirect, remainder
+    def __init__(self, indirect: float, remainder: float, cost: float = 1.0) -> None:
+        self.indirect, self.remainder, self.cost = indirect, remainder, cost
         self.picture = 0.2 + 0.6 * np.random.default_rng(0).random(SHAPE)
         self.direct_seeds: list[int] = []
 
+    def pilot_sample_cost(self, settings: Any) -> float:
+        return 1.0 if settings.caustics else self.cost
+
     def render_scene(self, scene: Any, settings: Any) -> RenderResult:
         noise = NOISE * self.picture * np.random.default_rng(settings.seed).standard_normal(SHAPE)
-        if settings.max_bounces == 0:
+        if settings.max_bounces == 0 or not settings.caustics:
             self.direct_seeds.append(settings.seed)
             own = np.random.default_rng(settings.seed + 10**6).standard_normal(SHAPE)
             rgb = self.picture + noise + self.remainder * NOISE * self.picture * own
@@ -55,7 +66,9 @@ class _Engine:
         return RenderResult(rgba=rgba)
 
 
-def _pilot(engine: _Engine, estimate_over_target: float = 4.0) -> dict[str, Any]:
+def _pilot(
+    engine: _Engine, estimate_over_target: float = 4.0, kind: str = "indirect", scene: bf.Scene | None = None
+) -> dict[str, Any]:
     settings = resolve_settings(quality="final", seed=3)
     passes = settings.replace(target_error=None, time_limit=None, denoise=False)
     colours = [
@@ -64,7 +77,9 @@ def _pilot(engine: _Engine, estimate_over_target: float = 4.0) -> dict[str, Any]
     ]
     counts = [settings.samples] * FIRST_PASSES
     target = float(settings.target_error)  # type: ignore[arg-type]
-    return _indirect_pilot(engine, _scene(), settings, passes, colours, counts, estimate_over_target * target)
+    if scene is None:
+        scene = _plastic_scene() if kind == "caustics" else _scene()
+    return _effect_pilot(kind, engine, scene, settings, passes, colours, counts, estimate_over_target * target)  # type: ignore[arg-type]
 
 
 def test_same_random_numbers_two_passes_decide():
@@ -111,3 +126,36 @@ def test_pilot_never_costs_more_than_its_share(monkeypatch):
     # need_full = 64 x (2.2^2 x 1.1 - 1) = 277 samples: 2 x 16 x 16 = 512 > 277, the pilot is not even tried
     pilot = _pilot(_Engine(indirect=0.0, remainder=1.0), estimate_over_target=2.2)
     assert "passes" not in pilot and pilot["why"].startswith("not tried"), pilot
+
+
+def test_caustics_pilot_drops_light_it_measures_below_half_the_target():
+    engine = _Engine(indirect=0.002, remainder=0.02)
+    pilot = _pilot(engine, kind="caustics")
+    assert pilot["dropped"], pilot
+    assert pilot["caustics_error"] <= 0.5 * bf.FINAL_TARGET_ERROR, pilot
+    assert pilot["why"].startswith("caustics dropped (caustics=False)"), pilot
+    assert engine.direct_seeds == [pass_seed(3, i) for i in range(PILOT_PASSES)]
+    kept = _pilot(_Engine(indirect=0.05, remainder=0.02), kind="caustics")
+    assert not kept["dropped"] and kept["caustics_error_low"] > 0.5 * bf.FINAL_TARGET_ERROR, kept
+
+
+def test_caustics_pilot_weighs_its_samples_by_their_cost(monkeypatch):
+    """A pilot sample dearer than a full one (Mitsuba's Python integrator) counts that many times: the same
+    noise without the light pays at cost 1 and not at cost 30 (the pilot's ~280 samples against 5 % of the full
+    passes' 112576), and the pilot is tried only when the full passes need PILOT_MIN_GAIN x its weighed cost."""
+    monkeypatch.setattr(render_module, "DIRECT_SAMPLES_SLACK", 0.05)
+    # need_full = 64 x (40^2 x 1.1 - 1) = 112576 samples >= 16 x 30 x 2 x 16: tried
+    pilot = _pilot(_Engine(indirect=0.0, remainder=0.02, cost=30.0), estimate_over_target=40.0, kind="caustics")
+    assert pilot["passes"] == PILOT_PASSES and pilot["sample_cost"] == 30.0, pilot
+    assert not pilot["dropped"] and "each 30x the cost of a full one" in pilot["why"], pilot
+    cheap = _pilot(_Engine(indirect=0.0, remainder=0.02, cost=1.0), estimate_over_target=40.0, kind="caustics")
+    assert cheap["dropped"], cheap
+    assert cheap["pilot_samples_needed"] == pilot["pilot_samples_needed"]
+    # need_full = 64 x (4^2 x 1.1 - 1) = 1062 < 15360: not tried yet, to be retried after the next pass
+    later = _pilot(_Engine(indirect=0.0, remainder=0.02, cost=30.0), estimate_over_target=4.0, kind="caustics")
+    assert later.get("retry") and later["why"].startswith("not tried"), later
+
+
+def test_caustics_pilot_not_tried_where_the_analysis_finds_none():
+    pilot = _pilot(_Engine(indirect=0.0, remainder=0.02), kind="caustics", scene=_scene())  # all diffuse
+    assert pilot["why"] == "not tried: the effect analysis already found no caustics", pilot

@@ -1027,6 +1027,9 @@ def apply_engine_settings(
             bounces["caustics_refractive"] = False
         if not eff.transparency:
             bounces["transparent_max_bounces"] = 0
+    if not settings.caustics and not geometry_only:
+        bounces["caustics_reflective"] = False
+        bounces["caustics_refractive"] = False
     for k, v in bounces.items():
         setattr(cy, k, v)
     if settings.threads:

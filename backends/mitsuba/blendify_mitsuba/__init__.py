@@ -48,6 +48,12 @@ __all__ = [
 ]
 
 
+#: the time per sample of ``blendify_path`` with ``no_caustics`` relative to Mitsuba's ``path`` (what ``final``'s
+#: caustics pilot weighs its samples by): scalar_rgb measured 13-33x on a plastic ball and cube under a sun
+#: (64 px, benchmarks/effects_pay.py) and 20-48x in benchmarks/results/mitsuba_no_shadow.md; llvm_ad_rgb
+#: 3.3-6.9x there (no_shadow only; the caustics switch adds a second BSDF evaluation per bounce)
+NO_CAUSTICS_COST = {"scalar": 30.0, "jit": 8.0}
+
 #: ``device=`` -> the variant asked for ("cpu": the fastest CPU variant, llvm_ad_rgb else scalar_rgb)
 #: ("gpu": cuda_ad_rgb, else the fastest CPU variant, with the reason)
 _DEVICE_VARIANT = {
@@ -144,6 +150,13 @@ class MitsubaBackend(Backend):
         self.session = MitsubaSession(
             variant, None if max_analytic_spheres is None else int(max_analytic_spheres), sampler
         )
+
+    def pilot_sample_cost(self, settings: RenderSettings) -> float:
+        """``caustics=False`` renders with the Python integrator ``blendify_path``: per sample about
+        :data:`NO_CAUSTICS_COST` times Mitsuba's ``path`` in its variant family (measured; see there)."""
+        if settings.caustics:
+            return 1.0
+        return NO_CAUSTICS_COST["scalar" if self.session.variant_choice.variant.startswith("scalar") else "jit"]
 
     def device_choice(self) -> DeviceChoice | None:
         """What this backend renders on: the variant chosen (probes run once per process) and, when the

@@ -13,8 +13,12 @@ null transmission (Cycles' transparent shadows; ``volpath`` does the same for sc
 BSDF-sampled rays still hit an area light only where nothing is in between (as in Cycles, which also only
 skips the shadow ray).
 
-The translator uses it only when a scene has such a light: it runs in Python (per sample in the scalar
-variants), so it is slower than ``path`` -- measured in benchmarks/results/mitsuba_no_shadow.md.
+With ``no_caustics`` a vertex reached by a diffuse bounce evaluates and samples only its diffuse (and null)
+lobes: light reaching a diffuse surface through a glossy or refractive one is left out, as with Cycles'
+``caustics_reflective`` / ``caustics_refractive`` off (``RenderSettings.caustics``).
+
+The translator uses it only when a scene has such a light or caustics are off: it runs in Python (per sample in
+the scalar variants), so it is slower than ``path`` -- measured in benchmarks/results/mitsuba_no_shadow.md.
 
 Mitsuba is imported inside the functions; :func:`register` is called with the variant set (the session's
 engine lock held).
@@ -71,6 +75,7 @@ def _integrator_class() -> type:
             self.no_shadow = {s for s in str(props.get("no_shadow", "")).split(",") if s}
             #: surfaces with a null component (alpha < 1) a shadow ray may cross (0: shadow rays are opaque)
             self.transparent_shadows = int(props.get("transparent_shadows", 0))
+            self.no_caustics = bool(props.get("no_caustics", False))
             self._jit = dr.is_jit_v(mi.Float)
             self._pointers: dict[int, list[Any]] = {}
             # a scalar variant's masks are Python bools (``~True == -2``)
@@ -121,6 +126,7 @@ def _integrator_class() -> type:
             prev_pdf = mi.Float(1.0)
             prev_delta = mi.Bool(True)
             camera = mi.Bool(True)  # the path has only passed through null surfaces since the camera
+            after_diffuse = mi.Bool(False)  # the last bounce (not through a null surface) was diffuse
             max_depth = self.max_depth if self.max_depth >= 0 else 2**31 - 1
             while dr.any(active):
                 si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=depth == 0, active=active)
@@ -150,7 +156,7 @@ def _integrator_class() -> type:
                 wo = si.to_local(ds.d)
                 s1 = sampler.next_1d()
                 s2 = sampler.next_2d()
-                val, pdf, bs, weight = bsdf.eval_pdf_sample(ctx, si, wo, s1, s2, active_next)
+                val, pdf, bs, weight = self._eval_pdf_sample(bsdf, ctx, after_diffuse, si, wo, s1, s2, active_next)
                 mis_em = dr.select(ds.delta, 1.0, _mis(ds.pdf, pdf))
                 result = dr.select(active_em, result + throughput * val * em_weight * mis_em, result)
                 # the next vertex
@@ -162,6 +168,10 @@ def _integrator_class() -> type:
                 eta = dr.select(active_next, eta * bs.eta, eta)
                 valid |= active_next & no(mi.has_flag(bs.sampled_type, mi.BSDFFlags.Null))
                 camera &= no(active_next) | mi.has_flag(bs.sampled_type, mi.BSDFFlags.Null)
+                if self.no_caustics:
+                    passed = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Null)
+                    diffuse = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Diffuse)
+                    after_diffuse = dr.select(active_next & no(passed), diffuse, after_diffuse)
                 depth = dr.select(active_next, depth + 1, depth)
                 # Russian roulette
                 t_max = dr.max(throughput)
@@ -171,8 +181,39 @@ def _integrator_class() -> type:
                 throughput = dr.select(rr_active, throughput / dr.maximum(rr_prob, 1e-30), throughput)
                 active = active_next & (no(rr_active) | rr_go) & (t_max != 0)
                 if self._jit:
-                    dr.eval(ray, prev_si, prev_pdf, prev_delta, throughput, eta, valid, camera, depth, result, active)
+                    dr.eval(
+                        ray,
+                        prev_si,
+                        prev_pdf,
+                        prev_delta,
+                        throughput,
+                        eta,
+                        valid,
+                        camera,
+                        depth,
+                        result,
+                        active,
+                        after_diffuse,
+                    )
             return result, valid, []
+
+        def _eval_pdf_sample(
+            self, bsdf: Any, ctx: Any, after_diffuse: Any, si: Any, wo: Any, s1: Any, s2: Any, active: Any
+        ) -> Any:
+            """``bsdf.eval_pdf_sample`` with all lobes, or (``no_caustics``) only the diffuse (and null) ones where
+            the path arrived by a diffuse bounce, as Cycles' caustics switches drop glossy and refractive closures
+            there (a vectorised variant evaluates both where needed and selects per lane)."""
+            if not self.no_caustics:
+                return bsdf.eval_pdf_sample(ctx, si, wo, s1, s2, active)
+            ctx_diffuse = mi.BSDFContext()
+            ctx_diffuse.type_mask = mi.BSDFFlags.Diffuse | mi.BSDFFlags.Null
+            if not self._jit:
+                return bsdf.eval_pdf_sample(ctx_diffuse if after_diffuse else ctx, si, wo, s1, s2, active)
+            full = bsdf.eval_pdf_sample(ctx, si, wo, s1, s2, active & ~after_diffuse)
+            if not dr.any(active & after_diffuse):
+                return full
+            diff = bsdf.eval_pdf_sample(ctx_diffuse, si, wo, s1, s2, active & after_diffuse)
+            return tuple(dr.select(after_diffuse, d, f) for d, f in zip(diff, full))
 
         def aov_names(self) -> list[str]:
             return []
@@ -180,7 +221,7 @@ def _integrator_class() -> type:
         def to_string(self) -> str:
             return (
                 f"NoShadowPath[max_depth={self.max_depth}, no_shadow={sorted(self.no_shadow)}, "
-                f"transparent_shadows={self.transparent_shadows}]"
+                f"transparent_shadows={self.transparent_shadows}, no_caustics={self.no_caustics}]"
             )
 
     return NoShadowPath

@@ -161,6 +161,7 @@ class MitsubaSession:
             settings.pixel_filter,
             settings.max_bounces,
             settings.effects,
+            settings.caustics,
             settings.transparent_background,
             self.variant,
         )

@@ -820,7 +820,8 @@ class MitsubaTranslator(Translator):
         shadows) with max_depth = max_bounces + 2, or max_depth 2 (direct
         light only; 3 when a camera ray may have to pass through a light's null surface, 4 through a visible
         point light's sphere) when ``settings.effects`` and the effect analysis finds no indirect light; and
-        whether it hides the emitters from the camera. Call after the lights."""
+        whether it hides the emitters from the camera; ``blendify_path`` when a light casts no shadow or
+        ``settings.caustics`` is False. Call after the lights."""
         s = self.settings
         # Lights are not seen by camera rays, as in Cycles. hide_emitters hides the light shapes (and gives a
         # coverage alpha under a sky), but in Mitsuba 3.9 camera rays then pass through every emitter: the sky
@@ -834,15 +835,22 @@ class MitsubaTranslator(Translator):
             # direct light only; a visible light's surfaces crossed by a camera ray count as bounces
             crossings = min(ctx.null_light_surfaces, 1) if hide else ctx.null_light_surfaces
             max_depth = min(max_depth, 2 + crossings)
-        if ctx.no_shadow:
-            return {
+        # caustics=False (the target_error pilot's choice, or the user's): Mitsuba's path has no such switch,
+        # blendify_path drops the glossy and refractive lobes at vertices reached by a diffuse bounce
+        no_caustics = not s.caustics and effects.caustics
+        if ctx.no_shadow or no_caustics:
+            out: dict[str, Any] = {
                 "type": register_integrator(),
                 "max_depth": int(max_depth),
                 "hide_emitters": hide,
-                "no_shadow": ",".join(ctx.no_shadow),
                 # surfaces with alpha < 1 pass light to shadow rays (as many as Cycles' transparent bounces)
                 "transparent_shadows": s.bounces("transparent") if ctx.masked else 0,
             }
+            if ctx.no_shadow:
+                out["no_shadow"] = ",".join(ctx.no_shadow)
+            if no_caustics:
+                out["no_caustics"] = True
+            return out
         # Mitsuba's ``path`` treats every surface as opaque to shadow rays, so a 30 % alpha plane cast a full
         # shadow where Cycles lets 70 % of the light through; ``volpath`` multiplies the shadow ray by the
         # null transmission of the surfaces it crosses (the ``mask``'s 1 - opacity) and renders the same
