@@ -297,6 +297,10 @@ def test_engine_settings_and_effects(cycles, bpy):
     cycles.translate(scene, resolve_settings("preview", effects=False, pixel_filter="gaussian", adaptive=True))
     assert cy.use_denoising and cy.use_adaptive_sampling and cy.pixel_filter_type == "GAUSSIAN"
     assert cy.glossy_bounces == 4 and cy.max_bounces == 4
+    assert cy.caustics_reflective and cy.caustics_refractive
+    # caustics=False (final's caustics pilot): the switches off, the bounces kept
+    cycles.translate(scene, resolve_settings("preview", effects=False, caustics=False))
+    assert not cy.caustics_reflective and not cy.caustics_refractive and cy.glossy_bounces == 4
 
 
 def test_incremental_updates_do_not_rebuild_meshes(cycles, bpy):
