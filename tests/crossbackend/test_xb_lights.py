@@ -108,8 +108,7 @@ AREA_SHAPES = (("square", 0.5), ("rectangle", (0.8, 0.3)), ("circle", 0.5), ("el
 
 
 def _area_scene(shape: str, size, use_shadow: bool = True) -> bf.Scene:
-    """A Lambertian plane under a tilted area light of ``shape`` 1 m above it (radiance kept below 1: pyrender
-    writes 8-bit colour)."""
+    """A Lambertian plane under a tilted area light of ``shape`` 1 m above it."""
     s = testing.plane_scene("point", resolution=(48, 48))
     for light in list(s.lights):
         s.lights.remove(light.tag)
@@ -136,7 +135,6 @@ def test_pyrender_area_lights_power_falloff_and_shape(shape, size):
     p = bf.render(_area_scene(shape, size), backend="pyrender")
     c, p = c.rgba[..., 0], p.rgba[..., 0]
     lit = c > 0.01 * c.max()
-    assert c.max() < 0.9  # no 8-bit clipping in pyrender
     ratio = p[lit].sum() / c[lit].sum()
     rel = np.mean(np.abs(p[lit] - c[lit]) / c[lit])
     print(f"{shape}: pyrender / cycles {ratio:.4f}, mean relative difference {rel:.4f}")
