@@ -199,6 +199,16 @@ TRIED = [
     "dropping the indirect light with a 1.25x sample slack (ball on a 5 % floor): 0.85x (Cycles), 0.89x "
     "(Mitsuba); the pilot at 4x its samples: floating bunny 0.94x (Cycles), 0.37x (Mitsuba, which loads the "
     "direct-light scene and compiles a kernel for it)",
+    "Cycles' passes nobody asked for: the view layer already enables only the requested passes and AOVs; the "
+    "shader AOV nodes every IR material carries (bf_albedo, bf_normal) measured at 256 spp, 64 px, 4 alternating "
+    "repetitions (plastic under a sun and a sky): engine time 19.2 s with them and only rgb requested, 18.0 s "
+    "without them, 18.8 s with rgb+albedo+normal+depth (pair ratios 0.89-1.27, identical pixels): within the noise "
+    "at this load; not pursued (leaving the nodes out would re-translate every material when the outputs change)",
+    "caustics=False in Mitsuba through blendify's Python integrator: 12-38x the time per sample of path in "
+    "scalar_rgb (64 px, 16-32-spp passes: plastic under a sun 12.4-13.5x, under a sun and a sky 33x, under an "
+    "area light 38x): the caustics pilot weighs its samples 30x, so it pays in Mitsuba only "
+    "where the full settings need >= 30x the samples (plastic under a sun at 64 px: about 5000 vs 80-140 "
+    "estimated from 64-128 spp, 3-4x faster if dropped; not reached by the pilot's rule there)",
     "Mitsuba compiles one kernel per new sample count (2.0-2.5 s under load vs 0.03-0.1 s for a known 16-spp "
     "pass), so later `final` passes of new sizes cost more than their samples; rounding pass sizes to "
     "base x 2^k for kernel reuse: 4 paired seeds, no clear gain (2.81/2.46, 2.07/3.11, 2.30/3.17, 2.33/1.42 s)",
@@ -409,14 +419,15 @@ def main() -> None:
     reps = 3 if args.quick else args.reps
     rows = []
     load0 = os.getloadavg()[0]
+    out = Path(args.out)
     for backend in args.backends.split(","):
         for name in args.scenes.split(","):
             rows.append(measure(name, backend, res, reps))
-    load1 = os.getloadavg()[0]
-    out = Path(args.out)
-    info = {"res": res, "reps": reps, "load": [load0, load1], "machine": platform.platform(), "cpus": os.cpu_count()}
-    data = {"info": info, "rows": rows}
-    out.with_suffix(".json").write_text(json.dumps(data, indent=1, default=str))
+            load = [load0, os.getloadavg()[0]]
+            info = {"res": res, "reps": reps, "load": load, "machine": platform.platform(), "cpus": os.cpu_count()}
+            data = {"info": info, "rows": rows}
+            # written after every row: a long run interrupted keeps what it measured
+            out.with_suffix(".json").write_text(json.dumps(data, indent=1, default=str))
     write_report(data, out)
     print(json.dumps([(r["backend"], r["scene"], round(r["ratio_median"], 2)) for r in rows]))
 

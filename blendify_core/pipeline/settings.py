@@ -218,10 +218,11 @@ def _bias_items(settings: RenderSettings) -> list[tuple[str, str]]:
     return out
 
 
-def settings_bias(settings: RenderSettings) -> list[str]:
+def settings_bias(settings: RenderSettings, only: Sequence[str] | None = None) -> list[str]:
     """What makes a render with ``settings`` converge to something other than the unbiased picture
-    (``result.meta["bias"]``; empty for ``final``)."""
-    return [line for _key, line in _bias_items(settings)]
+    (``result.meta["bias"]``; empty for ``final``); ``only``: just these keys of :data:`BIAS_KEYS` (what an
+    engine applies)."""
+    return [line for key, line in _bias_items(settings) if only is None or key in only]
 
 
 def engine_limits(settings: RenderSettings, unapplied: Sequence[str]) -> list[str]:

@@ -20,7 +20,7 @@ import numpy as np
 
 from blendify_core.errors import BlendifyError, InvalidSceneError, RenderError
 from blendify_core.pipeline.result import RenderResult
-from blendify_core.pipeline.settings import RenderSettings
+from blendify_core.pipeline.settings import RenderSettings, settings_bias
 
 from .aniso import resample_rows
 from .session import MitsubaNative, MitsubaSession
@@ -107,9 +107,10 @@ def render_native(
         "sampler": session.sampler,
         "seed": settings.seed,
         "pixel_filter": settings.pixel_filter,
-        # Mitsuba applies none of the biased settings: clamps, Filter Glossy and per-kind bounce limits are in
-        # meta["approximations"] (Backend.unapplied_settings), the denoiser and adaptive stop in "notes"
-        "bias": [],
+        # of the biased settings Mitsuba applies only caustics=False (blendify_path): clamps, Filter Glossy and
+        # per-kind bounce limits are in meta["approximations"] (Backend.unapplied_settings), the denoiser and
+        # adaptive stop in "notes"
+        "bias": settings_bias(settings, only=("caustics",)),
         "alpha_compositing": native.coverage_scene is not None,
         "lights_removed": bool(native.light_shapes),
         "shadow_catcher_emulated": native.catcher_scene is not None,
