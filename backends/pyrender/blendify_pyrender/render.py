@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyrender
 import pyrender.renderer as _pyrender_renderer
+from OpenGL import GL
 from OpenGL.GL import (
     GL_BLEND,
     GL_COLOR,
@@ -229,7 +230,13 @@ _GLASS_OPACITY = """    if (bf_glass.x > 0.0) {
             if (dot(bf_t2, bf_t2) < 0.5) {
                 bf_t2 = reflect(bf_t1, -bf_n2);  // total internal reflection
             }
-            color.xyz += bf_t * bf_tint * bf_tint * bf_sh(bf_t2, vec3(1.0, 1.5, 4.0));
+            vec3 bf_seen = bf_sh(bf_t2, vec3(1.0, 1.5, 4.0));
+#ifdef BLENDIFY_PROBE_MAP
+            if (bf_probe_inside > 0.5) {
+                bf_seen = bf_probe_radiance(bf_t2, roughness);
+            }
+#endif
+            color.xyz += bf_t * bf_tint * bf_seen;
         } else {
             float bf_m = max(max(bf_tint.r, bf_tint.g), bf_tint.b);
             float bf_opacity = max(1.0 - bf_t * bf_m, 1e-3);
@@ -445,14 +452,16 @@ def point_sprites(primitive: Any) -> Any:
 class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore[misc]
     """pyrender's program cache adding the BLENDIFY_SPHERE define to mesh.vert/mesh.frag and to the
     shadow maps' mesh_depth.vert/frag while ``sphere``, BLENDIFY_SOFT while ``soft`` (the frame has a light with
-    soft shadows), BLENDIFY_PROBE_MAP while ``probe_map`` (metals reflect the probe's map) and
-    BLENDIFY_FLOAT_COLOR while ``float_color`` (linear output for the float colour pass). Unused code still costs
+    soft shadows), BLENDIFY_PROBE_MAP while ``probe_map`` (metals reflect the probe's map), BLENDIFY_PROBE_GRID
+    while ``probe_grid`` (indirect light from a grid of probes) and BLENDIFY_FLOAT_COLOR while ``float_color``
+    (linear output for the float colour pass). Unused code still costs
     llvmpipe: each is a variant."""
 
     sphere = False
     soft = False
     probe_map = False
     float_color = False
+    probe_grid = False
 
     def get_program(
         self, vertex_shader: str, fragment_shader: str, geometry_shader: Any = None, defines: Any = None
@@ -465,6 +474,8 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
             defines = {**(defines or {}), "BLENDIFY_PROBE_MAP": 1}
         if self.float_color and vertex_shader == "mesh.vert":
             defines = {**(defines or {}), "BLENDIFY_FLOAT_COLOR": 1}
+        if self.probe_grid and vertex_shader == "mesh.vert":
+            defines = {**(defines or {}), "BLENDIFY_PROBE_GRID": 1}
         return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
 
 
@@ -561,6 +572,34 @@ class GBuffer:
         return np.rint(self.surface[..., 3]).astype(np.int32) - 1
 
 
+class _FloatTexture:
+    """A linearly filtered RGB float 2D texture (pyrender's textures are 8-bit) that pyrender's
+    ``_bind_texture`` can bind."""
+
+    def __init__(self, data: np.ndarray) -> None:
+        h, w, _ = data.shape
+        self.id = GL.glGenTextures(1)
+        GL.glBindTexture(GL.GL_TEXTURE_2D, self.id)
+        for param, value in (
+            (GL.GL_TEXTURE_MIN_FILTER, GL.GL_LINEAR),
+            (GL.GL_TEXTURE_MAG_FILTER, GL.GL_LINEAR),
+            (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE),
+            (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE),
+        ):
+            GL.glTexParameteri(GL.GL_TEXTURE_2D, param, value)
+        glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+        pixels = np.zeros((h, w, 4), dtype=np.float32)  # RGBA: llvmpipe filters it faster than RGB
+        pixels[..., :3] = data
+        GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL_RGBA32F, w, h, 0, GL_RGBA, GL_FLOAT, pixels)
+        GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+
+    def _bind(self) -> None:
+        GL.glBindTexture(GL.GL_TEXTURE_2D, self.id)
+
+    def delete(self) -> None:
+        GL.glDeleteTextures([self.id])
+
+
 class FrameRenderer(pyrender.Renderer):
     """pyrender's renderer with per-frame framebuffers (see the module docstring)."""
 
@@ -596,8 +635,15 @@ class FrameRenderer(pyrender.Renderer):
         self.probe_texture: Any = None
         self.probe_map_scale = 0.0
         self.probe_scale = 1.0
-        #: the indirect-light probe of the last frame: (key, coefficients, note) (probe.py)
-        self.probe_cache: tuple[Any, np.ndarray, str] | None = None
+        #: the indirect-light probe of the last frame: (key, coefficients, grid, note) (probe.py)
+        self.probe_cache: tuple[Any, np.ndarray, Any, str] | None = None
+        #: the grid of indirect-light probes as a 3D texture (probe.ProbeGrid; None: none) and its uniforms
+        self.probe_grid: Any = None
+        self.probe_grid_box: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        #: while not None (the probes' renders: the same lights and world light for every face), a program's
+        #: light uniforms are set once: (program, node, first texture unit, world light) -> (texture binds, next unit)
+        self.lighting_cache: dict[Any, tuple[list[tuple[int, Any]], int]] | None = None
+        self._texture_log: list[tuple[int, Any]] | None = None
         self.float_color = self.float_targets_supported()
 
     @property
@@ -734,7 +780,49 @@ class FrameRenderer(pyrender.Renderer):
         return img[::-1], None
 
     # -- lights ----------------------------------------------------------------------------------
+    def _next_unit(self) -> int:
+        """The texture unit pyrender's ``_bind_texture`` binds next."""
+        return int(self.__dict__["_texture_alloc_idx"])
+
+    def _bind_texture(self, texture: Any, uniform_name: str, program: Any) -> None:
+        if self._texture_log is not None:
+            self._texture_log.append((self._next_unit(), texture))
+        super()._bind_texture(texture, uniform_name, program)
+
     def _bind_lighting(self, scene: Any, program: Any, node: Any, flags: int) -> None:
+        """The light uniforms (:meth:`_bind_lights`); with ``lighting_cache`` set, once per program (its
+        uniforms persist): later draws only bind the same textures to the same units."""
+        if self.lighting_cache is None:
+            self._bind_lights(scene, program, node, flags)
+            return
+        key = (
+            program,
+            node,  # pyrender binds the lights nearest to the node when there are too many
+            frozenset(scene.directional_light_nodes),  # the light group of the pass (light_groups)
+            frozenset(scene.spot_light_nodes),
+            frozenset(scene.point_light_nodes),
+            self._next_unit(),
+            self.env_sh.tobytes(),
+            self.spec_sh.tobytes(),
+            id(self.probe_grid),
+            id(self.probe_texture),
+            self.probe_scale,
+        )
+        hit = self.lighting_cache.get(key)
+        if hit is None:
+            self._texture_log = []
+            try:
+                self._bind_lights(scene, program, node, flags)
+                self.lighting_cache[key] = (self._texture_log, self._next_unit())
+            finally:
+                self._texture_log = None
+            return
+        for unit, texture in hit[0]:
+            GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
+            texture._bind()
+        self._texture_alloc_idx = hit[1]
+
+    def _bind_lights(self, scene: Any, program: Any, node: Any, flags: int) -> None:
         """pyrender's light uniforms, then the area-light uniforms of every spot light it bound, in the
         same order (``light.blendify_area`` = (shape, half x, half y) marks an area light)."""
         super()._bind_lighting(scene, program, node, flags)
@@ -772,6 +860,11 @@ class FrameRenderer(pyrender.Renderer):
         if self.probe_texture is not None and self.probe_scale > 0.0:  # the BLENDIFY_PROBE_MAP variant
             self._bind_texture(self.probe_texture, "bf_probe_map", program)
             program.set_uniform("bf_probe_scale", float(self.probe_map_scale))
+        if self.probe_grid is not None:  # the BLENDIFY_PROBE_GRID variant
+            self._bind_texture(self.probe_grid, "bf_grid", program)
+            assert self.probe_grid_box is not None
+            for name, value in zip(("bf_grid_lo", "bf_grid_size", "bf_grid_n"), self.probe_grid_box):
+                program.set_uniform(name, value)
         for i in range(9):  # the world's light (shaders/blendify_env.glsl)
             program.set_uniform(f"bf_env_sh[{i}]", self.env_sh[i])
             program.set_uniform(f"bf_spec_sh[{i}]", self.spec_sh[i])
@@ -794,10 +887,32 @@ class FrameRenderer(pyrender.Renderer):
         self.probe_texture._add_to_context()
         self.probe_map_scale = scale
 
+    def set_probe_grid(self, grid: Any) -> None:
+        """Upload the indirect light of a grid of probes (probe.ProbeGrid; None: no grid) as a float texture of
+        nx x (9 nz ny) texels: coefficient k of probe (i, j, l) at (i, (k nz + l) ny + j), filtered linearly
+        (shaders/blendify_env.glsl keeps the look-ups inside one slab of ny rows and interpolates across
+        slabs). A 2D texture: a sampler3D may not share texture unit 0 with pyrender's unset sampler2Ds."""
+        if self.probe_grid is not None:
+            self.probe_grid.delete()
+            self.probe_grid = None
+            self.probe_grid_box = None
+        if grid is None:
+            return
+        nx, ny, nz = grid.dims
+        data = np.asarray(grid.sh, dtype=np.float32).reshape(nz, ny, nx, 9, 3).transpose(3, 0, 1, 2, 4)
+        self.probe_grid = _FloatTexture(data.reshape(9 * nz * ny, nx, 3))
+        size = np.maximum(np.asarray(grid.hi, np.float64) - grid.lo, 1e-9)
+        self.probe_grid_box = (
+            np.asarray(grid.lo, dtype=np.float32),
+            size.astype(np.float32),
+            np.array(grid.dims, dtype=np.float32),
+        )
+
     # -- point clouds as exact spheres ------------------------------------------------------------
     def _get_primitive_program(self, primitive: Any, flags: int, program_flags: int) -> Any:
         self._program_cache.sphere = is_sphere_cloud(primitive)
         self._program_cache.probe_map = self.probe_texture is not None and self.probe_scale > 0.0
+        self._program_cache.probe_grid = self.probe_grid is not None
         try:
             return super()._get_primitive_program(primitive, flags, program_flags)
         finally:
@@ -978,6 +1093,7 @@ class FrameRenderer(pyrender.Renderer):
         attrs = ("_directional_light_nodes", "_spot_light_nodes", "_point_light_nodes")
         saved_nodes = [getattr(scene, a) for a in attrs]
         saved = (self.env_sh, self.spec_sh, self.emission_scale, self.probe_scale)
+        grid = self.probe_grid
         total = np.zeros(0, dtype=np.float32)
         try:
             for g, group in enumerate(groups):
@@ -986,6 +1102,7 @@ class FrameRenderer(pyrender.Renderer):
                 if g == 1:
                     self.env_sh = self.spec_sh = np.zeros_like(saved[0])
                     self.emission_scale = self.probe_scale = 0.0
+                    self.probe_grid = None  # its texture kept (grid)
                 color, _ = self._forward_pass(scene, flags)
                 if g == 0:
                     total = color_pass_linear(color)
@@ -995,6 +1112,7 @@ class FrameRenderer(pyrender.Renderer):
             for attr, nodes in zip(attrs, saved_nodes):
                 setattr(scene, attr, nodes)
             self.env_sh, self.spec_sh, self.emission_scale, self.probe_scale = saved
+            self.probe_grid = grid
         return total
 
     def _draw_nodes(self, scene: Any, ids: dict[Any, int], shader: str, with_material: bool, full: bool) -> None:
@@ -1317,8 +1435,8 @@ def _color(engine: Engine, frame: Frame, w: int, h: int, aa: AntiAliasing, flags
 
 
 def _indirect_probe(engine: Engine, frame: Frame, flags: int) -> tuple[np.ndarray, str]:
-    """The indirect-light probe's coefficients (probe.py) for this frame's scene, cached while the geometry,
-    lights and world stay the same."""
+    """The indirect-light probe's coefficients (probe.py) for this frame's scene and its grid of probes (set
+    on the renderer), cached while the geometry, lights and world stay the same."""
     from .probe import probe_sh
 
     r = engine.renderer
@@ -1328,9 +1446,12 @@ def _indirect_probe(engine: Engine, frame: Frame, flags: int) -> tuple[np.ndarra
         def render_rgba(width: int, height: int) -> np.ndarray:
             return color_pass_linear(r.render_color(engine.pscene, width, height, 0, flags))
 
-        sh, note = probe_sh(engine, frame, flags, render_rgba)
-        r.probe_cache = (key, sh.astype(np.float32), note)
-    return r.probe_cache[1], r.probe_cache[2]
+        sh, grid, note = probe_sh(engine, frame, flags, render_rgba)
+        r.probe_cache = (key, sh.astype(np.float32), grid, note)
+        r.set_probe_grid(grid)
+    elif r.probe_grid is None and r.probe_cache[2] is not None:  # dropped by a frame without the probe
+        r.set_probe_grid(r.probe_cache[2])
+    return r.probe_cache[1], r.probe_cache[3]
 
 
 def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: AntiAliasing) -> RenderResult:
@@ -1375,6 +1496,8 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
             world_sh = renderer.env_sh
             renderer.spec_sh = world_sh
             renderer.probe_scale = 1.0 if PROBE else 0.0
+            if not PROBE:
+                renderer.set_probe_grid(None)
             if PROBE:
                 t0 = time.perf_counter()
                 renderer.env_sh, note = _indirect_probe(engine, frame, flags)

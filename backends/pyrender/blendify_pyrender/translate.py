@@ -786,8 +786,10 @@ class PyrenderTranslator(Translator):
             ),
             "material.transmission": approximate(
                 "the transmitted share weight x (1 - F) (Schlick, F0 from the IOR): solid objects are opaque "
-                "and show the world's light (the indirect-light probe's) along the ray refracted in and out as "
-                "through a sphere, tinted by the base colour twice; flat ones are see-through with a "
+                "and show, along the ray refracted in and out as through a sphere, tinted by the base colour "
+                "once, what the indirect-light probe rendered from inside them sees (a 32 x 64 map; the object "
+                "casts no shadow in it, standing in for the light it focuses; they reflect it too) or else the "
+                "world's light (the probes'); no caustics; flat ones are see-through with a "
                 "Fresnel-weighted opacity, unrefracted, tinted by the base colour (its largest channel through "
                 "the blend, the others against the world's radiance behind); the diffuse part scaled by "
                 "1 - weight; shadows stay opaque"
@@ -1007,8 +1009,8 @@ class PyrenderTranslator(Translator):
         features={
             "light.background": approximate(
                 "uniform light: diffuse albedo x radiance, glossy and metal surfaces reflect it (split-sum "
-                "environment BRDF); with solid objects the diffuse term takes it through one light probe (half "
-                "its occlusion there, plus one bounce of light: blendify_pyrender.probe); not visible "
+                "environment BRDF); with solid objects the diffuse term takes it through light probes (half "
+                "their occlusion, plus two bounces of light: blendify_pyrender.probe); not visible "
                 "(transparent film)"
             )
         },

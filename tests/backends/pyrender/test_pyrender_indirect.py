@@ -40,7 +40,7 @@ def test_light_bounces_off_the_floor_onto_the_ceiling(pyr, monkeypatch):
     bound = ALBEDO**2 * SUN / np.pi
     print(f"ceiling {ceiling:.4f}, one-bounce bound {bound:.4f}")
     assert 0.6 * bound <= ceiling <= 1.05 * bound
-    assert any(a.startswith("indirect light: one light probe") for a in res.meta["approximations"])
+    assert any(a.startswith("indirect light: ") for a in res.meta["approximations"])
     monkeypatch.setattr(rmod, "PROBE", False)
     dark = render(_between_planes(), backend=pyr, quality="preview")
     assert float(dark.rgba[..., :3].max()) < 0.01  # without the probe: no light reaches it
@@ -133,3 +133,73 @@ def test_metal_reflects_the_scene_around_it(pyr):
     ball.emit_shadows = True
     shadowed = np.median(render(scene, backend=pyr, quality="preview").rgba[bottom - 7 : bottom - 2, 14:18, :3])
     assert shadowed < 0.5 * lower
+
+
+def test_probe_grid_layout():
+    from blendify_pyrender.probe import probe_grid
+
+    # a room (flat walls 2 m apart) holding two boxes: a 3 x 3 x 3 grid inside the room, one probe per cell centre
+    walls = [
+        ("floor", np.array([-1.0, -1, -1]), np.array([1.0, 1, -1]), 2),
+        ("ceiling", np.array([-1.0, -1, 1]), np.array([1.0, 1, 1]), 2),
+        ("back", np.array([-1.0, 1, -1]), np.array([1.0, 1, 1]), 2),
+    ]
+    boxes = [
+        ("tall", np.array([-0.6, -0.2, -1.0]), np.array([-0.1, 0.3, 0.2]), 12),
+        ("short", np.array([0.1, -0.6, -1.0]), np.array([0.6, -0.1, -0.4]), 12),
+    ]
+    lo, hi, dims, points, hidden = probe_grid(walls + boxes, diagonal=3.5)
+    assert dims == (3, 3, 3) and len(points) == 27
+    assert np.all(lo >= -1.0) and np.all(hi <= 1.0)  # inside the room's bounds
+    cell = (hi - lo) / 3
+    assert np.allclose(points[0], lo + 0.5 * cell) and np.allclose(points[-1], hi - 0.5 * cell)
+    for p, h in zip(points, hidden):  # a probe does not see the objects whose bounds hold it
+        inside = [name for name, mn, mx, _ in boxes if np.all(p >= mn - 1e-2) and np.all(p <= mx + 1e-2)]
+        assert set(inside) <= set(h)
+    # too many triangles for 27 probes' renders: a coarser grid, then none (one probe)
+    _, _, dims, _, _ = probe_grid([*walls, ("tall", *boxes[0][1:3], 12_000)], diagonal=3.5)
+    assert dims != (3, 3, 3)
+    assert probe_grid([*walls, ("tall", *boxes[0][1:3], 10**8)], diagonal=3.5) is None
+    assert probe_grid(walls, diagonal=3.5) is None  # only flat objects
+
+
+def _half_white_floor() -> Scene:
+    """Between a ceiling (albedo 0.6, casting no shadow) and a floor 1 m below it, white (0.8) for x < 0 and black
+    for x > 0, lit by a sun from straight above; two small boxes at x = -4 and 4 set the probes' extent. The
+    camera looks straight up at the ceiling's underside from x = -5 to 5. (Boxes thinner than 1 % of the scene's
+    diagonal would count as flat.)"""
+    scene = Scene()
+    scene.renderables.add_plane_mesh(
+        6.0, DiffuseMaterial(), UniformColors((0.8,) * 3, color_space="linear"), translation=(-3.0, 0, 0)
+    )
+    scene.renderables.add_plane_mesh(
+        6.0, DiffuseMaterial(), UniformColors((0.0,) * 3, color_space="linear"), translation=(3.0, 0, 0)
+    )
+    grey = UniformColors((ALBEDO,) * 3, color_space="linear")
+    ceiling = scene.renderables.add_plane_mesh(12.0, DiffuseMaterial(), grey, translation=(0, 0, 1.0))
+    ceiling.emit_shadows = False
+    for x in (-4.0, 4.0):
+        box = scene.renderables.add_cube_mesh(0.3, DiffuseMaterial(), grey, translation=(x, 0, 0.5))
+        box.emit_shadows = False
+    scene.lights.add_sun(SUN, rotation_mode="eulerXYZ", rotation=(0, 0, 0))
+    scene.set_orthographic_camera((40, 8), ortho_scale=10.0, translation=(0, 0, 0.2), rotation=(0, 1, 0, 0))
+    return scene
+
+
+def test_grid_of_probes_lights_the_ceiling_above_the_lit_floor(pyr, monkeypatch):
+    """The ceiling above the white half of the floor gets its bounce light (about rho_c rho_f E / pi), the ceiling
+    above the black half almost none (the white half is 3 m away and more: a view factor under 0.05). One probe
+    for the whole scene lights both alike."""
+    from blendify_pyrender import probe
+
+    res = render(_half_white_floor(), backend=pyr, quality="preview")
+    rgb = res.rgba[..., :3].mean(axis=(0, 2))  # per column: x from -5 (left) to 5
+    above_white, above_black = float(rgb[:3].mean()), float(rgb[-3:].mean())  # beside the boxes
+    one_bounce = ALBEDO * 0.8 * SUN / np.pi
+    print(f"ceiling above white {above_white:.4f}, above black {above_black:.4f}, one bounce {one_bounce:.4f}")
+    assert any(a.startswith("indirect light: a grid of 3 x 1 x 1") for a in res.meta["approximations"])
+    assert 0.6 * one_bounce <= above_white <= 1.3 * one_bounce
+    assert above_black < 0.3 * above_white
+    monkeypatch.setattr(probe, "GRID", 1)
+    one = render(_half_white_floor(), backend=pyr, quality="preview").rgba[..., :3].mean(axis=(0, 2))
+    assert float(one[-3:].mean()) > 0.7 * float(one[:3].mean())  # one probe: the same light everywhere

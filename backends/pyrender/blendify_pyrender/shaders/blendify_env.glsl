@@ -31,10 +31,48 @@ vec3 bf_sh_of(vec3 s[9], vec3 d, vec3 band)
     return max(c, vec3(0.0));
 }
 
+#ifdef BLENDIFY_PROBE_GRID
+// indirect light from a grid of probes (probe.py) at the centres of the nx x ny x nz cells of the box
+// bf_grid_lo + [0, bf_grid_size]: coefficient k of probe (i, j, l) is texel (i, (k nz + l) ny + j) of bf_grid
+uniform sampler2D bf_grid;
+uniform vec3 bf_grid_lo;
+uniform vec3 bf_grid_size;
+uniform vec3 bf_grid_n;
+
+vec3 bf_sh(vec3 d, vec3 band)
+{
+    // trilinear between the 8 nearest probes (clamped to the outer ones): bilinear filtering in x and y (the
+    // row kept between the centres of a slab's first and last rows, so that it never mixes two slabs), linear
+    // across the two nearest slabs in z (one look-up when there is one layer: a grid over a floor)
+    vec3 t = clamp((frag_position - bf_grid_lo) / bf_grid_size * bf_grid_n, vec3(0.5), bf_grid_n - 0.5);
+    float z0 = floor(t.z - 0.5);
+    float fz = t.z - 0.5 - z0;
+    float rows = 9.0 * bf_grid_n.z * bf_grid_n.y;
+    vec2 uv0 = vec2(t.x / bf_grid_n.x, (z0 * bf_grid_n.y + t.y) / rows);
+    vec2 dz = vec2(0.0, fz > 0.0 ? bf_grid_n.y / rows : 0.0);  // to the next layer
+    vec2 dk = vec2(0.0, bf_grid_n.z * bf_grid_n.y / rows);  // to the next coefficient
+    // the basis in direction d times the band scales (as bf_sh_of)
+    float w[9] = float[9](0.282095 * band.x, 0.488603 * band.y * d.y, 0.488603 * band.y * d.z,
+                          0.488603 * band.y * d.x, 1.092548 * band.z * d.x * d.y, 1.092548 * band.z * d.y * d.z,
+                          0.315392 * band.z * (3.0 * d.z * d.z - 1.0), 1.092548 * band.z * d.x * d.z,
+                          0.546274 * band.z * (d.x * d.x - d.y * d.y));
+    vec3 c = vec3(0.0);
+    for (int k = 0; k < 9; k++) {
+        vec2 uv = uv0 + float(k) * dk;
+        vec3 a = texture(bf_grid, uv).rgb;
+        if (fz > 0.0) {
+            a = mix(a, texture(bf_grid, uv + dz).rgb, fz);
+        }
+        c += a * w[k];
+    }
+    return max(c, vec3(0.0));
+}
+#else
 vec3 bf_sh(vec3 d, vec3 band)
 {
     return bf_sh_of(bf_env_sh, d, band);
 }
+#endif
 
 vec3 bf_environment(vec3 n, vec3 v, float roughness, float metallic, vec3 f0, vec3 c_diff)
 {
@@ -50,8 +88,8 @@ vec3 bf_environment(vec3 n, vec3 v, float roughness, float metallic, vec3 f0, ve
         vec2 ab = vec2(-1.04, 1.04) * a004 + rc.zw;
         vec3 reflected = bf_sh_of(bf_spec_sh, r, band);
 #ifdef BLENDIFY_PROBE_MAP
-        if (metallic > 0.0 && bf_probe_inside > 0.5) {
-            reflected = mix(reflected, bf_probe_radiance(r, roughness), metallic);
+        if (bf_probe_inside > 0.5) {  // a metal or solid glass: the scene around it
+            reflected = mix(reflected, bf_probe_radiance(r, roughness), max(metallic, bf_glass.x * bf_glass.w));
         }
 #endif
         light += reflected * (f0 * ab.x + ab.y);
