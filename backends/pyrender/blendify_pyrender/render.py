@@ -142,10 +142,12 @@ _GAMMA = 2.2
 #: dense GL-point clouds are thinned to this many points per covered pixel (never below POINTS_MIN_DRAWN)
 POINTS_PER_PIXEL = 8
 POINTS_MIN_DRAWN = 100_000
-#: clouds of sub-pixel spheres are thinned to spheres of about this diameter (pixels) of the same summed area
-#: (small_points of benchmarks/preview_look.py, 150k points of 0.12 px: 0.7 -> 12k points drawn, SSIM 0.63;
-#: 0.5 -> 24k; 0.35 -> 46k, 0.79; all 142k, 0.91 at 4-6x the time)
-SUBPIXEL_DRAWN_DIAMETER = 0.5
+#: clouds of sub-pixel spheres are thinned to spheres of about this diameter (pixels) of the same summed area:
+#: the blended colour pass costs about its drawn points (small_points of benchmarks/preview_look.py, 150k points
+#: of 0.12 px, measured together: 1.0 -> 5.7k points drawn, SSIM 0.575, 123 ms (the earlier preview: 0.505,
+#: 125-146 ms); 0.85 -> 7.9k, 0.605, 209 ms; 0.7 -> 12k, 0.647, 303 ms; 0.5 -> 23k, 0.725, 454 ms; all 142k,
+#: 0.91, 1.8-2.8 s)
+SUBPIXEL_DRAWN_DIAMETER = 1.0
 #: indirect light from a light probe (probe.py)
 PROBE = True
 #: every light in the colour pass: scenes with more lights of a type than pyrender binds per draw are rendered
@@ -410,6 +412,10 @@ def is_sphere_cloud(primitive: Any) -> bool:
 SPHERE_EXACT, SPHERE_FRINGE, SPHERE_SOLID = 0.0, 2.0, 3.0
 #: pixels the quads of the modes grow by around the spheres' projected boxes
 _SPHERE_GROW = {SPHERE_EXACT: 0.0, SPHERE_FRINGE: 0.55, SPHERE_SOLID: 0.0}
+#: clouds of spheres of 1.5 px and more get blended (anti-aliased) edges in the coverage scheme's colour pass when
+#: at most this many points are drawn (the edges about double the shaded pixels); larger clouds keep the
+#: scheme's pixel-centre colour and supersampled coverage
+BLEND_MAX_POINTS = 50_000
 
 
 def _bind_sphere_uniforms(program: Any, primitive: Any, mode: float, full: bool) -> None:
@@ -942,6 +948,7 @@ class FrameRenderer(pyrender.Renderer):
             glEnable(GL_SAMPLE_SHADING)
             glMinSampleShading(1.0)
         sub_pixel = blend and getattr(primitive, "point_px_max", np.inf) < 1.5
+        blend = blend and (sub_pixel or len(primitive.indices) <= 2 * BLEND_MAX_POINTS)
         try:
             if not sub_pixel:  # (else the solid part is empty)
                 _bind_sphere_uniforms(program, primitive, SPHERE_SOLID if blend else SPHERE_EXACT, shadow)
@@ -1467,6 +1474,12 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
         casts and float(getattr(node.light, "blendify_soft", 0.0)) > 0.0 for node, _, casts in frame.light_nodes
     )
     approximations += _thin_clouds(scene, frame)
+    clouds = [p for n in frame.nodes if n is not None for p in n.mesh.primitives if is_sphere_cloud(p)]
+    if "rgb" in set(settings.outputs) and aa.mode == "coverage" and any(p.point_px_max < 1.5 for p in clouds):
+        approximations.append(
+            "pointcloud: spheres under 1.5 px are blended by the fraction of each pixel they cover, far to near, "
+            "each shaded as a whole (at the point facing the eye, direct light x 2/3); colour only"
+        )
     renderer.shadow_key = (frame.shadow_key, "all")
     catchers = [(i, e.node) for i, e in enumerate(frame.entries) if e.node is not None and e.catcher]
     want = set(settings.outputs)
