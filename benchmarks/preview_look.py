@@ -347,7 +347,8 @@ def main() -> None:
             rows = [fresh.pop(r["scene"], r) for r in old["rows"]] + list(fresh.values())
             with np.load(RESULTS / f"preview_look_{args.tag}_images.npz") as z:
                 images = {k: z[k] for k in z.files} | images
-            date = f"{old['date']}, rows {args.only} {date}"
+            kept = [d for d in old["date"].split(", rows ") if not d.startswith(f"{args.only} ")]
+            date = ", rows ".join([*kept, f"{args.only} {date}"])
         np.savez_compressed(RESULTS / f"preview_look_{args.tag}_images.npz", **images)
         data = {"date": date, "rows": [{k: v for k, v in r.items() if not k.startswith("_")} for r in rows]}
         (RESULTS / f"preview_look_{args.tag}.json").write_text(json.dumps(data, indent=1) + "\n")
