@@ -68,6 +68,7 @@ class _CurveData:
     radii: np.ndarray
     bsdf: Any
     length: float
+    axis: Any = (0.0, 0.0, 1.0)
 
 
 class _DictEngine:
@@ -130,7 +131,7 @@ class _Writer:
 
     def curves(self, c: _CurveData) -> dict[str, Any]:
         path, rel = self._target(c.name, ".txt")
-        text = curve_file_text(c.centres, c.radii, c.length)
+        text = curve_file_text(c.centres, c.radii, c.length, c.axis)
         atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="ascii"))
         out: dict[str, Any] = {"type": "linearcurve", "filename": rel}
         if c.bsdf is not None:

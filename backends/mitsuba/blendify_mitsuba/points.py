@@ -113,12 +113,14 @@ def point_bitmap(values: np.ndarray, tensor: Any = None) -> dict[str, Any]:
 
 
 def capsule_buffers(
-    centres: np.ndarray, radii: np.ndarray, length: float = CAPSULE_LENGTH
+    centres: np.ndarray, radii: np.ndarray, length: float = CAPSULE_LENGTH, axis: Any = (0.0, 0.0, 1.0)
 ) -> tuple[np.ndarray, np.ndarray]:
     """The ``linearcurve`` buffers of one capsule per point: (2N + 2, 4) float32 control points (x, y, z,
     radius) and (2N,) uint32 segment starts.
 
-    Control points ``2i`` and ``2i + 1`` are point ``i``'s capsule, centred on the point along z (radius
+    Control points ``2i`` and ``2i + 1`` are point ``i``'s capsule, centred on the point along ``axis`` (the
+    translator passes the camera's right vector: Mitsuba 3.9's curves miss an orthographic camera's rays
+    within about a degree of their axis -- a cloud seen straight down along z vanished; radius
     shrunk so that the capsule's surface, hence its mean projected area, is the sphere's:
     4 pi r'^2 (1 + L/2) = 4 pi r^2); the last two are one shared spacer segment of negative radius at the first
     point, which Embree leaves out of its BVH (an invalid curve), so the spacers cost no build time (measured
@@ -129,9 +131,11 @@ def capsule_buffers(
     r = np.asarray(radii, dtype=np.float64) / np.sqrt(1.0 + length / 2.0)
     cp = np.empty((n + 1, 2, 4), np.float32)
     cp[:n, :, :3] = centres[:, None, :]
-    half = r * (length / 2.0)
-    cp[:n, 0, 2] -= half
-    cp[:n, 1, 2] += half
+    a = np.asarray(axis, dtype=np.float64)
+    a = a / np.linalg.norm(a)
+    offset = (r * (length / 2.0))[:, None] * a[None, :]
+    cp[:n, 0, :3] -= offset
+    cp[:n, 1, :3] += offset
     cp[:n, :, 3] = r[:, None]
     # the shared spacer: at the first point (so the shape's bounding box is the capsules'), radius < 0
     cp[n, :, :3] = centres[0]
@@ -142,10 +146,12 @@ def capsule_buffers(
     return cp.reshape(-1, 4), segments.ravel()
 
 
-def curve_points(centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: float = CAPSULE_LENGTH) -> Any:
+def curve_points(
+    centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: float = CAPSULE_LENGTH, axis: Any = (0.0, 0.0, 1.0)
+) -> Any:
     """A loaded ``linearcurve`` shape of one capsule per point (world ``centres``, world ``radii``; ``length``:
     the segment relative to the radius, see :func:`capsule_length`; buffers: :func:`capsule_buffers`)."""
-    cp, segments = capsule_buffers(centres, radii, length)
+    cp, segments = capsule_buffers(centres, radii, length, axis)
     return curve_shape(cp, segments, bsdf)
 
 
@@ -181,12 +187,14 @@ def curve_shape(control_points: np.ndarray, segments: np.ndarray, bsdf: Any) -> 
     return shape
 
 
-def curve_file_text(centres: np.ndarray, radii: np.ndarray, length: float = CAPSULE_LENGTH) -> str:
+def curve_file_text(
+    centres: np.ndarray, radii: np.ndarray, length: float = CAPSULE_LENGTH, axis: Any = (0.0, 0.0, 1.0)
+) -> str:
     """The capsules of :func:`capsule_buffers` as a ``linearcurve`` file (one ``x y z radius`` line per control
     point, curves separated by empty lines): the text format has no shared spacer, so every point is a curve
     of three control points, its capsule and a spacer segment to a point of negative radius (Embree leaves it
     out, as the shared one; the texel rows read at v stay the same: two segments per point)."""
-    cp, _segments = capsule_buffers(centres, radii, length)
+    cp, _segments = capsule_buffers(centres, radii, length, axis)
     n = (len(cp) - 2) // 2
     rows = np.empty((n, 3, 4), np.float32)
     rows[:, :2] = cp[: 2 * n].reshape(n, 2, 4)

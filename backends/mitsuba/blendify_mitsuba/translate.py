@@ -399,12 +399,12 @@ def blender_rows_for_mitsuba(img: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
-def build_curves(name: str, centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: float) -> Any:
-    """One ``linearcurve`` shape of capsules (:func:`blendify_mitsuba.points.curve_points`)."""
+def build_curves(name: str, centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: float, axis: Any) -> Any:
+    """One ``linearcurve`` shape of capsules along ``axis`` (:func:`blendify_mitsuba.points.curve_points`)."""
     mi = _mi()
     if hasattr(mi, "build_curves"):  # the exporter's stand-in engine keeps the points
-        return mi.build_curves(name, centres, radii, bsdf, length)
-    return curve_points(centres, radii, bsdf, length)
+        return mi.build_curves(name, centres, radii, bsdf, length, axis)
+    return curve_points(centres, radii, bsdf, length, axis)
 
 
 def build_mesh(
@@ -1164,7 +1164,10 @@ class MitsubaTranslator(Translator):
             else:
                 bsdf_d = self.dispatch(mat, ctx, _rgb(uniform))
                 ctx.shapes[key] = ShapeInfo(index, np.asarray(uniform, dtype=np.float64))
-            ctx.entries[key] = build_curves(key, centres, radii * scale, bsdf_d, capsule_length(size_ratio))
+            # capsules across the view (the camera's right vector): camera rays never run along them
+            axis = np.asarray(ctx.scene.camera.matrix_world, dtype=np.float64)[:3, 0]
+            length = capsule_length(size_ratio)
+            ctx.entries[key] = build_curves(key, centres, radii * scale, bsdf_d, length, axis)
             return
         tm = r.to_mesh()
         # to_mesh works in object space around the raw vertices: move to world space
