@@ -215,6 +215,10 @@ TRIED = [
     "area light 38x): the caustics pilot weighs its samples 30x, so it pays in Mitsuba only "
     "where the full settings need >= 30x the samples (plastic under a sun at 64 px: about 5000 vs 80-140 "
     "estimated from 64-128 spp, 3-4x faster if dropped; not reached by the pilot's rule there)",
+    "Mitsuba's Russian roulette from the first bounce (rr_depth 1 instead of 5; unbiased) in the Cornell room "
+    "(testing.cornell_room_scene, 32 px, scalar_rgb, 4 x 32 spp, 4 alternating repetitions): 1.6-2.3x less time "
+    "per sample, but 2.1x the samples to the target (estimated error 0.0588 vs 0.0407 at 128 spp): 22.8-25.0 s vs "
+    "18.3-25.3 s to the target, no gain (white walls carry the deep bounces; a dark room was not measured)",
     "Mitsuba compiles one kernel per new sample count (2.0-2.5 s under load vs 0.03-0.1 s for a known 16-spp "
     "pass), so later `final` passes of new sizes cost more than their samples; rounding pass sizes to "
     "base x 2^k for kernel reuse: 4 paired seeds, no clear gain (2.81/2.46, 2.07/3.11, 2.30/3.17, 2.33/1.42 s)",
