@@ -98,7 +98,11 @@ FROZEN: dict[str, tuple[str, str]] = {
         "area emitter on the surface: emits from the front side only; with a background/environment light"
         " the coverage alpha is composited from two extra one-bounce passes",
     ),
-    "material.alpha": ("exact", "mask BSDF with the material x colour alpha"),
+    "material.alpha": (
+        "exact",
+        "mask BSDF with the material x colour alpha; its shadows transparent as in Cycles (volpath, or "
+        "blendify_path's shadow rays with shadowless lights)",
+    ),
     "material.wireframe": (
         "approximate",
         "the points Blender's Wireframe shader marks (within wireframe_thickness / 2 of a triangle edge, "
