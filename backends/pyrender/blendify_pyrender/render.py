@@ -868,7 +868,8 @@ class FrameRenderer(pyrender.Renderer):
             program.set_uniform("bf_probe_scale", float(self.probe_map_scale))
         if self.probe_grid is not None:  # the BLENDIFY_PROBE_GRID variant
             self._bind_texture(self.probe_grid, "bf_grid", program)
-            assert self.probe_grid_box is not None
+            if self.probe_grid_box is None:  # set together with the grid texture (set_probe_grid)
+                raise RenderError("pyrender: the light-probe grid has a texture but no bounds")
             for name, value in zip(("bf_grid_lo", "bf_grid_size", "bf_grid_n"), self.probe_grid_box):
                 program.set_uniform(name, value)
         for i in range(9):  # the world's light (shaders/blendify_env.glsl)
