@@ -17,7 +17,9 @@ Differences of :class:`FrameRenderer` from pyrender's stock renderer (0.1.45):
   (two-sided shading, as Cycles);
 - shadow maps skip objects that cast no shadow and lights that cast none;
 - point clouds are exact spheres (ray-sphere intersection per pixel centre, or per sample when multisampled)
-  in every pass: colour, G-buffer, coverage and shadow maps (BLENDIFY_SPHERE shader variants).
+  in every pass: colour, G-buffer, coverage and shadow maps (BLENDIFY_SPHERE shader variants);
+- the shadows of solid glass let its light through, focused as by a ball lens (a caustic:
+  shaders/blendify_caustic.glsl, the BLENDIFY_CAUSTIC variant; :func:`lenses`).
 
 The colour pass is linear premultiplied radiance (:func:`color_pass_linear`); where the driver cannot render
 into float targets it falls back to pyrender's 8-bit output (gamma 1/2.2, clipped at 1), linearised by
@@ -336,6 +338,31 @@ _SPHERE_PATCHES = (
     ),
     ("mesh_depth.frag", "void main()\n{\n", "void main()\n{\n" + _SPHERE_FRAG_MAIN),
 )
+#: the shadowed share of a light, and what solid glass lets through it (shaders/blendify_caustic.glsl)
+_SHADOW_ANCHOR = "        res = res * (1.0 - shadow);\n"
+_SUN_CAUSTIC = "bf_caustic(-directional_lights[i].direction, true, bf_dir_size[i])"
+_SPOT_CAUSTIC = "bf_caustic(spot_lights[i].position, false, bf_spot_size[i])"
+#: the glass objects whose light the shadows let through (the first this many, largest first)
+MAX_LENSES = 4
+#: shadows let the light through solid glass (focused as by a ball lens: shaders/blendify_caustic.glsl)
+CAUSTICS = True
+CAUSTIC_NOTE = (
+    "glass: the shadows of solid glass let its light through (a caustic): each object a ball lens (its bounding "
+    "sphere; focusing by the material's IOR for round objects, none for boxy ones), the light's beam traced in 8 "
+    "rings (Snell, Schlick's Fresnel at both faces, no light reflected inside), each spread evenly over where it "
+    "lands and blurred by the emitter's image, tinted once by the base colour; added where the shadow map hides "
+    "the light, whatever else hides it there; point lights cast no shadow, so none"
+)
+
+
+def _caustic_shadow(call: str) -> str:
+    return (
+        "#ifdef BLENDIFY_CAUSTIC\n"
+        f"        res = res * (1.0 - shadow + (shadow > 0.0 ? shadow * {call} : vec3(0.0)));\n"
+        "#else\n" + _SHADOW_ANCHOR + "#endif\n"
+    )
+
+
 _patched_dir: str | None = None
 _NO_GLASS = np.zeros(4, dtype=np.float32)
 
@@ -353,6 +380,11 @@ def _shader_dir() -> str:
             shutil.copyfile(f, os.path.join(dst, f.name))
     mesh_frag = Path(dst) / "mesh.frag"
     text = mesh_frag.read_text()
+    if text.count(_SHADOW_ANCHOR) != 2:
+        raise RenderError(
+            f"pyrender {pyrender.__version__}: mesh.frag changed (not two {_SHADOW_ANCHOR.strip()!r}); this "
+            "backend supports pyrender 0.1.45"
+        )
     for anchor in (_TWO_SIDED_ANCHOR, _SPOT_ANCHOR, _MAIN_ANCHOR, _AREA_ANCHOR, _BIAS_ANCHOR):
         if text.count(anchor) != 1:
             raise RenderError(
@@ -369,6 +401,12 @@ def _shader_dir() -> str:
     # soft shadows (shaders/blendify_shadow.glsl), after pyrender's shadow_calc
     soft = (_SHADER_DIR / "blendify_shadow.glsl").read_text()
     text = text.replace(_MAIN_ANCHOR, soft + _MAIN_ANCHOR, 1)
+    # light through solid glass (shaders/blendify_caustic.glsl): the shadowed share of suns and spot/area lights
+    caustic = (_SHADER_DIR / "blendify_caustic.glsl").read_text()
+    lib = f"#ifdef BLENDIFY_CAUSTIC\n#define BF_MAX_LENSES {MAX_LENSES}\n{caustic}#endif\n"
+    text = text.replace(_MAIN_ANCHOR, lib + _MAIN_ANCHOR, 1)
+    head, sun, spot = text.split(_SHADOW_ANCHOR)
+    text = head + _caustic_shadow(_SUN_CAUSTIC) + sun + _caustic_shadow(_SPOT_CAUSTIC) + spot
     mesh_frag.write_text(text)
     for name, anchor, replacement in _SPHERE_PATCHES + _PATCHES + _SOFT_PATCHES:
         path = Path(dst) / name
@@ -459,8 +497,9 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
     """pyrender's program cache adding the BLENDIFY_SPHERE define to mesh.vert/mesh.frag and to the
     shadow maps' mesh_depth.vert/frag while ``sphere``, BLENDIFY_SOFT while ``soft`` (the frame has a light with
     soft shadows), BLENDIFY_PROBE_MAP while ``probe_map`` (metals reflect the probe's map), BLENDIFY_PROBE_GRID
-    while ``probe_grid`` (indirect light from a grid of probes) and BLENDIFY_FLOAT_COLOR while ``float_color``
-    (linear output for the float colour pass). Unused code still costs
+    while ``probe_grid`` (indirect light from a grid of probes), BLENDIFY_CAUSTIC while ``caustic`` (shadows let
+    the light of solid glass through) and BLENDIFY_FLOAT_COLOR while ``float_color`` (linear output for the float
+    colour pass). Unused code still costs
     llvmpipe: each is a variant."""
 
     sphere = False
@@ -468,6 +507,7 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
     probe_map = False
     float_color = False
     probe_grid = False
+    caustic = False
 
     def get_program(
         self, vertex_shader: str, fragment_shader: str, geometry_shader: Any = None, defines: Any = None
@@ -482,6 +522,8 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
             defines = {**(defines or {}), "BLENDIFY_FLOAT_COLOR": 1}
         if self.probe_grid and vertex_shader == "mesh.vert":
             defines = {**(defines or {}), "BLENDIFY_PROBE_GRID": 1}
+        if self.caustic and vertex_shader == "mesh.vert":
+            defines = {**(defines or {}), "BLENDIFY_CAUSTIC": 1}
         return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
 
 
@@ -493,6 +535,67 @@ def _is_solid(primitive: Any) -> bool:
         solid = bool(extent.min() > 0.01 * extent.max())
         primitive.blendify_solid = solid
     return bool(solid)
+
+
+def lenses(scene: Any, nodes: list[Any], skip: set[Any]) -> tuple[np.ndarray, list[str]]:
+    """The solid glass objects among ``nodes`` (not in ``skip``: they cast no shadow) as the ball lenses of the
+    caustic term (shaders/blendify_caustic.glsl): (n, 2, 4) float32 rows (centre, radius of the bounding sphere
+    about the box centre) and (transmittance rgb = transmission weight x base colour, IOR of the focusing), at
+    most :data:`MAX_LENSES`, largest first; and notes on what was left out. The focusing IOR is the material's
+    for round objects (a mesh filling its bounding sphere), falling to 1 (the light passes unfocused, as through
+    a slab) for objects filling half of it or less (a cube fills 37 %)."""
+    found: list[tuple[float, np.ndarray]] = []
+    for node in nodes:
+        if node is None or node in skip or not node.mesh.is_visible:
+            continue
+        prims = [
+            p
+            for p in node.mesh.primitives
+            if getattr(p.material, "blendify_glass", None) is not None
+            and float(p.material.blendify_glass[0]) > 0.0
+            and _is_solid(p)
+        ]
+        if not prims:
+            continue
+        pose = np.asarray(scene.get_pose(node), dtype=np.float64)
+        pts = np.concatenate([np.asarray(p.positions, dtype=np.float64) for p in prims])
+        world = pts @ pose[:3, :3].T + pose[:3, 3]
+        centre = 0.5 * (world.min(axis=0) + world.max(axis=0))
+        radius = float(np.sqrt(((world - centre) ** 2).sum(axis=1).max()))
+        if radius <= 0.0:
+            continue
+        volume = sum(_volume(p) for p in prims) * abs(float(np.linalg.det(pose[:3, :3])))
+        fill = volume / (4.0 / 3.0 * np.pi * radius**3)
+        glass = prims[0].material.blendify_glass
+        base = np.clip(np.asarray(prims[0].material.baseColorFactor, dtype=np.float64)[:3], 0.0, 1.0)
+        focus = 1.0 + (float(glass[2]) - 1.0) * float(np.clip((fill - 0.5) / 0.4, 0.0, 1.0))
+        # the shader's Fresnel is that of the focusing IOR: scaled to the material's at normal incidence
+        fresnel = ((1.0 - float(glass[1])) / (1.0 - ((focus - 1.0) / (focus + 1.0)) ** 2)) ** 2
+        row = np.array([[*centre, radius], [*(float(glass[0]) * fresnel * base), focus]], dtype=np.float32)
+        found.append((radius, row))
+    found.sort(key=lambda t: -t[0])
+    notes = []
+    if len(found) > MAX_LENSES:
+        notes.append(
+            f"glass: the light through the {MAX_LENSES} largest solid glass objects reaches their shadows; "
+            f"{len(found) - MAX_LENSES} smaller one(s) cast plain shadows"
+        )
+    rows = [r for _, r in found[:MAX_LENSES]]
+    return (np.stack(rows) if rows else np.zeros((0, 2, 4), dtype=np.float32)), notes
+
+
+def _volume(primitive: Any) -> float:
+    """The volume a triangle primitive encloses (divergence theorem; 0 for other modes), cached."""
+    vol = getattr(primitive, "blendify_volume", None)
+    if vol is None:
+        vol = 0.0
+        if primitive.mode == GLTF.TRIANGLES:
+            pos = np.asarray(primitive.positions, dtype=np.float64)
+            idx = primitive.indices
+            tri = pos[np.asarray(idx).reshape(-1, 3)] if idx is not None else pos.reshape(-1, 3, 3)
+            vol = abs(float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()) / 6.0)
+        primitive.blendify_volume = vol
+    return float(vol)
 
 
 def _set_optional(program: Any, name: str, value: Any) -> None:
@@ -646,6 +749,9 @@ class FrameRenderer(pyrender.Renderer):
         #: the grid of indirect-light probes as a 3D texture (probe.ProbeGrid; None: none) and its uniforms
         self.probe_grid: Any = None
         self.probe_grid_box: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        #: the solid glass objects as ball lenses (:func:`lenses`): (n, 2, 4) float32, rows (centre, radius) and
+        #: (transmittance rgb, IOR of the focusing); bound in the BLENDIFY_CAUSTIC variant
+        self.lenses = np.zeros((0, 2, 4), dtype=np.float32)
         #: while not None (the probes' renders: the same lights and world light for every face), a program's
         #: light uniforms are set once: (program, node, first texture unit, world light) -> (texture binds, next unit)
         self.lighting_cache: dict[Any, tuple[list[tuple[int, Any]], int]] | None = None
@@ -813,6 +919,7 @@ class FrameRenderer(pyrender.Renderer):
             id(self.probe_grid),
             id(self.probe_texture),
             self.probe_scale,
+            self.lenses.tobytes(),
         )
         hit = self.lighting_cache.get(key)
         if hit is None:
@@ -845,6 +952,7 @@ class FrameRenderer(pyrender.Renderer):
             if isinstance(n.light, pyrender.DirectionalLight):
                 if d < max_n[0]:
                     _set_optional(program, f"bf_dir_soft[{d}]", _soft_params(n.light, scene.scale))
+                    _set_optional(program, f"bf_dir_size[{d}]", float(getattr(n.light, "blendify_soft", 0.0)))
                     d += 1
                 continue
             if not isinstance(n.light, pyrender.SpotLight):
@@ -862,7 +970,13 @@ class FrameRenderer(pyrender.Renderer):
             _set_optional(program, f"bf_area_u[{k}]", u)
             _set_optional(program, f"bf_area_v[{k}]", v)
             _set_optional(program, f"bf_spot_soft[{k}]", _soft_params(n.light, scene.scale))
+            _set_optional(program, f"bf_spot_size[{k}]", float(getattr(n.light, "blendify_soft", 0.0)))
             k += 1
+        if self._program_cache.caustic:  # the BLENDIFY_CAUSTIC variant
+            program.set_uniform("bf_n_lenses", len(self.lenses))
+            for j, (lens, through) in enumerate(self.lenses):
+                program.set_uniform(f"bf_lens[{j}]", lens)
+                program.set_uniform(f"bf_lens_t[{j}]", through)
         if self.probe_texture is not None and self.probe_scale > 0.0:  # the BLENDIFY_PROBE_MAP variant
             self._bind_texture(self.probe_texture, "bf_probe_map", program)
             program.set_uniform("bf_probe_scale", float(self.probe_map_scale))
@@ -1499,6 +1613,10 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
         )
     result = RenderResult(instance_tags=list(frame.tags))
     flags = _shadow_flags(frame)
+    renderer.lenses, notes = lenses(scene, frame.nodes, renderer.no_shadow_nodes)
+    renderer._program_cache.caustic = CAUSTICS and len(renderer.lenses) > 0 and flags != 0
+    if renderer._program_cache.caustic:
+        approximations += notes + [CAUSTIC_NOTE]
     gbuf = None
     try:
         if want & {"depth", "normal", "albedo", "instance"} or catchers:

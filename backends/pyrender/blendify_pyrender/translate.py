@@ -789,10 +789,11 @@ class PyrenderTranslator(Translator):
                 "and show, along the ray refracted in and out as through a sphere, tinted by the base colour "
                 "once, what the indirect-light probe rendered from inside them sees (a 32 x 64 map; the object "
                 "casts no shadow in it, standing in for the light it focuses; they reflect it too) or else the "
-                "world's light (the probes'); no caustics; flat ones are see-through with a "
-                "Fresnel-weighted opacity, unrefracted, tinted by the base colour (its largest channel through "
-                "the blend, the others against the world's radiance behind); the diffuse part scaled by "
-                "1 - weight; shadows stay opaque"
+                "world's light (the probes'); their shadows let their light through, focused as by a ball "
+                "lens (a caustic, from the bounding sphere and the IOR; none for boxy objects); flat ones are "
+                "see-through with a Fresnel-weighted opacity, unrefracted, tinted by the base colour (its "
+                "largest channel through the blend, the others against the world's radiance behind), their "
+                "shadows opaque; the diffuse part scaled by 1 - weight"
             ),
             "material.coat": approximate("coat layer ignored"),
             "material.sheen": approximate("sheen ignored"),

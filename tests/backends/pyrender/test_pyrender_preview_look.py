@@ -375,3 +375,69 @@ def test_environment_background_is_bilinear():
     camera = SimpleNamespace(pixel_rays=lambda: (np.zeros((3, 3)), dirs), width=3, height=1)
     bg = environment_background(env, camera, np.zeros(3))[0, :, 0]
     np.testing.assert_allclose(bg, [2.0, 2.0, 4.0], atol=1e-4)
+
+
+# -- glass: the light through a glass ball reaches its shadow, focused -------------------------------------------
+_BEAM = np.array([-np.sin(np.pi / 4), 0.0, -np.cos(np.pi / 4)])  # Blender's sun (local -Z) turned 45 deg about Y
+
+
+def _ball_shadow_scene(material: object, color=(1.0, 1.0, 1.0), cube: bool = False) -> Scene:
+    """A glass ball of radius 1 (or a cube of edge 1.6) 2 units up a sun's beam (45 degrees from the vertical)
+    from the floor point (0, 0, 0) of a grey floor, seen from straight above (orthographic, 64x64 over 8 x 8
+    units): the shadow's centre, (0, 0, 0), lies outside the object's footprint."""
+    scene = Scene()
+    scene.set_orthographic_camera((64, 64), ortho_scale=8.0, translation=(0.5, 0.0, 6.0), near=0.1, far=20)
+    scene.renderables.add_plane_mesh(20.0, DiffuseMaterial(), UniformColors((0.8, 0.8, 0.8)), tag="floor")
+    colors = UniformColors(color, color_space="linear")
+    centre = tuple(-2.0 * _BEAM)
+    if cube:
+        scene.renderables.add_cube_mesh(1.6, material, colors, translation=centre, tag="ball")
+    else:
+        scene.renderables.add_sphere_nurbs(1.0, material, colors, translation=centre, tag="ball")
+    scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(0, 45, 0))
+    return scene
+
+
+def _floor_at(scene: Scene, rgb: np.ndarray, points: list[tuple[float, float]]) -> list[np.ndarray]:
+    """The mean colour of the pixels whose rays hit the floor within 0.8 pixels of each (x, y)."""
+    cam = scene.camera
+    o, d = cam.pixel_rays()
+    hit = (o - (o[:, 2] / d[:, 2])[:, None] * d).reshape(cam.height, cam.width, 3)
+    out = []
+    for x, y in points:
+        near = np.hypot(hit[..., 0] - x, hit[..., 1] - y) < 0.1
+        assert near.any(), (x, y)
+        out.append(rgb[near].mean(axis=0))
+    return out
+
+
+def test_glass_ball_focuses_light_into_its_shadow(pyr):
+    """The light a glass ball lets through lands in its shadow, focused: the shadow's centre (on the beam
+    through the ball's centre) gets more light than the open floor and far more than the shadow's edge; an
+    opaque ball's shadow stays dark there (the control: the shadow is where the test computes it); a tinted
+    ball's light is tinted; a glass cube does not focus (its shadow's centre and edge alike, lit through it)."""
+    glass = PrincipledBSDFMaterial(transmission_weight=1.0, roughness=0.0, ior=1.5)
+    spots = [(0.0, 0.0), (0.0, 0.6), (0.0, -0.6), (-3.0, 0.0)]  # centre, towards the edges across the beam, open
+
+    def measure(material, color=(1.0, 1.0, 1.0), cube=False):
+        scene = _ball_shadow_scene(material, color, cube)
+        res = render(scene, backend=pyr, quality="preview")
+        centre, edge_a, edge_b, lit = _floor_at(scene, res.rgba[..., :3], spots)
+        return centre, 0.5 * (edge_a + edge_b), lit, res
+
+    centre, edge, lit, _ = measure(DiffuseMaterial())
+    print(f"opaque: centre {centre}, edge {edge}, lit {lit}")
+    assert centre.mean() < 0.25 * lit.mean() and edge.mean() < 0.25 * lit.mean()
+    centre, edge, lit, res = measure(glass)
+    print(f"glass: centre {centre}, edge {edge}, lit {lit}")
+    assert centre.mean() > 1.5 * lit.mean()  # focused: more light than arrives unblocked
+    assert centre.mean() > 2.0 * edge.mean()
+    notes = res.meta["approximations"]
+    assert any(a.startswith("glass: the shadows of solid glass let its light through") for a in notes)
+    centre, _, lit, _ = measure(glass, color=(1.0, 0.3, 0.3))
+    print(f"tinted glass: centre {centre}")
+    assert centre[0] > 1.5 * lit[0] and centre[1] < 0.5 * centre[0]
+    centre, edge, lit, _ = measure(glass, color=(1.0, 0.3, 0.3), cube=True)
+    print(f"tinted glass cube: centre {centre}, edge {edge}, lit {lit}")
+    for spot in (centre, edge):  # lit through the cube, as much as the floor around (Fresnel: 0.92 of it)
+        np.testing.assert_allclose(spot / lit, [0.92, 0.3 * 0.92, 0.3 * 0.92], rtol=0.1)
