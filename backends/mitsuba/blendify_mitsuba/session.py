@@ -63,6 +63,7 @@ class MitsubaNative:
     shapes: dict[str, ShapeInfo]
     camera: Any
     spp: int = 1  # samples per rendered pixel (differs from settings.samples for fx != fy)
+    samples: int = 1  # settings.samples it renders now (the square-pixel plan was made for it)
     aniso: SquarePixelPlan | None = None  # the square-pixel plan for fx != fy (see aniso)
     coverage_scene: Any = None  # shapes only: coverage alpha (when compositing)
     sky_scene: Any = None  # background/environment only: what the sky adds behind partial pixels (also when
@@ -151,13 +152,14 @@ class MitsubaSession:
     def translate(self, scene: Scene, settings: RenderSettings) -> MitsubaNative:
         """The native scene of ``scene``: the previous one when neither the scene (core change detection)
         nor the translation settings changed, or only the camera changed but not its sensor; else a new
-        translation."""
+        translation. A new sample count alone reuses it too (``mi.render`` takes the count per call; only the
+        square-pixel plan of a camera with fx != fy depends on it): ``final``'s passes of new sizes used to
+        reload the whole scene each time."""
         if not isinstance(scene, Scene):
             raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
         if scene.camera is None:
             raise InvalidSceneError("scene.camera: the scene has no camera")
         key = (
-            settings.samples,
             settings.pixel_filter,
             settings.max_bounces,
             settings.effects,
@@ -168,8 +170,11 @@ class MitsubaSession:
         changes = self._tracker.update(scene)
         cached, self._native = self._native, None
         try:
-            if cached is not None and key == self._key:
+            same_plan = cached is not None and (cached.aniso is None or cached.samples == settings.samples)
+            if cached is not None and key == self._key and same_plan:
                 if not changes.any or (changes.geometry_only_camera and self._same_sensor(cached, scene, settings)):
+                    if cached.aniso is None:
+                        cached.spp = cached.samples = int(settings.samples)
                     cached.camera = scene.camera
                     cached.translate_cached = True
                     self._native = cached
@@ -192,8 +197,8 @@ class MitsubaSession:
 
     def _same_sensor(self, native: MitsubaNative, scene: Scene, settings: RenderSettings) -> bool:
         """Whether the camera of ``scene`` translates to the sensor ``native`` was loaded with."""
-        with self.engine():
-            sensor = self._translator(settings).sensor(MitsubaContext(scene=scene))
+        with self.engine():  # at the sample count it was loaded with: only the camera is compared
+            sensor = self._translator(settings.replace(samples=native.samples)).sensor(MitsubaContext(scene=scene))
         return _same_value(sensor, native.scene_dict["sensor"])
 
     def _load(self, scene: Scene, settings: RenderSettings) -> MitsubaNative:
@@ -224,6 +229,7 @@ class MitsubaSession:
             shapes=tr.shapes,
             camera=scene.camera,
             spp=tr.spp,
+            samples=int(settings.samples),
             aniso=tr.aniso,
             coverage_scene=cov_scene,
             sky_scene=sky_scene,

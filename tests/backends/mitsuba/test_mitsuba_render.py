@@ -486,8 +486,23 @@ def test_translation_is_cached_until_the_scene_changes():
         d = bf.render(scene, backend=b, samples=2)
         assert not d.meta["translate_cached"]
         assert d.rgba[8, 8, 0] == pytest.approx(2 * a.rgba[8, 8, 0], rel=1e-5)
-        e = bf.render(scene, backend=b, samples=4)
-        assert not e.meta["translate_cached"]  # samples are part of the translated sensor
+        # a new sample count reuses the loaded scene (final's passes of new sizes) and renders what a new
+        # translation renders at that count
+        e = bf.render(scene, backend=b, samples=7, seed=2)
+        assert e.meta["translate_cached"] and e.meta["samples"] == 7
+    with MitsubaBackend(variant="scalar_rgb") as fresh:
+        f = bf.render(scene, backend=fresh, samples=7, seed=2)
+    assert np.array_equal(e.rgba, f.rgba)
+
+
+def test_anisotropic_pixels_translate_again_for_a_new_sample_count():
+    """fx != fy: the square-pixel plan (rows rendered and resampled) depends on the sample count."""
+    scene, _ = testing.marker_scene(fx=150.0, fy=75.0)
+    with MitsubaBackend(variant="scalar_rgb") as b:
+        a = bf.render(scene, backend=b, samples=4)
+        c = bf.render(scene, backend=b, samples=4, seed=1)
+        d = bf.render(scene, backend=b, samples=16)
+    assert not a.meta["translate_cached"] and c.meta["translate_cached"] and not d.meta["translate_cached"]
 
 
 def test_same_seed_same_image(scalar_backend):
