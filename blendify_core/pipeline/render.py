@@ -6,7 +6,7 @@ import dataclasses
 import logging
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -709,6 +709,10 @@ PILOTS: dict[str, dict[str, Any]] = {
 }
 
 
+#: what a pass's meta says about how the engine ran it (a pilot's drop changes it for the passes that follow)
+ENGINE_META_KEYS = ("integrator", "max_depth", "engine_settings")
+
+
 def _pilot_applies(kind: str, settings: RenderSettings, eff: Effects) -> str | None:
     """Why pilot ``kind`` is not tried on a scene with effects ``eff`` (None: it is)."""
     if not settings.effects:
@@ -787,6 +791,7 @@ def _effect_pilot(
         passes.append(r.rgba[..., :3].astype(np.float64))
         alphas.append(r.rgba[..., 3:4].astype(np.float64))
         _add_timings(timings, r.meta.get("timings", {}))
+        engine_meta = r.meta
         k = len(passes)
         if k < PILOT_PASSES:
             continue
@@ -829,6 +834,7 @@ def _effect_pilot(
         colours=passes,
         alphas=alphas,
         counts=counts_p,
+        engine_meta=engine_meta,
     )
     return out
 
@@ -862,6 +868,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     # may grow as rare bright samples turn up: a plastic ball under a sun, Cycles at 64 px, needed 355 more
     # samples after 4 passes, 2880 in all)
     pending, spent = list(PILOTS), 0.0
+    engine_meta: Mapping[str, Any] | None = None  # how the picture's passes were rendered, once a pilot dropped
     while True:
         if len(colours) >= FIRST_PASSES:
             estimate = relative_error_estimate(np.stack(colours), np.array(counts))
@@ -878,6 +885,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
                         _add_timings(first.meta.setdefault("timings", {}), pilot.pop("timings"))
                     if pilot.get("dropped"):
                         colours, alphas, counts = pilot.pop("colours"), pilot.pop("alphas"), pilot.pop("counts")
+                        engine_meta = pilot.pop("engine_meta")
                         pass_settings = pass_settings.replace(**PILOTS[kind]["changes"])
                         bias = float(pilot[f"{kind}_error"])
                         noise_target = float(np.sqrt(target**2 - bias**2))
@@ -903,6 +911,8 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
         alphas.append(r.rgba[..., 3:4].astype(np.float64))
         counts.append(_rendered_samples(r, max(1, n)))
         _add_timings(first.meta.setdefault("timings", {}), r.meta.get("timings", {}))
+        if engine_meta is not None:
+            engine_meta = r.meta
     n_arr = np.array(counts, dtype=np.float64)
     w = (n_arr / n_arr.sum()).reshape(-1, 1, 1, 1)
     stack = np.stack(colours)
@@ -915,6 +925,10 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
         var_one = (n_arr.reshape(w.shape) * (np.stack(colours) - rgb) ** 2).sum(axis=0) / (len(colours) - 1)
         first.rgb_var = (var_one / n_arr.sum()).astype(np.float32)
     meta = first.meta
+    if engine_meta is not None:  # the picture comes from passes without the dropped effect: say how they ran
+        for key in ENGINE_META_KEYS:
+            if key in engine_meta:
+                meta[key] = engine_meta[key]  # type: ignore[literal-required]
     meta["passes"] = len(colours)
     meta["samples"] = int(n_arr.sum())
     meta["estimated_error"] = estimate

@@ -63,7 +63,8 @@ class _Engine:
         else:
             rgb = self.picture * (1.0 + self.indirect) + noise
         rgba = np.concatenate([rgb, np.ones(SHAPE[:2] + (1,))], axis=-1).astype(np.float32)
-        return RenderResult(rgba=rgba)
+        how = "direct" if settings.max_bounces == 0 else "no caustics" if not settings.caustics else "full"
+        return RenderResult(rgba=rgba, meta={"integrator": how, "engine_settings": {"caustics": settings.caustics}})
 
 
 def _pilot(
@@ -159,3 +160,18 @@ def test_caustics_pilot_weighs_its_samples_by_their_cost(monkeypatch):
 def test_caustics_pilot_not_tried_where_the_analysis_finds_none():
     pilot = _pilot(_Engine(indirect=0.0, remainder=0.02), kind="caustics", scene=_scene())  # all diffuse
     assert pilot["why"] == "not tried: the effect analysis already found no caustics", pilot
+
+
+def test_a_dropped_effect_shows_in_how_the_picture_was_rendered(monkeypatch):
+    """After the caustics pilot drops them, the picture is the passes without caustics: ``meta`` says how
+    those were rendered (integrator, engine settings), not how the first full pass was."""
+    monkeypatch.setattr(render_module, "PILOT_MIN_GAIN", 1.0)
+    monkeypatch.setattr(render_module, "DIRECT_SAMPLES_SLACK", 2.0)  # the stand-in's noise is the same without
+    engine = _Engine(indirect=0.002, remainder=0.02)
+    settings = resolve_settings(quality="final", seed=3)
+    r = render_module.render_to_target(engine, _plastic_scene(), settings)  # type: ignore[arg-type]
+    assert r.meta["caustics_pilot"]["dropped"], r.meta["caustics_pilot"]
+    assert "engine_meta" not in r.meta["caustics_pilot"]
+    assert r.meta["integrator"] == "no caustics" and r.meta["engine_settings"] == {"caustics": False}
+    kept = render_module.render_to_target(_Engine(indirect=0.05, remainder=0.02), _plastic_scene(), settings)  # type: ignore[arg-type]
+    assert not kept.meta["caustics_pilot"]["dropped"] and kept.meta["integrator"] == "full"
