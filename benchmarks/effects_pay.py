@@ -157,17 +157,29 @@ WHY: dict[str, str | dict[str, str]] = {
         "samples, so the target needs 128-144 samples instead of 11712 and 65536 (the sample cap: that full render "
         "stopped at an estimated 0.017, short of the target). The pictures differ by 0.018 rel. RMS, about both "
         "renders' noise (the full one's estimate is low under fireflies)",
-        "mitsuba": "Mitsuba's path has no caustics switch: caustics=False runs blendify's Python integrator, "
-        "12-38x the time per sample of path in scalar_rgb (the only variant here: llvm needs libLLVM >= 16), so "
-        "the pilot (its samples weighed 30x) is tried only when the full passes need >= 16 x 30 x 32 = 15360 "
-        "more samples and drops only at >= 30x fewer samples. Here they needed 3005 more after the first passes: "
-        "not tried, the same work in both settings (the ratios are timing noise)",
+        "mitsuba": "scalar_rgb: Mitsuba's path has no caustics switch: caustics=False runs blendify_path, whose "
+        "bounces run in Python per sample in the scalar variants, 12-38x the time per sample of path, so the pilot "
+        "(its samples weighed 30x) is tried only when the full passes need >= 16 x 30 x 32 = 15360 more samples "
+        "and drops only at >= 30x fewer samples. Here (32 px) they needed 3005 more after the first passes: not "
+        "tried, the same work in both settings (the ratios are timing noise). At 128 px the full settings need "
+        "37-45k samples (the llvm row), enough for the rule; a scalar full render that long was not timed",
+        "mitsuba:llvm_ad_rgb": "the vectorised variant runs blendify_path as one symbolic loop, about as fast per "
+        "sample as path (weighed 1.25x): the caustics pilot bounds the light reaching the floor through the coats "
+        "at 0.0029 (below half the target) and drops it: 80-131 samples instead of 36994-45208 (the full "
+        "settings' rare, very bright coat paths). The pictures differ by 0.017-0.019 rel. RMS against a noise of "
+        "0.014 (the full render's estimate is low under fireflies, as in Cycles)",
     },
-    "plastic_sky": "the floor also sees the sky in the coats: Cycles' pilot bounds the caustics at 0.0057-0.0083 "
-    "(above half the target) and keeps them, then the indirect-light pilot keeps that (0.09); their 4 passes of 16 "
-    "samples are the whole difference (the full passes' first estimate asked for 2352 samples, the render then "
-    "took 208 or 1728). Mitsuba: the caustics pilot is not tried (30x cost rule), the indirect-light pilot's 2 "
-    "passes (and a reload of the scene) are",
+    "plastic_sky": {
+        "cycles": "the floor also sees the sky in the coats: Cycles' pilot bounds the caustics at 0.0057-0.0083 "
+        "(above half the target) and keeps them, then the indirect-light pilot keeps that (0.09); their 4 passes "
+        "of 16 samples are the whole difference (the full passes' first estimate asked for 2352 samples, the "
+        "render then took 208 or 1728)",
+        "mitsuba": "the floor also sees the sky in the coats; the caustics pilot is not tried (30x cost rule), the "
+        "indirect-light pilot's 2 passes (and a reload of the scene) are",
+        "mitsuba:llvm_ad_rgb": "at 128 px the first passes already estimate the render within 65 samples of the "
+        "target: neither pilot is tried (not worth their passes), the same work in both settings; the ratios "
+        "(0.49-2.20 for identical work) are the timing noise of a loaded machine",
+    },
     "lambert": "drops glossy/transmission/transparent bounces and caustics, but no material has those lobes, so the "
     "full settings never take those bounces either; the indirect diffuse light is needed (the floor lights them)",
     "no_shadow": "the lights' use_shadow=False is the scene's own and applies in both settings (Cycles' light "
@@ -214,7 +226,9 @@ TRIED = [
     "scalar_rgb (64 px, 16-32-spp passes: plastic under a sun 12.4-13.5x, under a sun and a sky 33x, under an "
     "area light 38x): the caustics pilot weighs its samples 30x, so it pays in Mitsuba only "
     "where the full settings need >= 30x the samples (plastic under a sun at 64 px: about 5000 vs 80-140 "
-    "estimated from 64-128 spp, 3-4x faster if dropped; not reached by the pilot's rule there)",
+    "estimated from 64-128 spp, 3-4x faster if dropped; not reached by the pilot's rule there). In llvm_ad_rgb "
+    "the same integrator evaluated bounce by bounce cost 45x path (7.15 s vs 0.16 s for 64 spp at 64 px); as one "
+    "symbolic loop it costs 0.7-1.1x (the llvm rows)",
     "Mitsuba's Russian roulette from the first bounce (rr_depth 1 instead of 5; unbiased) in the Cornell room "
     "(testing.cornell_room_scene, 32 px, scalar_rgb, 4 x 32 spp, 4 alternating repetitions): 1.6-2.3x less time "
     "per sample, but 2.1x the samples to the target (estimated error 0.0588 vs 0.0407 at 128 spp): 22.8-25.0 s vs "
@@ -237,8 +251,9 @@ def _diff_cell(row: dict[str, Any]) -> str:
 
 
 def _why(scene: str, backend: str) -> str:
+    """Why a row saves what it saves: per engine (``"mitsuba:llvm_ad_rgb"`` before ``"mitsuba"``) or for all."""
     why = WHY.get(scene, "")
-    return why.get(backend, "") if isinstance(why, dict) else why
+    return (why.get(backend) or why.get(backend.partition(":")[0], "")) if isinstance(why, dict) else why
 
 
 def _dropped(row: dict[str, Any]) -> str:
@@ -330,12 +345,17 @@ def write_report(data: dict[str, Any], out: Path) -> None:
 
 # -- measurement -------------------------------------------------------------------------------------
 def _one(scene: bf.Scene, backend: str, effects: bool, seed: int, outputs: tuple[str, ...]) -> dict[str, Any]:
+    """One ``final`` render; ``backend`` may name a Mitsuba variant (``mitsuba:llvm_ad_rgb``)."""
+    name, _, variant = backend.partition(":")
+    options = {"variant": variant} if variant else {}
     t0 = time.perf_counter()
     res = bf.render(
-        scene, backend=backend, quality="final", effects=effects, seed=seed, threads=THREADS, outputs=outputs
+        scene, backend=name, quality="final", effects=effects, seed=seed, threads=THREADS, outputs=outputs, **options
     )
     dt = time.perf_counter() - t0
     meta = res.meta
+    if variant and meta.get("variant") != variant:
+        raise SystemExit(f"{backend}: rendered with {meta.get('variant')} ({meta.get('variant_reason')})")
     return {
         "time": dt,
         "samples": meta.get("samples"),
@@ -343,6 +363,7 @@ def _one(scene: bf.Scene, backend: str, effects: bool, seed: int, outputs: tuple
         "simulated": meta.get("simulated"),
         "engine_settings": {k: v for k, v in (meta.get("engine_settings") or {}).items() if not isinstance(v, dict)},
         "integrator": meta.get("integrator"),
+        "variant": meta.get("variant"),
         "max_depth": meta.get("max_depth"),
         "indirect_pilot": meta.get("indirect_pilot"),
         "caustics_pilot": meta.get("caustics_pilot"),
@@ -407,7 +428,9 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--res", type=int, default=128)
     ap.add_argument("--scenes", default=",".join(SCENES))
-    ap.add_argument("--backends", default="cycles,mitsuba")
+    ap.add_argument(
+        "--backends", default="cycles,mitsuba", help="comma-separated; a Mitsuba variant as mitsuba:llvm_ad_rgb"
+    )
     ap.add_argument("--out", default=str(RESULTS / "effects_pay"))
     ap.add_argument("--report", help="only write the .md/.png from these json files (comma-separated; later wins)")
     args = ap.parse_args()
