@@ -84,7 +84,12 @@ NOTES = [
     "rows measured 0.950 / 0.791 / 0.819 / 0.948, every_feature 0.954 against the earlier reference): the "
     "shadows of solid glass let its light through, focused as by a ball lens (a caustic from the bounding "
     "sphere and the IOR: shaders/blendify_caustic.glsl): sphere_glass 0.791 -> 0.815; the others unchanged "
-    "(no glass).",
+    "(no glass). Then (rows environment, primitives, port_threejs_lights_physical added, their Cycles "
+    "references also fresh): the probe's map looked up with parallax (its surroundings taken to lie on the "
+    "scene's bounding box; metals from the surface point, solid glass from the exit point) and solid glass "
+    "casting its shadow (lit through by the caustic) in the map: sphere_glass 0.815 -> 0.866, sphere_metal "
+    "0.819 -> 0.855; environment 0.855, primitives 0.972, port_threejs_lights_physical 0.945, every_feature "
+    "0.948, sphere_diffuse 0.950 unchanged.",
 ]
 
 

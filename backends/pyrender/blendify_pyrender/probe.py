@@ -274,10 +274,13 @@ def probe_sh(engine: Engine, frame: Frame, flags: int, render_rgba: Any) -> tupl
             r.set_probe_grid(out)  # the next bounce is lit by it
             sh = out.sh.mean(axis=0)
         if metals:
-            # the map, lit by the last bounce's light; solid glass casts no shadow in it: the light a glass
-            # ball lets through reaches the floor under it (as a caustic), which is what the ball shows
+            # the map, lit by the last bounce's light; solid glass casts its shadow in it when the shadows let
+            # its light through (render.CAUSTICS), else none: the light a glass ball lets through reaches the
+            # floor under it, which is what the ball shows
             r.env_sh = r.spec_sh = sh.astype(np.float32)
             glass = {n for n in nodes if any(_reflects(p) and not _is_metal(p) for p in n.mesh.primitives)}
+            if r._program_cache.caustic:
+                glass = set()
             casting, r.no_shadow_nodes = r.no_shadow_nodes, r.no_shadow_nodes | glass
             try:
                 if glass:
@@ -294,7 +297,9 @@ def probe_sh(engine: Engine, frame: Frame, flags: int, render_rgba: Any) -> tupl
         cam.projection, cam.znear, cam.zfar = saved[0], saved[1], saved[2]
         scene.set_pose(cam_node, saved[3])
     # the map metals reflect: only for metals the probe was rendered inside (their surroundings)
-    r.set_probe_map(equirect_from_cube(seen, PROBE_SIZE, MAP_HEIGHT) if metals else None)
+    # the surroundings' box: what the map shows is taken to lie on it (parallax, shaders/blendify_env.glsl)
+    surroundings = (np.min([b[1] for b in boxes], axis=0), np.max([b[2] for b in boxes], axis=0))
+    r.set_probe_map(equirect_from_cube(seen, PROBE_SIZE, MAP_HEIGHT) if metals else None, point, surroundings)
     if out is None:
         where = ", ".join(f"{v:.3g}" for v in point)
         note = (

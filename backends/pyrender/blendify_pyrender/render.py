@@ -215,8 +215,9 @@ _FLOAT_OUT = (
 )
 #: glass (bf_glass = (transmission weight w, F0, IOR, solid)): no diffuse for the transmitted share T = w (1 - F),
 #: F Schlick's Fresnel at the viewing angle.
-#: - solid glass (a closed object, not flat): opaque; the transmitted share shows the light of the world (the SH:
-#:   the indirect-light probe's when there is one) along the ray refracted in and out as through a sphere (the
+#: - solid glass (a closed object, not flat): opaque; the transmitted share shows the light of the world (the SH;
+#:   the indirect-light probe's map when it was rendered from inside, looked up with parallax from the exit point
+#:   on the bounding sphere of radius bf_glass_radius) along the ray refracted in and out as through a sphere (the
 #:   exit direction of a sphere depends only on the entry angle: t1 = refract(d, n), exit normal
 #:   n - 2 (t1.n) t1), tinted by the base colour at both interfaces (tint^2): the inverted view through a ball;
 #: - flat glass (a pane: the exit ray is the entry ray): see-through. Alpha blending gives alpha C + (1 - alpha)
@@ -236,8 +237,9 @@ _GLASS_OPACITY = """    if (bf_glass.x > 0.0) {
             }
             vec3 bf_seen = bf_sh(bf_t2, vec3(1.0, 1.5, 4.0));
 #ifdef BLENDIFY_PROBE_MAP
-            if (bf_probe_inside > 0.5) {
-                bf_seen = bf_probe_radiance(bf_t2, roughness);
+            if (bf_probe_inside > 0.5) {  // from the exit point (on the bounding sphere), with parallax
+                bf_seen = bf_probe_radiance(bf_probe_parallax(frag_position + bf_glass_radius * (bf_n2 - n), bf_t2),
+                                            roughness);
             }
 #endif
             color.xyz += bf_t * bf_tint * bf_seen;
@@ -584,6 +586,19 @@ def lenses(scene: Any, nodes: list[Any], skip: set[Any]) -> tuple[np.ndarray, li
     return (np.stack(rows) if rows else np.zeros((0, 2, 4), dtype=np.float32)), notes
 
 
+def _bounding_radius(primitive: Any, pose: Any) -> float:
+    """The radius of the sphere about a primitive's box centre holding it, in world units (local radius cached,
+    times the pose's largest scale)."""
+    local = getattr(primitive, "blendify_radius", None)
+    if local is None:
+        pts = np.asarray(primitive.positions, dtype=np.float64)
+        centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+        local = float(np.sqrt(((pts - centre) ** 2).sum(axis=1).max()))
+        primitive.blendify_radius = local
+    scale = float(np.linalg.norm(np.asarray(pose, dtype=np.float64)[:3, :3], axis=0).max())
+    return float(local) * scale
+
+
 def _volume(primitive: Any) -> float:
     """The volume a triangle primitive encloses (divergence theorem; 0 for other modes), cached."""
     vol = getattr(primitive, "blendify_volume", None)
@@ -743,6 +758,8 @@ class FrameRenderer(pyrender.Renderer):
         #: radiance scale (the 8-bit texture holds radiance / scale) and whether it is used (0 while the probe renders)
         self.probe_texture: Any = None
         self.probe_map_scale = 0.0
+        #: where the map was rendered from and the box of its surroundings (rows point, min, max)
+        self.probe_map_frame = np.zeros((3, 3), dtype=np.float32)
         self.probe_scale = 1.0
         #: the indirect-light probe of the last frame: (key, coefficients, grid, note) (probe.py)
         self.probe_cache: tuple[Any, np.ndarray, Any, str] | None = None
@@ -919,6 +936,7 @@ class FrameRenderer(pyrender.Renderer):
             id(self.probe_grid),
             id(self.probe_texture),
             self.probe_scale,
+            self.probe_map_frame.tobytes(),
             self.lenses.tobytes(),
         )
         hit = self.lighting_cache.get(key)
@@ -980,6 +998,8 @@ class FrameRenderer(pyrender.Renderer):
         if self.probe_texture is not None and self.probe_scale > 0.0:  # the BLENDIFY_PROBE_MAP variant
             self._bind_texture(self.probe_texture, "bf_probe_map", program)
             program.set_uniform("bf_probe_scale", float(self.probe_map_scale))
+            for name, value in zip(("bf_probe_point", "bf_proxy_lo", "bf_proxy_hi"), self.probe_map_frame):
+                _set_optional(program, name, value)
         if self.probe_grid is not None:  # the BLENDIFY_PROBE_GRID variant
             self._bind_texture(self.probe_grid, "bf_grid", program)
             if self.probe_grid_box is None:  # set together with the grid texture (set_probe_grid)
@@ -990,14 +1010,20 @@ class FrameRenderer(pyrender.Renderer):
             program.set_uniform(f"bf_env_sh[{i}]", self.env_sh[i])
             program.set_uniform(f"bf_spec_sh[{i}]", self.spec_sh[i])
 
-    def set_probe_map(self, radiance: np.ndarray | None) -> None:
-        """Upload what the indirect-light probe sees ((H, 2H, 3) linear radiance; None: no map)."""
+    def set_probe_map(self, radiance: np.ndarray | None, point: Any = None, box: tuple[Any, Any] | None = None) -> None:
+        """Upload what the indirect-light probe sees ((H, 2H, 3) linear radiance; None: no map) from ``point``,
+        its surroundings taken to lie on the faces of ``box`` (world min, max; with the point: solid glass
+        looks up the map with parallax)."""
         if self.probe_texture is not None:
             self.probe_texture.delete()
             self.probe_texture = None
         self.probe_map_scale = 0.0
         if radiance is None:
             return
+        if point is not None and box is not None:
+            lo = np.minimum(np.asarray(box[0], np.float64), point)
+            hi = np.maximum(np.asarray(box[1], np.float64), point)
+            self.probe_map_frame = np.stack([np.asarray(point, np.float64), lo, hi]).astype(np.float32)
         scale = max(float(radiance.max(initial=0.0)), 1e-6)
         # 8 bits, gamma 2.2 (as pyrender's colour): radiance = scale x value^2.2
         u8 = np.round(np.clip(radiance / scale, 0.0, 1.0) ** (1.0 / _GAMMA) * 255.0).astype(np.uint8)
@@ -1045,6 +1071,8 @@ class FrameRenderer(pyrender.Renderer):
             glass = glass.copy()
             glass[3] = 1.0 if _is_solid(primitive) else 0.0
         program.set_uniform("bf_glass", _NO_GLASS if glass is None else glass)
+        if glass is not None and glass[3] > 0.0 and self.probe_texture is not None:  # its exit points' radius
+            _set_optional(program, "bf_glass_radius", _bounding_radius(primitive, pose))
         program.set_uniform("bf_emission", float(self.emission_scale))
         program.set_uniform("bf_probe_inside", 1.0 if getattr(primitive, "blendify_probe_inside", False) else 0.0)
         if not is_sphere_cloud(primitive):

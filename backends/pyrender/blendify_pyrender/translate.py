@@ -782,18 +782,20 @@ class PyrenderTranslator(Translator):
             "material.metallic": approximate(
                 "GGX metal; reflects the world's light (9 SH coefficients) and, when the indirect-light probe is "
                 "rendered from inside the object, what the probe sees (a 32 x 64 equirectangular map, blurred "
-                "with roughness): the scene around it from its centre"
+                "with roughness): the scene around it from its centre, taken to lie on the scene's bounding "
+                "box (parallax: the reflected ray from the surface point, the map looked up towards where it "
+                "leaves the box)"
             ),
             "material.transmission": approximate(
-                "the transmitted share weight x (1 - F) (Schlick, F0 from the IOR): solid objects are opaque "
-                "and show, along the ray refracted in and out as through a sphere, tinted by the base colour "
-                "once, what the indirect-light probe rendered from inside them sees (a 32 x 64 map; the object "
-                "casts no shadow in it, standing in for the light it focuses; they reflect it too) or else the "
-                "world's light (the probes'); their shadows let their light through, focused as by a ball "
-                "lens (a caustic, from the bounding sphere and the IOR; none for boxy objects); flat ones are "
-                "see-through with a Fresnel-weighted opacity, unrefracted, tinted by the base colour (its "
-                "largest channel through the blend, the others against the world's radiance behind), their "
-                "shadows opaque; the diffuse part scaled by 1 - weight"
+                "the transmitted share weight x (1 - F) (Schlick, F0 from the IOR): solid objects are opaque and show,"
+                " along the ray refracted in and out as through a sphere, tinted by the base colour once, what the "
+                "indirect-light probe rendered from inside them sees (a 32 x 64 map, with parallax from the exit point"
+                " on the bounding sphere to the scene's bounding box; they reflect it too) or else the world's light "
+                "(the probes'); their shadows let their light through, focused as by a ball lens (a caustic, from the "
+                "bounding sphere and the IOR; none for boxy objects); flat ones are see-through with a "
+                "Fresnel-weighted opacity, unrefracted, tinted by the base colour (its largest channel through the "
+                "blend, the others against the world's radiance behind), their shadows opaque; the diffuse part scaled"
+                " by 1 - weight"
             ),
             "material.coat": approximate("coat layer ignored"),
             "material.sheen": approximate("sheen ignored"),

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from blendify_core import DiffuseMaterial, PrincipledBSDFMaterial, Scene, UniformColors, render, testing
+from blendify_core import DiffuseMaterial, MetalMaterial, PrincipledBSDFMaterial, Scene, UniformColors, render, testing
 from blendify_core.registry import available_backends
 
 
@@ -441,3 +441,45 @@ def test_glass_ball_focuses_light_into_its_shadow(pyr):
     print(f"tinted glass cube: centre {centre}, edge {edge}, lit {lit}")
     for spot in (centre, edge):  # lit through the cube, as much as the floor around (Fresnel: 0.92 of it)
         np.testing.assert_allclose(spot / lit, [0.92, 0.3 * 0.92, 0.3 * 0.92], rtol=0.1)
+
+
+def test_mirror_ball_shows_the_floor_with_parallax(pyr):
+    """A mirror ball above a floor red in front (y < -0.5) and green behind, seen level from the front: each
+    pixel of the ball shows the floor where its reflected ray lands, computed here from the ray's hit on the
+    ball, not where the same direction lands from the ball's centre (the probe's map looked up by direction
+    alone: agreement 0.00). Counted over the pixels where the two differ in colour, clear of the boundary and
+    of the silhouette."""
+    scene = Scene()
+    scene.set_orthographic_camera(
+        (48, 48), ortho_scale=2.4, translation=(0, -5.0, 1.2), rotation=(0.7071068, 0.7071068, 0, 0)
+    )
+    edge = -0.5
+    for colour, y in (((0.9, 0.05, 0.05), edge - 5.0), ((0.05, 0.9, 0.05), edge + 5.0)):
+        scene.renderables.add_plane_mesh(
+            10.0, DiffuseMaterial(), UniformColors(colour, color_space="linear"), translation=(0, y, 0)
+        )
+    centre = np.array([0.0, 0.0, 1.2])
+    scene.renderables.add_sphere_nurbs(
+        1.0, MetalMaterial(roughness=0.0), UniformColors((0.9, 0.9, 0.9)), translation=tuple(centre), tag="ball"
+    )
+    scene.lights.set_background_light(1.0)
+    rgb = render(scene, backend=pyr, quality="preview").rgba[..., :3].reshape(-1, 3)
+    o, d = scene.camera.pixel_rays()
+    oc = o - centre
+    b = np.einsum("ij,ij->i", oc, d)
+    disc = b**2 - (np.einsum("ij,ij->i", oc, oc) - 0.9**2)  # inside 0.9 radii: clear of the silhouette
+    hit = disc > 0
+    p = o + (-b - np.sqrt(np.where(hit, disc, 0.0)))[:, None] * d
+    n = p - centre  # radius 1
+    r = d - 2.0 * np.einsum("ij,ij->i", d, n)[:, None] * n
+    down = hit & (r[:, 2] < -0.2)
+    rz = np.where(down, r[:, 2], -1.0)
+    y_ray = p[:, 1] - r[:, 1] * p[:, 2] / rz  # where the reflected ray meets the floor
+    y_dir = centre[1] - r[:, 1] * centre[2] / rz  # where the same direction from the centre meets it
+    differ = down & ((y_ray < edge) != (y_dir < edge)) & (np.abs(y_ray - edge) > 0.2) & (np.abs(y_dir - edge) > 0.2)
+    print(f"{differ.sum()} pixels where the ray's landing point and the centre's direction disagree")
+    assert differ.sum() >= 10
+    red = rgb[differ, 0] > rgb[differ, 1]
+    agree = np.mean(red == (y_ray[differ] < edge))
+    print(f"agreement with the ray's own landing point: {agree:.2f}")
+    assert agree >= 0.8

@@ -12,6 +12,22 @@ uniform float bf_probe_scale;
 // 1 when the probe was rendered from inside this object (its view is the object's surroundings)
 uniform float bf_probe_inside;
 
+// parallax: the map's surroundings taken to lie on the faces of the box bf_proxy_lo .. bf_proxy_hi (the scene's
+// bounds), the map rendered from bf_probe_point; solid glass's exit ray (p, d) looks up the direction from the
+// probe to where it leaves the box
+uniform vec3 bf_probe_point;
+uniform vec3 bf_proxy_lo;
+uniform vec3 bf_proxy_hi;
+uniform float bf_glass_radius;
+
+vec3 bf_probe_parallax(vec3 p, vec3 d)
+{
+    vec3 dd = mix(d, vec3(1e-6), lessThan(abs(d), vec3(1e-6)));
+    vec3 t = max((bf_proxy_lo - p) / dd, (bf_proxy_hi - p) / dd);
+    vec3 q = p + max(min(min(t.x, t.y), t.z), 0.0) * d - bf_probe_point;
+    return dot(q, q) > 1e-12 ? normalize(q) : d;
+}
+
 vec3 bf_probe_radiance(vec3 d, float roughness)
 {
     vec2 uv = vec2(atan(d.y, d.x) / (2.0 * PI) + 0.5, 1.0 - acos(clamp(d.z, -1.0, 1.0)) / PI);
@@ -89,7 +105,8 @@ vec3 bf_environment(vec3 n, vec3 v, float roughness, float metallic, vec3 f0, ve
         vec3 reflected = bf_sh_of(bf_spec_sh, r, band);
 #ifdef BLENDIFY_PROBE_MAP
         if (bf_probe_inside > 0.5) {  // a metal or solid glass: the scene around it
-            reflected = mix(reflected, bf_probe_radiance(r, roughness), max(metallic, bf_glass.x * bf_glass.w));
+            reflected = mix(reflected, bf_probe_radiance(bf_probe_parallax(frag_position, r), roughness),
+                            max(metallic, bf_glass.x * bf_glass.w));
         }
 #endif
         light += reflected * (f0 * ab.x + ab.y);
