@@ -66,8 +66,6 @@ class CostEstimate:
     reaches_target: bool
     #: an engine's extra cost the first time it renders a sample count (Mitsuba's llvm variants compile)
     seconds_per_new_size: float = 0.0
-    #: what the render pays once before its first pass (the scene's translation; included in ``seconds``)
-    seconds_setup: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -139,7 +137,6 @@ def estimate_cost(
 
     t_start = time.perf_counter()
     _, _, warm = one(1, 0)  # translation and engine start-up: paid once by the real render too
-    setup = float(warm.meta.get("timings", {}).get("translate", 0.0))
     name = str(warm.meta.get("backend"))
     if not warm.meta.get("path_tracer"):
         _, seconds, _ = one(1, 0)
@@ -165,7 +162,7 @@ def estimate_cost(
 
     def seconds_for(err: float) -> float:
         sizes, _ = schedule(err, pilot_n, target, base)
-        return setup + len(sizes) * per_pass + sum(sizes) * per_sample + len(set(sizes) - compiled) * per_size
+        return len(sizes) * per_pass + sum(sizes) * per_sample + len(set(sizes) - compiled) * per_size
 
     passes, samples, reached = predict_schedule(pilot_error, pilot_n, target, base)
     seconds = seconds_for(pilot_error)
@@ -187,5 +184,4 @@ def estimate_cost(
         kind="noise",
         reaches_target=reached,
         seconds_per_new_size=per_size,
-        seconds_setup=setup,
     )

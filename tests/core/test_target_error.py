@@ -155,21 +155,6 @@ def test_estimate_cost_predicts_the_samples_the_render_takes(noisy, target):
     assert "samples" in str(est) and f"{target:g}" in str(est)
 
 
-def test_estimate_cost_counts_the_translation_the_render_pays_once(noisy, monkeypatch):
-    """The pilot's first call translates the scene; the render pays that once more, before its passes."""
-    import time
-
-    def slow_translate(self, scene, settings):
-        time.sleep(0.2)
-        return scene
-
-    monkeypatch.setattr(NoisyBackend, "translate", slow_translate)
-    est = bf.estimate_cost(plane_scene("sun"), backend=noisy, target_error=0.02)
-    assert est.seconds_setup >= 0.2
-    assert est.seconds >= est.seconds_setup + est.passes * est.seconds_per_pass
-    assert est.seconds_range[0] >= est.seconds_setup
-
-
 def test_estimate_cost_of_a_raster_backend_is_one_render(noisy, monkeypatch):
     monkeypatch.setattr(NoisyBackend, "path_tracer", False)
     est = bf.estimate_cost(plane_scene("sun"), backend=noisy)
