@@ -50,10 +50,10 @@ __all__ = [
 
 #: the time per sample of ``blendify_path`` with ``no_caustics`` relative to Mitsuba's ``path`` (what ``final``'s
 #: caustics pilot weighs its samples by): scalar_rgb runs its bounces in Python, measured 13-33x on a plastic ball
-#: and cube under a sun (64 px, benchmarks/effects_pay.py) and 20-48x in benchmarks/results/mitsuba_no_shadow.md;
-#: the vectorised variants run it as one symbolic loop (one kernel, as ``path``): llvm_ad_rgb 0.7-1.1x per sample
-#: (median about 1.0; 128 px, 64 spp, plastic under a sun, under a sun and a sky, Lambertian; paired, under load),
-#: weighed 1.25 here (it was 45x there while the loop was evaluated bounce by bounce)
+#: and cube under a sun (64 px, benchmarks/effects_pay.py) and 31-79x in benchmarks/results/mitsuba_no_shadow.md (48
+#: px, loaded); the vectorised variants run it as one symbolic loop (one kernel, as ``path``): llvm_ad_rgb 0.7-1.1x
+#: per sample (median about 1.0; 128 px, 64 spp, plastic under a sun, under a sun and a sky, Lambertian; paired,
+#: under load), weighed 1.25 here (it was 45x there while the loop was evaluated bounce by bounce)
 NO_CAUSTICS_COST = {"scalar": 30.0, "jit": 1.25}
 
 #: ``device=`` -> the variant asked for ("cpu": the fastest CPU variant, llvm_ad_rgb else scalar_rgb)

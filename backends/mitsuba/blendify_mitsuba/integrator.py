@@ -19,8 +19,9 @@ lobes: light reaching a diffuse surface through a glossy or refractive one is le
 
 The translator uses it only when a scene has such a light or caustics are off. In the vectorised variants its
 bounces are one symbolic loop (``drjit.while_loop``: one kernel, no Python per bounce), about as fast per sample
-as ``path``; the scalar variants run the same loop body in Python per sample, 13-48x slower than ``path``
-(measured in benchmarks/results/mitsuba_no_shadow.md and at ``NO_CAUSTICS_COST``).
+as ``path`` (0.7-2.2x on 48 px renders of a few hundredths of a second); the scalar variants run the same loop
+body in Python per sample, 13-79x slower than ``path`` (measured in benchmarks/results/mitsuba_no_shadow.md and at
+``NO_CAUSTICS_COST``).
 
 Mitsuba is imported inside the functions; :func:`register` is called with the variant set (the session's
 engine lock held).
