@@ -54,6 +54,7 @@ from OpenGL.GL import (
     GL_CULL_FACE,
     GL_DEPTH_ATTACHMENT,
     GL_DEPTH_BUFFER_BIT,
+    GL_DEPTH_COMPONENT,
     GL_DEPTH_COMPONENT24,
     GL_DEPTH_TEST,
     GL_DRAW_FRAMEBUFFER,
@@ -150,6 +151,28 @@ POINTS_MIN_DRAWN = 100_000
 #: 125-146 ms); 0.85 -> 7.9k, 0.605, 209 ms; 0.7 -> 12k, 0.647, 303 ms; 0.5 -> 23k, 0.725, 454 ms; all 142k,
 #: 0.91, 1.8-2.8 s)
 SUBPIXEL_DRAWN_DIAMETER = 1.0
+#: the coverage scheme splats clouds of spheres under 1.5 px instead (where float targets render): every sphere is
+#: shaded once, as a whole, in a target of SPLAT_WIDTH texels a row (FrameRenderer._shade_points), and its radiance
+#: spread over the pixels its projected area overlaps (splat_points) - no thinning, no speckle (small_points of
+#: benchmarks/preview_look.py: all 150k spheres for about the time of the 5.7k thinned ones). False: thinned
+SPLAT = True
+SPLAT_WIDTH = 1024
+#: the splat shades at most this many spheres per pixel of the image (one in every k of the splat order, the k - 1
+#: after it, its neighbours in space, take its light; each keeps its own colour)
+SPLAT_SHADES_PER_PIXEL = 2.0
+#: squares of sub-pixel spheres narrower than this (px) count whole in the pixel of their centre (splat_points)
+SPLAT_ONE_TAP = 0.25
+#: depth slabs of the splat, composited front to back (small_points: 1 slab, an order-free mean, SSIM 0.914; 4:
+#: 0.928; 8: 0.929; 16: 0.929)
+SPLAT_LAYERS = 8
+SPLAT_NOTE = (
+    "pointcloud: spheres under 1.5 px are each shaded once as a whole (direct light: its mean over the half the "
+    "eye sees, a Lambertian sphere's phase function; shadows looked up at the point facing the eye; the world's "
+    "light averaged over that half) and splatted: each covers the square of its projected area, a pixel's colour "
+    "is the covered-fraction-weighted mean of its spheres (no depth order within a pixel), its coverage "
+    "1 - prod(1 - fraction); a sphere is hidden when its centre lies behind a surface drawn before the cloud, and "
+    "lies over translucent surfaces in front of it; colour only"
+)
 #: indirect light from a light probe (probe.py)
 PROBE = True
 #: every light in the colour pass: scenes with more lights of a type than pyrender binds per draw are rendered
@@ -202,6 +225,9 @@ _SPHERE_VERT_MAIN = """
 _SPHERE_FRAG_DECL = "\n#ifdef BLENDIFY_SPHERE\n#define frag_position bf_sphere_pos\n#endif\n"
 _SPHERE_FRAG_MAIN = "#ifdef BLENDIFY_SPHERE\n    bf_sphere_hit();\n#endif\n"
 _SPHERE_TEXCOORD = "#ifdef BLENDIFY_SPHERE\nlayout(location = TEXCOORD_0_LOC) in vec2 texcoord_0;\n#endif\n"
+#: the per-sphere shading pass (BLENDIFY_POINT_SHADE): one quad over the whole target, each fragment one sphere
+_POINT_SHADE_VERT = "#ifdef BLENDIFY_POINT_SHADE\n    gl_Position = vec4(position.xy, 0.0, 1.0);\n#endif\n"
+_BRDF_NL = "        float nl = clamp(dot(n, l), 0.001, 1.0);\n"
 #: the markers our own shaders hold where the sphere library goes
 _SPHERE_MARKERS = ("// @BLENDIFY_SPHERE_VERT@\n", "// @BLENDIFY_SPHERE_FRAG@\n")
 _GLASS_DIFFUSE = "    vec3 c_diff = mix(vec3(0.0), base_color.rgb * (1 - min_roughness), 1.0 - metallic);\n"
@@ -322,11 +348,17 @@ _SPHERE_PATCHES = (
     ),
     ("mesh.frag", _TWO_SIDED_PATCH, _TWO_SIDED_PATCH + "\n#ifdef BLENDIFY_SPHERE\n    n = bf_sphere_normal;\n#endif"),
     ("mesh.frag", "void main()\n{\n", "void main()\n{\n" + _SPHERE_FRAG_MAIN),
+    # a sphere shaded as a whole (BLENDIFY_POINT_SHADE): the mean of n.l over the disc it shows
+    (
+        "mesh.frag",
+        _BRDF_NL,
+        "#ifdef BLENDIFY_POINT_SHADE\n        float nl = bf_sphere_phase(dot(n, l));\n#else\n" + _BRDF_NL + "#endif\n",
+    ),
     ("mesh.frag", _FRAG_COLOR, _FRAG_COLOR + "#ifdef BLENDIFY_SPHERE\n    frag_color.a *= bf_sphere_cover;\n#endif\n"),
     (
         "mesh.vert",
         "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n",
-        "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n" + _SPHERE_VERT_MAIN,
+        "    gl_Position = P * V * M * inst_m * vec4(position, 1);\n" + _SPHERE_VERT_MAIN + _POINT_SHADE_VERT,
     ),
     (
         "mesh_depth.vert",
@@ -500,8 +532,9 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
     shadow maps' mesh_depth.vert/frag while ``sphere``, BLENDIFY_SOFT while ``soft`` (the frame has a light with
     soft shadows), BLENDIFY_PROBE_MAP while ``probe_map`` (metals reflect the probe's map), BLENDIFY_PROBE_GRID
     while ``probe_grid`` (indirect light from a grid of probes), BLENDIFY_CAUSTIC while ``caustic`` (shadows let
-    the light of solid glass through) and BLENDIFY_FLOAT_COLOR while ``float_color`` (linear output for the float
-    colour pass). Unused code still costs
+    the light of solid glass through), BLENDIFY_FLOAT_COLOR while ``float_color`` (linear output for the float
+    colour pass) and BLENDIFY_POINT_SHADE (with BLENDIFY_FLOAT_COLOR) while ``point_shade`` (each sphere of a
+    cloud shaded once, FrameRenderer._shade_points). Unused code still costs
     llvmpipe: each is a variant."""
 
     sphere = False
@@ -510,6 +543,7 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
     float_color = False
     probe_grid = False
     caustic = False
+    point_shade = False
 
     def get_program(
         self, vertex_shader: str, fragment_shader: str, geometry_shader: Any = None, defines: Any = None
@@ -526,6 +560,8 @@ class _ProgramCache(pyrender.shader_program.ShaderProgramCache):  # type: ignore
             defines = {**(defines or {}), "BLENDIFY_PROBE_GRID": 1}
         if self.caustic and vertex_shader == "mesh.vert":
             defines = {**(defines or {}), "BLENDIFY_CAUSTIC": 1}
+        if self.point_shade and vertex_shader == "mesh.vert":
+            defines = {**(defines or {}), "BLENDIFY_POINT_SHADE": 1, "BLENDIFY_FLOAT_COLOR": 1}
         return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
 
 
@@ -697,23 +733,24 @@ class GBuffer:
 
 
 class _FloatTexture:
-    """A linearly filtered RGB float 2D texture (pyrender's textures are 8-bit) that pyrender's
-    ``_bind_texture`` can bind."""
+    """A linearly (or nearest) filtered RGB or RGBA float 2D texture (pyrender's textures are 8-bit) that
+    pyrender's ``_bind_texture`` can bind."""
 
-    def __init__(self, data: np.ndarray) -> None:
-        h, w, _ = data.shape
+    def __init__(self, data: np.ndarray, nearest: bool = False) -> None:
+        h, w, c = data.shape
         self.id = GL.glGenTextures(1)
         GL.glBindTexture(GL.GL_TEXTURE_2D, self.id)
+        filt = GL.GL_NEAREST if nearest else GL.GL_LINEAR
         for param, value in (
-            (GL.GL_TEXTURE_MIN_FILTER, GL.GL_LINEAR),
-            (GL.GL_TEXTURE_MAG_FILTER, GL.GL_LINEAR),
+            (GL.GL_TEXTURE_MIN_FILTER, filt),
+            (GL.GL_TEXTURE_MAG_FILTER, filt),
             (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE),
             (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE),
         ):
             GL.glTexParameteri(GL.GL_TEXTURE_2D, param, value)
         glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         pixels = np.zeros((h, w, 4), dtype=np.float32)  # RGBA: llvmpipe filters it faster than RGB
-        pixels[..., :3] = data
+        pixels[..., :c] = data
         GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL_RGBA32F, w, h, 0, GL_RGBA, GL_FLOAT, pixels)
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
 
@@ -773,7 +810,19 @@ class FrameRenderer(pyrender.Renderer):
         #: light uniforms are set once: (program, node, first texture unit, world light) -> (texture binds, next unit)
         self.lighting_cache: dict[Any, tuple[list[tuple[int, Any]], int]] | None = None
         self._texture_log: list[tuple[int, Any]] | None = None
-        self.float_color = self.float_targets_supported()
+        self.float_targets = self.float_targets_supported()
+        self.float_color = self.float_targets
+        self.max_texture_size = int(glGetIntegerv(GL.GL_MAX_TEXTURE_SIZE))
+        #: while True (the coverage scheme's colour pass), clouds marked ``point_splat`` (_thin_clouds) are shaded
+        #: sphere by sphere (:meth:`_shade_points`) instead of drawn; the radiance lands in ``splat_shades``:
+        #: id(primitive) -> (primitive, pose, (M, 4) radiance and opacity of every stride-th sphere of the splat
+        #: order, (H, W) window depth drawn before it, stride)
+        self.point_splat = False
+        self.splat_shades: dict[int, tuple[Any, np.ndarray, np.ndarray, np.ndarray, int]] = {}
+        #: per cloud: (the cloud, its shading pass's quad, its spheres' texture) (:meth:`_splat_inputs`)
+        self._splat_inputs_of: dict[int, tuple[Any, Any, Any]] = {}
+        #: primitives the coverage pass leaves out (splatted clouds bring their own coverage)
+        self.coverage_skip: set[int] = set()
 
     @property
     def float_color(self) -> bool:
@@ -811,7 +860,7 @@ class FrameRenderer(pyrender.Renderer):
 
     # -- framebuffers ----------------------------------------------------------------------------
     def _framebuffer(self, kind: str, width: int, height: int, samples: int) -> dict[str, Any]:
-        floats = kind == "color" and self.float_color
+        floats = (kind == "color" and self.float_color) or kind == "points"
         key = (kind, width, height, samples, floats)
         fb = self._targets.get(key)
         if fb is not None:
@@ -820,7 +869,7 @@ class FrameRenderer(pyrender.Renderer):
         for old in [k for k in self._targets if k[0] == kind]:
             self._free_target(self._targets.pop(old))
         fb = {"fbos": [], "rbs": []}
-        if kind in ("color", "coverage"):
+        if kind in ("color", "coverage", "points"):
             fmt = GL_RGBA32F if floats else GL_RGBA8
             color_rb, depth_rb = glGenRenderbuffers(2)
             glBindRenderbuffer(GL_RENDERBUFFER, color_rb)
@@ -1060,10 +1109,21 @@ class FrameRenderer(pyrender.Renderer):
         self._program_cache.sphere = is_sphere_cloud(primitive)
         self._program_cache.probe_map = self.probe_texture is not None and self.probe_scale > 0.0
         self._program_cache.probe_grid = self.probe_grid is not None
+        self._program_cache.point_shade = self._splatting(primitive)
         try:
             return super()._get_primitive_program(primitive, flags, program_flags)
         finally:
             self._program_cache.sphere = False
+            self._program_cache.point_shade = False
+
+    def _splatting(self, primitive: Any) -> bool:
+        """Whether this draw shades a cloud sphere by sphere for the splat (:meth:`_shade_points`)."""
+        return (
+            self.point_splat
+            and self._shadow_light is None
+            and self._target[2] == 0
+            and bool(getattr(primitive, "point_splat", False))
+        )
 
     def _bind_and_draw_primitive(self, primitive: Any, pose: Any, program: Any, flags: int) -> None:
         glass = getattr(primitive.material, "blendify_glass", None)
@@ -1077,6 +1137,9 @@ class FrameRenderer(pyrender.Renderer):
         program.set_uniform("bf_probe_inside", 1.0 if getattr(primitive, "blendify_probe_inside", False) else 0.0)
         if not is_sphere_cloud(primitive):
             super()._bind_and_draw_primitive(primitive, pose, program, flags)
+            return
+        if self._splatting(primitive):
+            self._shade_points(primitive, pose, program, flags)
             return
         shadow = self._shadow_light is not None  # shadow maps: every sphere, exact
         # multisampled colour: the sphere is intersected at every sample (gl_FragCoord is the sample's
@@ -1115,6 +1178,100 @@ class FrameRenderer(pyrender.Renderer):
             if per_sample:
                 glDisable(GL_SAMPLE_SHADING)
 
+    # -- clouds of sub-pixel spheres, splatted ----------------------------------------------------------
+    def splat_layout(self, n: int) -> tuple[int, int] | None:
+        """(width, height) of a texture of ``n`` texels, row by row (SPLAT_WIDTH a row); None when it exceeds the
+        driver's texture size."""
+        width = min(SPLAT_WIDTH, self.max_texture_size, max(n, 1))
+        height = max(1, -(-n // width))
+        return None if height > self.max_texture_size else (width, height)
+
+    def _splat_inputs(self, primitive: Any) -> tuple[Any, Any]:
+        """A cloud's shading quad (its attributes laid out as the cloud's, so that the cloud's program draws it)
+        and the texture of its spheres (centre, diameter; object units) in splat order (_splat_order); made on
+        first use, freed with the cloud (:meth:`free_splat_inputs`)."""
+        key = id(primitive)
+        hit = self._splat_inputs_of.get(key)
+        if hit is not None and hit[0] is primitive:
+            return hit[1], hit[2]
+        n = len(primitive.point_all_indices) // 2
+        layout = self.splat_layout(n)
+        if layout is None:  # _thin_clouds checks it first
+            raise RenderError(f"pyrender: a cloud of {n} points exceeds the shading target's size")
+        width, height = layout
+        order = _splat_order(primitive)
+        centres = np.zeros((width * height, 4), dtype=np.float32)
+        centres[:n, :3] = primitive.positions[0 : 4 * n : 4][order]
+        centres[:n, 3] = primitive.texcoord_0[0 : 4 * n : 4, 0][order]
+        points = _FloatTexture(centres.reshape(height, width, 4), nearest=True)
+        quad = pyrender.Primitive(
+            positions=np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=np.float32),
+            texcoord_0=np.zeros((4, 2), dtype=np.float32),
+            # white: the spheres' own colours multiply the shaded colour later (splat_points), as COLOR_0 does
+            color_0=None if primitive.color_0 is None else np.ones((4, 4), dtype=np.float32),
+            indices=np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32),
+            material=primitive.material,
+            mode=GLTF.TRIANGLES,
+        )
+        quad._add_to_context()
+        self.free_splat_inputs(key)
+        self._splat_inputs_of[key] = (primitive, quad, points)
+        return quad, points
+
+    def free_splat_inputs(self, key: int | None = None, keep: set[int] | None = None) -> None:
+        """Free the shading inputs of one cloud (``key``), or of every cloud not in ``keep``."""
+        keys = [key] if key is not None else [k for k in self._splat_inputs_of if k not in (keep or set())]
+        for k in keys:
+            entry = self._splat_inputs_of.pop(k, None)
+            if entry is not None:
+                entry[1]._remove_from_context()
+                entry[2].delete()
+
+    def _shade_points(self, primitive: Any, pose: Any, program: Any, flags: int) -> None:
+        """Shade the spheres of a cloud, each as a whole (the BLENDIFY_POINT_SHADE program: one fragment per
+        sphere, in a float target of its own; white, its colour applied by splat_points), one in every ``stride``
+        of the splat order (at most SPLAT_SHADES_PER_PIXEL per pixel of the image: neighbours share it), and read
+        the radiance back into ``splat_shades`` (summed over the passes of light groups), with the window depth
+        of what the colour pass drew before the cloud (opaque surfaces, farther translucent ones) for
+        splat_points' occlusion test. Draws nothing into the colour pass."""
+        quad, points = self._splat_inputs(primitive)
+        n = len(primitive.point_all_indices) // 2
+        w, h = self._target[0], self._target[1]
+        stride = max(1, -(-n // max(1, int(SPLAT_SHADES_PER_PIXEL * w * h))))
+        shaded = -(-n // stride)
+        layout = self.splat_layout(shaded)
+        if layout is None:  # fewer than the cloud's points, which fit (_thin_clouds)
+            raise RenderError(f"pyrender: {shaded} shaded spheres exceed the shading target's size")
+        width, height = layout
+        main = self._main_fb_ms
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, main)
+        glPixelStorei(GL_PACK_ALIGNMENT, 1)
+        depth = np.frombuffer(glReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT), dtype=np.float32)
+        depth = depth.reshape(h, w)[::-1]
+        self._bind_texture(points, "bf_point_data", program)
+        program.set_uniform("bf_point_layout", np.array([width, stride, n], dtype=np.int32))
+        fb = self._framebuffer("points", width, height, 0)
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb["draw"])
+        glViewport(0, 0, width, height)
+        glDisable(GL_DEPTH_TEST)
+        glDepthMask(False)
+        try:
+            super()._bind_and_draw_primitive(quad, pose, program, flags)
+            glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["read"])
+            glReadBuffer(GL_COLOR_ATTACHMENT0)
+            buf = glReadPixels(0, 0, width, height, GL_RGBA, GL_FLOAT)
+            shade = np.frombuffer(buf, dtype=np.float32).reshape(-1, 4)[:shaded]
+        finally:
+            glBindFramebuffer(GL_FRAMEBUFFER, main)
+            glViewport(0, 0, w, h)
+            glEnable(GL_DEPTH_TEST)
+            glDepthMask(True)
+        prev = self.splat_shades.get(id(primitive))
+        if prev is not None:  # a later light group's pass: its lights add up
+            shade = shade.copy()
+            shade[:, :3] += prev[2][:, :3]
+        self.splat_shades[id(primitive)] = (primitive, np.asarray(pose, dtype=np.float64), shade, depth, stride)
+
     def sort_clouds(self, scene: Any, nodes: list[Any]) -> None:
         """Order the drawn points of each cloud of sub-pixel spheres (``point_px_max`` < 1.5, set per frame: drawn
         as GL points, :func:`point_sprites`) far to near in its element buffer: their blended coverage then
@@ -1127,6 +1284,8 @@ class FrameRenderer(pyrender.Renderer):
                 continue
             for prim in node.mesh.primitives:
                 if not is_sphere_cloud(prim) or getattr(prim, "point_px_max", np.inf) >= 1.5:
+                    continue
+                if getattr(prim, "point_splat", False):
                     continue
                 twin = point_sprites(prim)
                 m = len(twin.indices)
@@ -1277,6 +1436,8 @@ class FrameRenderer(pyrender.Renderer):
                 continue
             pose = scene.get_pose(node)
             for prim in node.mesh.primitives:
+                if not full and id(prim) in self.coverage_skip:
+                    continue
                 defines = _buffer_defines(prim)
                 sphere = is_sphere_cloud(prim)
                 if sphere:
@@ -1474,6 +1635,107 @@ def apply_coverage(rgba: np.ndarray, coverage: np.ndarray, own: np.ndarray | Non
     return out
 
 
+def splat_points(
+    centres: np.ndarray,
+    radii: np.ndarray,
+    radiance: np.ndarray,
+    opacity: np.ndarray,
+    view: np.ndarray,
+    proj: np.ndarray,
+    width: int,
+    height: int,
+    depth: np.ndarray | None = None,
+    layers: int = SPLAT_LAYERS,
+) -> np.ndarray:
+    """The premultiplied linear (H, W, 4) image of a cloud of sub-pixel spheres, each shaded as a whole:
+    ``centres`` (3, N) and ``radii`` (N,) in the frame of ``view`` (model-view), ``radiance`` (3, N) linear,
+    ``opacity`` (N,), ``proj`` the OpenGL projection (perspective or orthographic), ``depth`` (H, W, rows top to
+    bottom) the window depth of what hides the spheres (None: nothing).
+
+    A sphere covers the square of its projected area around its projected centre (as the blended spheres of the
+    colour pass, shaders/blendify_sphere_frag.glsl), so the fraction ``w`` of a pixel it covers is the square's
+    overlap with the pixel, times its opacity (a square under SPLAT_ONE_TAP px wide counts whole in the pixel of its
+    centre). The cloud's depth range is cut into ``layers`` slabs; per pixel and slab: colour = the w-weighted mean
+    radiance of the spheres in it, alpha = 1 - prod(1 - w) (independent spheres: a single one covers its fraction,
+    many small ones 1 - exp(-their summed fractions), a path tracer's coverage); the slabs are composited front to
+    back (within a slab the order of the spheres is ignored). A sphere whose centre lies behind ``depth`` at its
+    pixel is hidden."""
+    m = (np.asarray(proj, dtype=np.float64) @ np.asarray(view, dtype=np.float64)).astype(np.float32)
+    x, y, z = (np.asarray(c, dtype=np.float32) for c in centres)
+    cw = m[3, 0] * x + m[3, 1] * y + m[3, 2] * z + m[3, 3]
+    cz = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z + m[2, 3]
+    keep = (cw > 1e-12) & (np.abs(cz) <= cw)  # in front of the camera, between the clipping planes
+    inv = np.divide(np.float32(1.0), cw, out=np.zeros_like(cw), where=keep)
+    u = (m[0, 0] * x + m[0, 1] * y + m[0, 2] * z + m[0, 3]) * inv
+    u = u * np.float32(0.5 * width) + np.float32(0.5 * width)
+    v = (m[1, 0] * x + m[1, 1] * y + m[1, 2] * z + m[1, 3]) * inv
+    v = np.float32(0.5 * height) - v * np.float32(0.5 * height)  # rows top to bottom
+    # half the side of the square of the disc's area (pixels): sqrt(pi)/2 x the radius r f / w
+    s = np.asarray(radii, dtype=np.float32) * inv * np.float32(0.25 * np.sqrt(np.pi) * proj[0][0] * width)
+    keep &= (u + s > 0) & (u - s < width) & (v + s > 0) & (v - s < height)
+    if depth is not None:
+        d = cz * inv * np.float32(0.5) + np.float32(0.5)
+        ix = np.clip(u, 0, width - 1).astype(np.int32)
+        iy = np.clip(v, 0, height - 1).astype(np.int32)
+        keep &= d < depth[iy, ix]
+    channels = [np.asarray(c, dtype=np.float32) for c in radiance]
+    opacity = np.asarray(opacity, dtype=np.float32)
+    lin = cw if proj[3][2] != 0.0 else cz  # linear in the view depth (perspective: w; orthographic: z)
+    if not keep.all():
+        u, v, s, opacity, lin = u[keep], v[keep], s[keep], opacity[keep], lin[keep]
+        channels = [c[keep] for c in channels]
+    size = width * height
+    # the depth slab of each sphere: its first pixel index
+    slab = np.zeros(u.size, dtype=np.int32)
+    if u.size and layers > 1:
+        lo, hi = float(lin.min()), float(lin.max())
+        if hi > lo:
+            slab = np.minimum(((lin - lo) * np.float32(layers / (hi - lo))).astype(np.int32), layers - 1) * size
+    else:
+        layers = 1
+    acc = np.zeros((5, layers * size), dtype=np.float64)  # sum w, sum w rgb, sum log(1 - w)
+
+    def add(idx: np.ndarray, w: np.ndarray) -> None:
+        idx = idx + slab
+        acc[0] += np.bincount(idx, weights=w, minlength=layers * size)
+        for c in range(3):
+            acc[1 + c] += np.bincount(idx, weights=w * channels[c], minlength=layers * size)
+        acc[4] += np.bincount(idx, weights=np.log1p(-np.minimum(w, np.float32(0.9999))), minlength=layers * size)
+
+    if s.size and 2.0 * float(s.max()) < SPLAT_ONE_TAP:
+        col = np.minimum(u.astype(np.int32), width - 1)  # u > -s > -1: truncation gives 0 left of the image
+        row = np.minimum(v.astype(np.int32), height - 1)
+        add(row * width + col, np.minimum(4.0 * s * s, np.float32(1.0)) * opacity)
+    elif s.size:
+        x0, y0 = np.floor(u - s), np.floor(v - s)
+        # overlaps of the square with the columns x0, x0 + 1 (x0 + 2 when it is wider than a pixel) and the rows
+        taps = 2 if float(s.max()) <= 0.5 else 3
+        ox, oy = [], []
+        for lo, c0, o in ((u - s, x0, ox), (v - s, y0, oy)):
+            hi = lo + 2.0 * s
+            for k in range(taps):
+                o.append(np.clip(np.minimum(hi, c0 + (k + 1)) - np.maximum(lo, c0 + k), 0.0, 1.0))
+        x0i, y0i = x0.astype(np.int32), y0.astype(np.int32)
+        for j in range(taps):
+            row = y0i + j
+            row_ok = (row >= 0) & (row < height)
+            for i in range(taps):
+                col = x0i + i
+                ok = row_ok & (col >= 0) & (col < width)
+                add(np.where(ok, row * width + col, 0), np.where(ok, ox[i] * oy[j] * opacity, np.float32(0.0)))
+    acc = acc.reshape(5, layers, size)
+    alpha = 1.0 - np.exp(acc[4])  # per slab
+    behind = np.cumprod(1.0 - alpha, axis=0)  # light through the slabs up to each one, front first
+    seen = alpha.copy()
+    seen[1:] *= behind[:-1]
+    scale = np.divide(seen, acc[0], out=np.zeros_like(seen), where=acc[0] > 0)
+    out = np.zeros((height, width, 4), dtype=np.float32)
+    for c in range(3):
+        out[..., c] = (acc[1 + c] * scale).sum(axis=0).reshape(height, width)
+    out[..., 3] = (1.0 - behind[-1]).reshape(height, width)
+    return out
+
+
 def box_downsample(img: np.ndarray, k: int) -> np.ndarray:
     if k == 1:
         return img
@@ -1502,13 +1764,14 @@ def _shadow_flags(frame: Frame) -> int:
     return flags
 
 
-def _thin_clouds(scene: Any, frame: Frame) -> list[str]:
+def _thin_clouds(scene: Any, frame: Frame, splat: FrameRenderer | None = None) -> list[str]:
     """Choose how many points of each cloud the colour passes draw (the G-buffer and the shadow maps draw
     all): at most ``POINTS_PER_PIXEL`` points per covered pixel (a prefix of the randomly ordered points,
     never fewer than ``POINTS_MIN_DRAWN``), all of them when the cloud is not that dense; a cloud of spheres
     under ``SUBPIXEL_DRAWN_DIAMETER`` pixels is thinned to spheres of about that size, and a thinned cloud of
-    sub-pixel spheres draws them larger by sqrt(all / drawn) (same summed area, same coverage). Returns the
-    notes (approximations) of the thinned clouds."""
+    sub-pixel spheres draws them larger by sqrt(all / drawn) (same summed area, same coverage). With ``splat``
+    (the renderer, when the frame's colour pass splats) a cloud of spheres all under 1.5 px is marked
+    ``point_splat`` instead and keeps every point. Returns the notes (approximations) of the thinned clouds."""
     cam = frame.camera
     eye = scene.get_pose(scene.main_camera_node)[:3, 3]
     notes: list[str] = []
@@ -1522,6 +1785,17 @@ def _thin_clouds(scene: Any, frame: Frame) -> list[str]:
             centre = scene.get_pose(node)[:3, 3]
             px, extent_px = cam.screen_size(d, centre), cam.screen_size(prim.point_extent, centre)
             n = len(prim.point_all_indices) // 2  # two triangles per point
+            # the largest sphere at the cloud's nearest point: are all spheres under 1.5 px (blended whole)?
+            toward = eye - centre
+            dist = float(np.linalg.norm(toward))
+            near = centre + toward / max(dist, 1e-30) * min(prim.point_extent, 0.999 * dist)
+            px_max = cam.screen_size(prim.point_diameter_max, near)
+            prim.point_splat = splat is not None and px_max < 1.5 and splat.splat_layout(n) is not None
+            if prim.point_splat:  # every sphere, shaded once and splatted (FrameRenderer._shade_points)
+                prim._indices = prim.point_all_indices
+                prim.sphere_scale = 1.0
+                prim.point_px, prim.point_px_max = px, px_max
+                continue
             area = min(np.pi * extent_px**2, float(cam.width * cam.height))
             if px < SUBPIXEL_DRAWN_DIAMETER:
                 # sub-pixel spheres each cost a whole pixel's shading: draw fewer, larger ones
@@ -1535,11 +1809,7 @@ def _thin_clouds(scene: Any, frame: Frame) -> list[str]:
             # the thinned cloud keeps the summed area (and so the coverage) of the whole cloud
             prim.sphere_scale = float(np.sqrt(n / m)) if px < 1.0 else 1.0
             prim.point_px = px * prim.sphere_scale
-            # the largest sphere at the cloud's nearest point: are all spheres under 1.5 px (blended whole)?
-            toward = eye - centre
-            dist = float(np.linalg.norm(toward))
-            near = centre + toward / max(dist, 1e-30) * min(prim.point_extent, 0.999 * dist)
-            prim.point_px_max = cam.screen_size(prim.point_diameter_max, near) * prim.sphere_scale
+            prim.point_px_max = px_max * prim.sphere_scale
             if m < n and px < 1.0:
                 notes.append(
                     f"pointcloud: colour from {m} of {n} points (sub-pixel spheres: a random subset, drawn "
@@ -1559,29 +1829,100 @@ def _color(engine: Engine, frame: Frame, w: int, h: int, aa: AntiAliasing, flags
     r, scene = engine.renderer, engine.pscene
     if aa.mode in ("none", "coverage"):
         # the coverage scheme: point clouds' edges and sub-pixel spheres blended by the fraction of each pixel
-        # they cover in the colour pass (its alpha)
+        # they cover in the colour pass (its alpha), or (clouds marked point_splat) shaded sphere by sphere and
+        # splatted (splat_points)
         r.sphere_blend = aa.mode == "coverage"
+        prims = [p for n in frame.nodes if n is not None for p in n.mesh.primitives]
+        splats = {id(p) for p in prims if r.sphere_blend and getattr(p, "point_splat", False)}
         if r.sphere_blend:
             r.sort_clouds(scene, frame.nodes)
+        r.point_splat = bool(splats)
+        r.splat_shades = {}
         try:
             rgba = color_pass_linear(r.render_color(scene, w, h, 0, flags))
         finally:
             r.sphere_blend = False
+            r.point_splat = False
         if aa.mode == "coverage":
             ids = {node: i for i, node in enumerate(frame.nodes) if node is not None}
             # supersampled, not multisampled: llvmpipe's MSAA is 4x slower even for a trivial shader
             k = COVERAGE_SUPERSAMPLE
-            cov = box_downsample(r.render_coverage(scene, w * k, h * k, 0, ids), k)
+            r.coverage_skip = splats  # they bring their own coverage
+            try:
+                cov = box_downsample(r.render_coverage(scene, w * k, h * k, 0, ids), k)
+            finally:
+                r.coverage_skip = set()
             # pixels a cloud's blended spheres cover in part keep the colour pass's alpha (their coverage)
             own = None
-            if any(is_sphere_cloud(p) for n in frame.nodes if n is not None for p in n.mesh.primitives):
+            if any(is_sphere_cloud(p) for p in prims):
                 own = (rgba[..., 3] > 0.0) & (rgba[..., 3] < 1.0)
             rgba = apply_coverage(rgba, cov, own=own)
+        if r.splat_shades:
+            rgba = _composite_splats(r, scene, rgba, w, h)
         return rgba
     if aa.mode == "msaa":
         return color_pass_linear(r.render_color(scene, w, h, aa.msaa, flags))
     k = max(1, aa.supersample)  # "ssaa"
     return box_downsample(color_pass_linear(r.render_color(scene, w * k, h * k, 0, flags)), k)
+
+
+def _splat_order(prim: Any) -> np.ndarray:
+    """The order in which a cloud's spheres are shaded and splatted (cached): along a Morton curve through its
+    bounding box (10 bits an axis), so that neighbouring fragments of the shading pass look up neighbouring
+    texels of the shadow maps (in the cloud's random order the look-ups thrash the texture caches: 2x slower)."""
+    order = getattr(prim, "splat_order", None)
+    if order is None:
+        n = len(prim.point_all_indices) // 2
+        p = np.asarray(prim.positions[0 : 4 * n : 4], dtype=np.float64)
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        q = ((p - lo) / np.maximum(hi - lo, 1e-30) * 1023.0).astype(np.uint64)
+        code = np.zeros(n, dtype=np.uint64)
+        for bit in range(10):
+            for axis in range(3):
+                code |= ((q[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+        order = prim.splat_order = np.argsort(code, kind="stable")
+    return order  # type: ignore[no-any-return]
+
+
+def _splat_spheres(prim: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """A cloud's sphere centres (3, N) and radii (N,) (float32 object units) and colours ((4, N) or None), in its
+    splat order (cached)."""
+    cached = getattr(prim, "splat_spheres", None)
+    if cached is None:
+        n = len(prim.point_all_indices) // 2
+        order = _splat_order(prim)
+        centres = np.ascontiguousarray(np.asarray(prim.positions[0 : 4 * n : 4], dtype=np.float32)[order].T)
+        radii = 0.5 * np.asarray(prim.texcoord_0[0 : 4 * n : 4, 0], dtype=np.float32)[order]
+        colours = None
+        if prim.color_0 is not None:
+            c = np.ones((n, 4), dtype=np.float32)
+            c0 = np.asarray(prim.color_0[0 : 4 * n : 4], dtype=np.float32)[order]
+            c[:, : c0.shape[1]] = c0
+            colours = np.ascontiguousarray(c.T)
+        cached = prim.splat_spheres = (centres, radii, colours)
+    return cached  # type: ignore[no-any-return]
+
+
+def _composite_splats(r: FrameRenderer, scene: Any, rgba: np.ndarray, w: int, h: int) -> np.ndarray:
+    """The splatted clouds of the last colour pass (``r.splat_shades``) over the anti-aliased colour, the farthest
+    cloud first: each sphere takes the shade of the sphere its stride shaded times its own colour (COLOR_0
+    multiplies the shaded colour)."""
+    view, proj = r._get_camera_matrices(scene)
+    eye = scene.get_pose(scene.main_camera_node)[:3, 3]
+    entries = sorted(r.splat_shades.values(), key=lambda e: -float(np.linalg.norm(e[1][:3, 3] - eye)))
+    r.splat_shades = {}
+    for prim, pose, shade, depth, stride in entries:
+        centres, radii, colours = _splat_spheres(prim)
+        n = radii.size
+        per = np.ascontiguousarray(shade.T)
+        if stride > 1:
+            per = np.repeat(per, stride, axis=1)[:, :n]
+        if colours is not None:
+            per = per * colours
+        scale = float(np.linalg.norm(pose[:3, 0]))  # as the shaders: the model matrix's first column
+        layer = splat_points(centres, radii * scale, per[:3], per[3], view @ pose, proj, w, h, depth)
+        rgba = layer + (1.0 - layer[..., 3:4]) * rgba
+    return rgba
 
 
 def _indirect_probe(engine: Engine, frame: Frame, flags: int) -> tuple[np.ndarray, str]:
@@ -1616,13 +1957,18 @@ def render_frame(engine: Engine, frame: Frame, settings: RenderSettings, aa: Ant
     renderer._program_cache.soft = any(
         casts and float(getattr(node.light, "blendify_soft", 0.0)) > 0.0 for node, _, casts in frame.light_nodes
     )
-    approximations += _thin_clouds(scene, frame)
+    splat = SPLAT and aa.mode == "coverage" and renderer.float_targets
+    approximations += _thin_clouds(scene, frame, renderer if splat else None)
     clouds = [p for n in frame.nodes if n is not None for p in n.mesh.primitives if is_sphere_cloud(p)]
-    if "rgb" in set(settings.outputs) and aa.mode == "coverage" and any(p.point_px_max < 1.5 for p in clouds):
-        approximations.append(
-            "pointcloud: spheres under 1.5 px are blended by the fraction of each pixel they cover, far to near, "
-            "each shaded as a whole (at the point facing the eye, direct light x 2/3); colour only"
-        )
+    renderer.free_splat_inputs(keep={id(p) for p in clouds if p.point_splat})
+    if "rgb" in set(settings.outputs) and aa.mode == "coverage":
+        if any(p.point_px_max < 1.5 and not p.point_splat for p in clouds):
+            approximations.append(
+                "pointcloud: spheres under 1.5 px are blended by the fraction of each pixel they cover, far to "
+                "near, each shaded as a whole (at the point facing the eye, direct light x 2/3); colour only"
+            )
+        if any(p.point_splat for p in clouds):
+            approximations.append(SPLAT_NOTE)
     renderer.shadow_key = (frame.shadow_key, "all")
     catchers = [(i, e.node) for i, e in enumerate(frame.entries) if e.node is not None and e.catcher]
     want = set(settings.outputs)

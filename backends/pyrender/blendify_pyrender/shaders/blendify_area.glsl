@@ -44,7 +44,11 @@ vec3 bf_area_light(int i, vec3 n, vec3 v, float roughness, float metallic, vec3 
             float d2 = max(dot(d, d), 1e-12);
             vec3 l = d * inversesqrt(d2);
             float cos_e = -dot(dir, l);
+#ifdef BLENDIFY_POINT_SHADE
+            if (cos_e > 0.0) {  // a sphere shaded as a whole: lit from any side (bf_sphere_phase)
+#else
             if (cos_e > 0.0 && dot(n, l) > 0.0) {
+#endif
                 sum += compute_brdf(n, v, l, roughness, metallic, f0, c_diff, albedo, le * (cos_e / d2));
             }
         }

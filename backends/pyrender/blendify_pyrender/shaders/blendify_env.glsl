@@ -92,7 +92,13 @@ vec3 bf_sh(vec3 d, vec3 band)
 
 vec3 bf_environment(vec3 n, vec3 v, float roughness, float metallic, vec3 f0, vec3 c_diff)
 {
+#ifdef BLENDIFY_POINT_SHADE
+    // a sphere shaded as a whole (blendify_sphere_frag.glsl): the mean of the irradiance over the disc it shows,
+    // its bands scaled by the disc's mean of P_l(n.v) (1, 2/3, 1/4)
+    vec3 light = c_diff * bf_sh(n, vec3(1.0, 2.0 / 3.0, 0.25));
+#else
     vec3 light = c_diff * bf_sh(n, vec3(1.0));
+#endif
     if (roughness < 0.999 || metallic > 0.0) {  // a diffuse-only material (roughness 1, dielectric) has no lobe
         float nv = clamp(dot(n, v), 1e-4, 1.0);
         vec3 r = reflect(-v, n);

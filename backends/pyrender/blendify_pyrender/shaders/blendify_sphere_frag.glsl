@@ -7,6 +7,11 @@
 // bf_sphere_cover = the covered fraction of the pixel, for blending: unbiased, the area is kept). A sphere under
 // 1.5 px is shaded as a whole: at the point facing the eye, its direct light times bf_sphere_direct = 2/3 (the
 // mean of n.l over a lit disc is 2/3 of its value at the disc's centre).
+// BLENDIFY_POINT_SHADE (with BLENDIFY_SPHERE): every fragment of a target of bf_point_layout.x texels a row shades one
+// sphere of a cloud as a whole, for the splat of sub-pixel spheres (render.py, splat_points): fragment g shades
+// sphere g x bf_point_layout.y (of bf_point_layout.z) of bf_point_data, seen from the eye, its direct light the mean
+// over the visible half (bf_sphere_phase in compute_brdf), shadows looked up at the point facing the eye, the
+// world's light with the bands scaled to the disc's mean (blendify_env.glsl); its own colour is applied later.
 #ifdef BLENDIFY_SPHERE
 uniform mat4 V;
 uniform mat4 P;
@@ -19,6 +24,24 @@ vec3 bf_sphere_normal;
 float bf_sphere_depth;
 float bf_sphere_cover;
 float bf_sphere_direct;
+#ifdef BLENDIFY_POINT_SHADE
+uniform mat4 M;
+uniform sampler2D bf_point_data;  // per sphere (texel = its index, row by row): centre xyz (object units), diameter
+uniform ivec3 bf_point_layout;    // the target's width (texels), spheres per fragment, spheres
+// screen-space derivatives mean nothing here (neighbouring fragments are unrelated spheres): the soft shadows'
+// receiver plane is flat
+#define dFdx(x) (0.0 * (x))
+#define dFdy(x) (0.0 * (x))
+
+// the mean of max(n.l, 0) over the disc a sphere shows the eye (a Lambertian sphere's phase function), cos_a the
+// cosine of the angle between the directions to the eye and to the light: 2/3 facing the light, 0 behind it
+float bf_sphere_phase(float cos_a)
+{
+    float c = clamp(cos_a, -1.0, 1.0);
+    float a = acos(c);
+    return max((2.0 / 3.0) * (sqrt(1.0 - c * c) + (3.14159265 - a) * c) / 3.14159265, 0.001);
+}
+#endif
 
 // the view-space point at view depth z on the ray through ndc
 vec3 bf_view_at(vec2 ndc, float z)
@@ -43,6 +66,24 @@ float bf_disc_cover(float dist_px)
 
 void bf_sphere_hit()
 {
+#ifdef BLENDIFY_POINT_SHADE
+    int index = (int(gl_FragCoord.y) * bf_point_layout.x + int(gl_FragCoord.x)) * bf_point_layout.y;
+    index = min(index, bf_point_layout.z - 1);
+    int width = textureSize(bf_point_data, 0).x;
+    vec4 data = texelFetch(bf_point_data, ivec2(index % width, index / width), 0);
+    vec3 centre = (M * vec4(data.xyz, 1.0)).xyz;
+    float radius = 0.5 * data.w * length(vec3(M[0]));
+    mat3 to_world = transpose(mat3(V));
+    vec3 eye = -(to_world * V[3].xyz);
+    // toward the eye: along the view axis for an orthographic camera
+    vec3 toward = P[2][3] != 0.0 ? normalize(eye - centre) : to_world * vec3(0.0, 0.0, 1.0);
+    bf_sphere_normal = toward;
+    bf_sphere_pos = centre + radius * toward;
+    bf_sphere_depth = dot(to_world * vec3(0.0, 0.0, -1.0), bf_sphere_pos - eye);
+    bf_sphere_cover = 1.0;
+    bf_sphere_direct = 1.0;
+    return;
+#endif
     vec2 ndc = 2.0 * gl_FragCoord.xy / bf_viewport - 1.0;
     vec3 o = bf_view_at(ndc, 0.0);
     vec3 d = normalize(bf_view_at(ndc, -1.0) - o);
