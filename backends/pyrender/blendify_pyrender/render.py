@@ -1771,7 +1771,8 @@ def _thin_clouds(scene: Any, frame: Frame, splat: FrameRenderer | None = None) -
     under ``SUBPIXEL_DRAWN_DIAMETER`` pixels is thinned to spheres of about that size, and a thinned cloud of
     sub-pixel spheres draws them larger by sqrt(all / drawn) (same summed area, same coverage). With ``splat``
     (the renderer, when the frame's colour pass splats) a cloud of spheres all under 1.5 px is marked
-    ``point_splat`` instead and keeps every point. Returns the notes (approximations) of the thinned clouds."""
+    ``point_splat``: its colour comes from every point (the thinned subset is what the light probes draw).
+    Returns the notes (approximations) of the thinned clouds."""
     cam = frame.camera
     eye = scene.get_pose(scene.main_camera_node)[:3, 3]
     notes: list[str] = []
@@ -1790,12 +1791,8 @@ def _thin_clouds(scene: Any, frame: Frame, splat: FrameRenderer | None = None) -
             dist = float(np.linalg.norm(toward))
             near = centre + toward / max(dist, 1e-30) * min(prim.point_extent, 0.999 * dist)
             px_max = cam.screen_size(prim.point_diameter_max, near)
+            # every sphere shaded once and splatted (FrameRenderer._shade_points)
             prim.point_splat = splat is not None and px_max < 1.5 and splat.splat_layout(n) is not None
-            if prim.point_splat:  # every sphere, shaded once and splatted (FrameRenderer._shade_points)
-                prim._indices = prim.point_all_indices
-                prim.sphere_scale = 1.0
-                prim.point_px, prim.point_px_max = px, px_max
-                continue
             area = min(np.pi * extent_px**2, float(cam.width * cam.height))
             if px < SUBPIXEL_DRAWN_DIAMETER:
                 # sub-pixel spheres each cost a whole pixel's shading: draw fewer, larger ones
@@ -1810,13 +1807,13 @@ def _thin_clouds(scene: Any, frame: Frame, splat: FrameRenderer | None = None) -
             prim.sphere_scale = float(np.sqrt(n / m)) if px < 1.0 else 1.0
             prim.point_px = px * prim.sphere_scale
             prim.point_px_max = px_max * prim.sphere_scale
-            if m < n and px < 1.0:
+            if m < n and not prim.point_splat and px < 1.0:
                 notes.append(
                     f"pointcloud: colour from {m} of {n} points (sub-pixel spheres: a random subset, drawn "
                     f"{prim.sphere_scale:.2g}x wider so that it covers what the whole cloud does; depth, normal "
                     "and instance from every point)"
                 )
-            elif m < n:
+            elif m < n and not prim.point_splat:
                 notes.append(
                     f"pointcloud: colour from {m} of {n} points (a random subset: about {POINTS_PER_PIXEL} "
                     "points per covered pixel at this view; depth, normal and instance from every point)"
@@ -1836,6 +1833,9 @@ def _color(engine: Engine, frame: Frame, w: int, h: int, aa: AntiAliasing, flags
         splats = {id(p) for p in prims if r.sphere_blend and getattr(p, "point_splat", False)}
         if r.sphere_blend:
             r.sort_clouds(scene, frame.nodes)
+        for p in prims:  # made before the pass: making a texture rebinds the active unit (a light's shadow map)
+            if id(p) in splats:
+                r._splat_inputs(p)
         r.point_splat = bool(splats)
         r.splat_shades = {}
         try:

@@ -611,7 +611,9 @@ class PyrenderTranslator(Translator):
                 "exact spheres at pixel centres: one quad per point over the sphere's projected box, the ray "
                 "through each pixel centre intersected with the sphere (depth, normal, instance and shadow maps; "
                 "perspective and orthographic cameras); the colour of clouds denser than 8 points per covered "
-                "pixel or of sub-pixel spheres comes from a random subset, listed in result.meta['approximations']"
+                "pixel comes from a random subset; clouds of spheres under 1.5 px are shaded sphere by sphere as "
+                "wholes and splatted by their projected area (coverage anti-aliasing; a random subset of wider "
+                "spheres otherwise), listed in result.meta['approximations']"
             ),
             "pointcloud.vertex_colors": approximate("per-point colours multiply the shaded colour (COLOR_0)"),
             "pointcloud.emission": approximate("emission added to the shaded colour; lights nothing else"),

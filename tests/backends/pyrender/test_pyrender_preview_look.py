@@ -105,10 +105,15 @@ def test_sphere_casts_its_exact_shadow(pyr):
     assert abs(int((shadow & floor_only).sum()) - int((expected & floor_only).sum())) <= 0.05 * expected.sum()
 
 
+@pytest.mark.parametrize("splat", [True, False])
 @pytest.mark.parametrize("d_px", [0.4, 0.8])
-def test_sub_pixel_spheres_cover_their_area(pyr, d_px):
-    """Spheres far below a pixel: each covers the pixel whose centre falls in its disc, so a cloud of them
-    covers 1 - exp(-sum of their projected areas per pixel) of the image, as a path tracer's alpha."""
+def test_sub_pixel_spheres_cover_their_area(pyr, d_px, splat, monkeypatch):
+    """Spheres far below a pixel: a cloud of them covers 1 - exp(-sum of their projected areas per pixel) of the
+    image, as a path tracer's alpha, whether the coverage scheme splats every sphere (render.SPLAT) or blends
+    them in the colour pass (a random subset of wider spheres of the same summed area from the second frame)."""
+    from blendify_pyrender import render as pr
+
+    monkeypatch.setattr(pr, "SPLAT", splat)
     rng = np.random.default_rng(3)
     n = 4000
     scene = Scene()
@@ -119,12 +124,11 @@ def test_sub_pixel_spheres_cover_their_area(pyr, d_px):
     res = render(scene, backend=pyr, quality="preview")
     expected = 1 - np.exp(-n * np.pi * d_px**2 / 4 / (48 * 36))  # 0.25, 0.69
     assert abs(res.rgba[..., 3].mean() - expected) < 0.05 * expected
-    # later frames draw a random subset of wider spheres of the same summed area: the same coverage
-    from blendify_pyrender.render import SUBPIXEL_DRAWN_DIAMETER
-
     again = render(scene, backend=pyr, quality="preview")
-    thinned = any("sub-pixel spheres" in a for a in again.meta["approximations"])
-    assert thinned == (d_px < SUBPIXEL_DRAWN_DIAMETER)
+    notes = again.meta["approximations"]
+    assert (pr.SPLAT_NOTE in notes) == splat
+    thinned = any("sub-pixel spheres" in a for a in notes)
+    assert thinned == (not splat and d_px < pr.SUBPIXEL_DRAWN_DIAMETER)
     assert abs(again.rgba[..., 3].mean() - expected) < 0.05 * expected
 
 
