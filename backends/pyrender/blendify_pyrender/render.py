@@ -1920,7 +1920,8 @@ def _composite_splats(r: FrameRenderer, scene: Any, rgba: np.ndarray, w: int, h:
         if colours is not None:
             per = per * colours
         scale = float(np.linalg.norm(pose[:3, 0]))  # as the shaders: the model matrix's first column
-        layer = splat_points(centres, radii * scale, per[:3], per[3], view @ pose, proj, w, h, depth)
+        hides = depth is not None and float(depth.min()) < 1.0  # (1: nothing drawn before the cloud)
+        layer = splat_points(centres, radii * scale, per[:3], per[3], view @ pose, proj, w, h, depth if hides else None)
         rgba = layer + (1.0 - layer[..., 3:4]) * rgba
     return rgba
 
