@@ -1255,6 +1255,9 @@ class FrameRenderer(pyrender.Renderer):
         glViewport(0, 0, width, height)
         glDisable(GL_DEPTH_TEST)
         glDepthMask(False)
+        glClearBufferfv(GL_COLOR, 0, np.zeros(4, dtype=np.float32))
+        material, alpha_mode = quad.material, quad.material.alphaMode
+        material.alphaMode = "OPAQUE"  # written as shaded (radiance, opacity), not blended over the target
         try:
             super()._bind_and_draw_primitive(quad, pose, program, flags)
             glBindFramebuffer(GL_READ_FRAMEBUFFER, fb["read"])
@@ -1262,6 +1265,7 @@ class FrameRenderer(pyrender.Renderer):
             buf = glReadPixels(0, 0, width, height, GL_RGBA, GL_FLOAT)
             shade = np.frombuffer(buf, dtype=np.float32).reshape(-1, 4)[:shaded]
         finally:
+            material.alphaMode = alpha_mode
             glBindFramebuffer(GL_FRAMEBUFFER, main)
             glViewport(0, 0, w, h)
             glEnable(GL_DEPTH_TEST)

@@ -193,3 +193,22 @@ def test_splatted_spheres_take_every_light_group(pyr):
     one = lit(1)
     assert one.min() > 0.05
     np.testing.assert_allclose(lit(80), one, rtol=0.02)
+
+
+def test_translucent_splatted_spheres_cover_by_their_opacity(pyr):
+    """Spheres of opacity 0.5 (a colour's alpha) let half the light through: the cloud covers
+    1 - exp(-0.5 x the summed area per pixel), as many independent half-transparent spheres do."""
+    rng = np.random.default_rng(9)
+    n, d_px = 8000, 0.3
+    pts = np.c_[rng.uniform(-1.2, 1.2, n), rng.uniform(-0.9, 0.9, n), rng.uniform(-0.5, 0.5, n)]
+    area = n * np.pi * d_px**2 / 4 / (W * H)
+    for alpha in (1.0, 0.5):
+        scene = Scene()
+        scene.set_orthographic_camera((W, H), ortho_scale=W * PX, translation=(0, 0, 5.0), near=0.1, far=20)
+        scene.renderables.add_pointcloud(
+            pts, DiffuseMaterial(), UniformColors((0.8, 0.8, 0.8, alpha), color_space="linear"), point_size=PX * d_px
+        )
+        scene.lights.set_background_light(1.0)
+        res = render(scene, backend=pyr, quality="preview")
+        expected = 1 - np.exp(-alpha * area)
+        assert abs(res.rgba[..., 3].mean() - expected) < 0.05 * expected, (alpha, res.rgba[..., 3].mean(), expected)
