@@ -1925,7 +1925,8 @@ def _composite_splats(r: FrameRenderer, scene: Any, rgba: np.ndarray, w: int, h:
             per = per * colours
         scale = float(np.linalg.norm(pose[:3, 0]))  # as the shaders: the model matrix's first column
         hides = depth is not None and float(depth.min()) < 1.0  # (1: nothing drawn before the cloud)
-        layer = splat_points(centres, radii * scale, per[:3], per[3], view @ pose, proj, w, h, depth if hides else None)
+        hidden_by = depth if hides else None
+        layer = splat_points(centres, radii * scale, per[:3], per[3], view @ pose, proj, w, h, hidden_by, SPLAT_LAYERS)
         rgba = layer + (1.0 - layer[..., 3:4]) * rgba
     return rgba
 

@@ -212,3 +212,27 @@ def test_translucent_splatted_spheres_cover_by_their_opacity(pyr):
         res = render(scene, backend=pyr, quality="preview")
         expected = 1 - np.exp(-alpha * area)
         assert abs(res.rgba[..., 3].mean() - expected) < 0.05 * expected, (alpha, res.rgba[..., 3].mean(), expected)
+
+
+def test_splatted_spheres_take_shadows(pyr):
+    """Shadows fall onto the splatted spheres: a square out of view, above the cloud, hides the sun (shining
+    from -X, 45 deg) from the spheres left of x = 0.3; those to the right keep it."""
+    rng = np.random.default_rng(11)
+    n = 3000
+    pts = np.c_[rng.uniform(-1.2, 1.2, n), rng.uniform(-0.9, 0.9, n), np.zeros(n)]
+    scene = _ortho_scene(pts, 0.5)
+    scene.renderables.add_plane_mesh(
+        1.8, DiffuseMaterial(), UniformColors((0.5, 0.5, 0.5)), translation=(-2.1, 0, 1.5), tag="roof"
+    )
+    scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(0, -45, 0))
+    res = render(scene, backend=pyr, quality="preview", outputs=("rgb", "instance"))
+    assert not np.any(res.instance == res.instance_tags.index("roof"))  # out of view
+    alpha = res.rgba[..., 3]
+    x = (np.arange(W) + 0.5) * PX - W * PX / 2
+    lum = np.where(alpha > 0.05, res.rgba[..., :3].mean(axis=-1) / np.maximum(alpha, 1e-6), np.nan)
+    shaded = np.nanmedian(lum[:, x < -0.2])
+    lit = np.nanmedian(lum[:, x > 0.7])
+    a = np.deg2rad(45.0)
+    expected = 0.8 * 3.0 / np.pi * (2.0 / 3.0) * (np.sin(a) + (np.pi - a) * np.cos(a)) / np.pi
+    assert abs(lit - expected) < 0.1 * expected, (lit, expected)
+    assert shaded < 0.05 * lit, (shaded, lit)
