@@ -152,7 +152,7 @@ def run_case(kind: str, n: int, variant: str, accuracy: bool) -> dict[str, Any]:
         t1 = time.perf_counter()
         bf.render(scene, b, samples=SPP)
         warm = time.perf_counter() - t1
-        native_scene = b.session._native.scene if b.session._native is not None else None
+        native_scene = b.session.native.scene if b.session.native is not None else None
     else:
         import mitsuba as mi
 

@@ -81,6 +81,10 @@ class MitsubaNative:
     translate_cached: bool = False  # reused from the previous render (nothing changed)
 
 
+#: translations of one scene kept per session, by their settings (final's full passes and one pilot's)
+CACHED_TRANSLATIONS = 2
+
+
 class MitsubaSession:
     """One backend instance's engine state: its variant (resolved on first use), the engine lock and the
     cached translation."""
@@ -91,8 +95,8 @@ class MitsubaSession:
         self.sampler = sampler
         self._choice: VariantChoice | None = None
         self._tracker = ChangeTracker()
-        self._key: tuple[Any, ...] | None = None
-        self._native: MitsubaNative | None = None
+        #: the latest translations by their settings key, most recent last (at most CACHED_TRANSLATIONS)
+        self._cache: dict[tuple[Any, ...], MitsubaNative] = {}
 
     # -- the variant and the engine ---------------------------------------------------------------------
     @property
@@ -154,7 +158,8 @@ class MitsubaSession:
         nor the translation settings changed, or only the camera changed but not its sensor; else a new
         translation. A new sample count alone reuses it too (``mi.render`` takes the count per call; only the
         square-pixel plan of a camera with fx != fy depends on it): ``final``'s passes of new sizes used to
-        reload the whole scene each time."""
+        reload the whole scene each time. The last ``CACHED_TRANSLATIONS`` settings keep theirs, so ``final``'s
+        pilot (other bounces or caustics) and the full passes after it load the scene once each."""
         if not isinstance(scene, Scene):
             raise InvalidSceneError(f"scene: expected a blendify_core.Scene, got {type(scene).__name__}")
         if scene.camera is None:
@@ -168,24 +173,34 @@ class MitsubaSession:
             self.variant,
         )
         changes = self._tracker.update(scene)
-        cached, self._native = self._native, None
+        cache, self._cache = self._cache, {}
         try:
-            same_plan = cached is not None and (cached.aniso is None or cached.samples == settings.samples)
-            if cached is not None and key == self._key and same_plan:
-                if not changes.any or (changes.geometry_only_camera and self._same_sensor(cached, scene, settings)):
-                    if cached.aniso is None:
-                        cached.spp = cached.samples = int(settings.samples)
-                    cached.camera = scene.camera
-                    cached.translate_cached = True
-                    self._native = cached
-                    return cached
-            native = self._load(scene, settings)
+            if changes.any:  # only the translation asked for can be checked against a camera-only change
+                kept, cache = cache.get(key), {}
+                if kept is not None and changes.geometry_only_camera and self._same_sensor(kept, scene, settings):
+                    cache[key] = kept
+            cached = cache.pop(key, None)
+            if cached is not None and (cached.aniso is None or cached.samples == settings.samples):
+                if cached.aniso is None:
+                    cached.spp = cached.samples = int(settings.samples)
+                cached.camera = scene.camera
+                cached.translate_cached = True
+                native = cached
+            else:
+                native = self._load(scene, settings)
         except BaseException:
-            self._key = None
             self._tracker.reset()  # the recorded state was never translated
             raise
-        self._native, self._key = native, key
+        cache[key] = native
+        while len(cache) > CACHED_TRANSLATIONS:
+            del cache[next(iter(cache))]
+        self._cache = cache
         return native
+
+    @property
+    def native(self) -> MitsubaNative | None:
+        """The translation of the latest render (None before the first or after :meth:`close`)."""
+        return next(reversed(self._cache.values()), None)
 
     def _translator(self, settings: RenderSettings) -> MitsubaTranslator:
         return MitsubaTranslator(
@@ -247,7 +262,7 @@ class MitsubaSession:
 
     def close(self) -> None:
         """Drop the cached translation."""
-        self._native = self._key = None
+        self._cache = {}
         self._tracker.reset()
 
 

@@ -50,7 +50,7 @@ def test_the_xml_renders_what_the_backend_renders(build, tmp_path, scalar_backen
     mi = scalar_backend.session.set_variant()  # bf.render restores the previous variant
     theirs = _render_xml(mi, path, seed=7)
     assert theirs.shape[:2] == ours.shape[:2]
-    native = scalar_backend.session._native
+    native = scalar_backend.session.native
     keep = np.ones(ours.shape[:2], bool)
     if native.sky_scene is not None and native.coverage_scene is None:
         # an opaque film whose emitters the XML hides: the backend adds the sky back (said in the warning)
@@ -67,7 +67,7 @@ def test_the_xml_renders_what_the_backend_renders(build, tmp_path, scalar_backen
         keep = seen.max(axis=-1) == 0
         assert 0 < keep.mean() < 1
     theirs, ours = theirs[keep][None], ours[keep][None]
-    if _emitter_order(mi.load_file(str(path))) == _emitter_order(scalar_backend.session._native.scene):
+    if _emitter_order(mi.load_file(str(path))) == _emitter_order(scalar_backend.session.native.scene):
         # the same scene, sampled with the same seed: equal up to float32 rounding (measured max 7e-7)
         assert np.abs(theirs[..., :3] - ours[..., :3]).max() < 1e-4
     else:

@@ -495,6 +495,28 @@ def test_translation_is_cached_until_the_scene_changes():
     assert np.array_equal(e.rgba, f.rgba)
 
 
+def test_final_pilot_settings_and_full_settings_keep_their_translations():
+    """final's pilot renders other settings (no bounces, no caustics) between full passes: both translations
+    stay loaded (each loaded once), each renders what a new translation renders, and a scene change drops both."""
+    scene = testing.occluder_scene("sun", True, (16, 16))  # a cube over a plane: indirect light
+    with MitsubaBackend(variant="scalar_rgb") as b:
+        full = [bf.render(scene, backend=b, samples=2, seed=1)]
+        direct = [bf.render(scene, backend=b, samples=2, seed=1, max_bounces=0)]
+        full.append(bf.render(scene, backend=b, samples=3, seed=1))
+        direct.append(bf.render(scene, backend=b, samples=2, seed=1, max_bounces=0))
+        assert [r.meta["translate_cached"] for r in full + direct] == [False, True, False, True]
+        assert full[1].meta["max_depth"] > direct[1].meta["max_depth"] == 2
+        assert np.array_equal(direct[0].rgba, direct[1].rgba)
+        strength = scene.lights["Sun_000"].strength
+        scene.lights["Sun_000"].strength = 6.0
+        again = bf.render(scene, backend=b, samples=2, seed=1, max_bounces=0)
+        assert not again.meta["translate_cached"]
+        assert again.rgba[..., 0].sum() == pytest.approx(6.0 / strength * direct[0].rgba[..., 0].sum(), rel=1e-5)
+        assert not bf.render(scene, backend=b, samples=2, seed=1).meta["translate_cached"]
+    with MitsubaBackend(variant="scalar_rgb") as fresh:
+        assert np.array_equal(bf.render(scene, backend=fresh, samples=2, seed=1, max_bounces=0).rgba, again.rgba)
+
+
 def test_anisotropic_pixels_translate_again_for_a_new_sample_count():
     """fx != fy: the square-pixel plan (rows rendered and resampled) depends on the sample count."""
     scene, _ = testing.marker_scene(fx=150.0, fy=75.0)
@@ -571,7 +593,7 @@ def test_large_pointclouds_are_one_curve_shape_matching_the_spheres():
     for max_spheres in (1000, 0):
         with MitsubaBackend(variant="scalar_rgb", max_analytic_spheres=max_spheres) as b:
             r = bf.render(scene, backend=b, samples=64, outputs=("rgb", "albedo", "instance"))
-            keys = list(b.session._native.shapes)
+            keys = list(b.session.native.shapes)
         results[max_spheres] = (r, keys)
     spheres, curves = results[1000][0], results[0][0]
     assert results[0][1] == ["r00000_curves"] and len(results[1000][1]) == 300
@@ -611,7 +633,7 @@ def test_curve_points_have_the_spheres_depth_and_normals(point_size, fov):
     for max_spheres in (1000, 0):
         with MitsubaBackend(variant="scalar_rgb", max_analytic_spheres=max_spheres) as b:
             out[max_spheres] = bf.render(scene, backend=b, samples=4, outputs=("depth", "normal", "instance"))
-            assert list(b.session._native.shapes)[0].endswith("_curves" if max_spheres == 0 else "_p0000000")
+            assert list(b.session.native.shapes)[0].endswith("_curves" if max_spheres == 0 else "_p0000000")
     a, c = out[1000], out[0]
     mask = _interior(a) & _interior(c)
     assert mask.sum() > 50
