@@ -90,12 +90,12 @@ NOTES = [
     "casting its shadow (lit through by the caustic) in the map: sphere_glass 0.815 -> 0.866, sphere_metal "
     "0.819 -> 0.855; environment 0.855, primitives 0.972, port_threejs_lights_physical 0.945, every_feature "
     "0.948, sphere_diffuse 0.950 unchanged.",
-    "round3, rows pointcloud, small_points and every_feature re-measured (--only, 2026-12-03 08:06 UTC) after "
+    "round3, rows pointcloud, small_points and every_feature re-measured (--only, 2026-12-03 08:15 UTC) after "
     "clouds of spheres under 1.5 px became splatted (each sphere shaded once as a whole, at most 2 shaded spheres "
-    "a pixel, spread on the CPU over the pixels its projected area covers, in 8 depth slabs composited front to "
-    "back): small_points 0.575 -> 0.929 (72 -> 61 ms; coverage 0.350 vs Cycles' 0.340, was 0.344), pointcloud "
-    "0.956 -> 0.969 (40 -> 22 ms), every_feature 0.948 -> 0.954 (its 200 points splatted; times under load: "
-    "the old and new preview alternating in one process, small_points 0.57x, pointcloud 0.70x).",
+    "a pixel, spread on the CPU over the pixels the square of its projected area overlaps, in 8 depth slabs "
+    "composited front to back): small_points 0.575 -> 0.935 (coverage 0.350 vs Cycles' 0.340, was 0.344), "
+    "pointcloud 0.956 -> 0.969, every_feature 0.948 -> 0.954 (its 200 points splatted). Times under load (load "
+    "average 4-5); the old and new preview alternating in one process: small_points 0.85x, pointcloud 0.63x.",
 ]
 
 

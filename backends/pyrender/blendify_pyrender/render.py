@@ -160,8 +160,9 @@ SPLAT_WIDTH = 1024
 #: the splat shades at most this many spheres per pixel of the image (one in every k of the splat order, the k - 1
 #: after it, its neighbours in space, take its light; each keeps its own colour)
 SPLAT_SHADES_PER_PIXEL = 2.0
-#: squares of sub-pixel spheres narrower than this (px) count whole in the pixel of their centre (splat_points)
-SPLAT_ONE_TAP = 0.25
+#: squares of sub-pixel spheres narrower than this (px) count whole in the pixel of their centre (splat_points);
+#: 0: every square is split over the pixels it overlaps (small_points: 0.935, 0.25 px: 0.929 for 10 % less time)
+SPLAT_ONE_TAP = 0.0
 #: depth slabs of the splat, composited front to back (small_points: 1 slab, an order-free mean, SSIM 0.914; 4:
 #: 0.928; 8: 0.929; 16: 0.929)
 SPLAT_LAYERS = 8
@@ -1689,44 +1690,63 @@ def splat_points(
         u, v, s, opacity, lin = u[keep], v[keep], s[keep], opacity[keep], lin[keep]
         channels = [c[keep] for c in channels]
     size = width * height
-    # the depth slab of each sphere: its first pixel index
+    smax = float(s.max()) if s.size else 0.0
+    one_tap = 2.0 * smax < SPLAT_ONE_TAP
+    two_taps = not one_tap and smax <= 0.5  # squares of a pixel or less: on a grid padded by a pixel all round
+    gw, gh = (width + 2, height + 2) if two_taps else (width, height)
+    grid = gw * gh
+    # the depth slab of each sphere: its first cell index
     slab = np.zeros(u.size, dtype=np.int32)
     if u.size and layers > 1:
         lo, hi = float(lin.min()), float(lin.max())
         if hi > lo:
-            slab = np.minimum(((lin - lo) * np.float32(layers / (hi - lo))).astype(np.int32), layers - 1) * size
+            slab = np.minimum(((lin - lo) * np.float32(layers / (hi - lo))).astype(np.int32), layers - 1) * grid
     else:
         layers = 1
-    acc = np.zeros((5, layers * size), dtype=np.float64)  # sum w, sum w rgb, sum log(1 - w)
+    acc = np.zeros((5, layers * grid), dtype=np.float64)  # sum w, sum w rgb, sum log(1 - w)
 
     def add(idx: np.ndarray, w: np.ndarray) -> None:
         idx = idx + slab
-        acc[0] += np.bincount(idx, weights=w, minlength=layers * size)
+        acc[0] += np.bincount(idx, weights=w, minlength=layers * grid)
         for c in range(3):
-            acc[1 + c] += np.bincount(idx, weights=w * channels[c], minlength=layers * size)
-        acc[4] += np.bincount(idx, weights=np.log1p(-np.minimum(w, np.float32(0.9999))), minlength=layers * size)
+            acc[1 + c] += np.bincount(idx, weights=w * channels[c], minlength=layers * grid)
+        acc[4] += np.bincount(idx, weights=np.log1p(-np.minimum(w, np.float32(0.9999))), minlength=layers * grid)
 
-    if s.size and 2.0 * float(s.max()) < SPLAT_ONE_TAP:
+    if s.size and one_tap:
         col = np.minimum(u.astype(np.int32), width - 1)  # u > -s > -1: truncation gives 0 left of the image
         row = np.minimum(v.astype(np.int32), height - 1)
         add(row * width + col, np.minimum(4.0 * s * s, np.float32(1.0)) * opacity)
+    elif s.size and two_taps:
+        # the square overlaps columns x0, x0 + 1 and rows y0, y0 + 1 (x0 >= -1, x0 + 1 <= W: inside the padding)
+        x0, y0 = np.floor(u - s), np.floor(v - s)
+        ox0 = np.minimum(u + s, x0 + 1.0) - (u - s)
+        oy0 = np.minimum(v + s, y0 + 1.0) - (v - s)
+        ox1, oy1 = 2.0 * s - ox0, 2.0 * s - oy0
+        ox0, ox1 = ox0 * opacity, ox1 * opacity
+        base = (y0.astype(np.int32) + 1) * gw + x0.astype(np.int32) + 1
+        add(base, ox0 * oy0)
+        add(base + 1, ox1 * oy0)
+        add(base + gw, ox0 * oy1)
+        add(base + (gw + 1), ox1 * oy1)
     elif s.size:
         x0, y0 = np.floor(u - s), np.floor(v - s)
-        # overlaps of the square with the columns x0, x0 + 1 (x0 + 2 when it is wider than a pixel) and the rows
-        taps = 2 if float(s.max()) <= 0.5 else 3
+        # overlaps of the square with the columns x0, x0 + 1, x0 + 2 (wider than a pixel) and the rows
         ox, oy = [], []
         for lo, c0, o in ((u - s, x0, ox), (v - s, y0, oy)):
             hi = lo + 2.0 * s
-            for k in range(taps):
+            for k in range(3):
                 o.append(np.clip(np.minimum(hi, c0 + (k + 1)) - np.maximum(lo, c0 + k), 0.0, 1.0))
         x0i, y0i = x0.astype(np.int32), y0.astype(np.int32)
-        for j in range(taps):
+        for j in range(3):
             row = y0i + j
             row_ok = (row >= 0) & (row < height)
-            for i in range(taps):
+            for i in range(3):
                 col = x0i + i
                 ok = row_ok & (col >= 0) & (col < width)
                 add(np.where(ok, row * width + col, 0), np.where(ok, ox[i] * oy[j] * opacity, np.float32(0.0)))
+    acc = acc.reshape(5, layers, gh, gw)
+    if two_taps:
+        acc = acc[:, :, 1:-1, 1:-1]
     acc = acc.reshape(5, layers, size)
     alpha = 1.0 - np.exp(acc[4])  # per slab
     behind = np.cumprod(1.0 - alpha, axis=0)  # light through the slabs up to each one, front first
