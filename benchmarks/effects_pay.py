@@ -177,7 +177,10 @@ WHY: dict[str, str | dict[str, str]] = {
         "their 4 passes of 16 samples cost 0.82-0.86x there (the full passes' first estimate asked for 2352 "
         "samples, the render then took 208 or 1728)",
         "mitsuba": "the floor also sees the sky in the coats; the caustics pilot is not tried (30x cost rule), the "
-        "indirect-light pilot's 2 passes (and a reload of the scene) are",
+        "indirect-light pilot's 2 passes and its own translation (0.03 s) are, and keep the light (0.093): at 32 px "
+        "the renders take 0.6-2 s, so that is 0.68x (0.48-1.00, noisy: the machine ran other benchmarks; 0.82x in "
+        "an earlier run). At 128 px no pilot is tried (as in the llvm and Cycles rows). The pilot is gated by "
+        "samples, not seconds, so that a seed gives the same picture",
         "mitsuba:llvm_ad_rgb": "at 128 px the first passes already estimate the render within 65 samples of the "
         "target: neither pilot is tried (not worth their passes), the same work in both settings; the ratios "
         "(0.49-2.20 for identical work) are the timing noise of a loaded machine",

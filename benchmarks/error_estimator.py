@@ -91,6 +91,7 @@ def run(backends: list[str], seeds: int, quick: bool) -> dict[str, Any]:
                         "predicted_seconds": est.seconds,
                         "pilot_seconds": est.pilot_seconds,
                         "reference_error": ref_err,
+                        "variant": r.meta.get("variant"),
                     }
                 )
                 print(
@@ -134,6 +135,9 @@ def write(data: dict[str, Any]) -> None:
         "rendered to a 4x smaller target (its estimated error removed in quadrature).",
         "",
     ]
+    variants = sorted({str(r["variant"]) for r in rows if r.get("variant")})
+    if variants:
+        lines += [f"Mitsuba variant: {', '.join(variants)}.", ""]
     for be in sorted({r["backend"] for r in rows}):
         sub = [r for r in rows if r["backend"] == be]
         ok = sum(_within(r["estimated"], r["true"]) for r in sub)
