@@ -155,6 +155,27 @@ def test_estimate_cost_predicts_the_samples_the_render_takes(noisy, target):
     assert "samples" in str(est) and f"{target:g}" in str(est)
 
 
+def test_estimate_cost_keeps_a_compilation_out_of_the_cost_per_sample(noisy, monkeypatch):
+    """An engine that compiles for every new sample count (Mitsuba's llvm variants): the long pass is timed
+    again once compiled, so the compilation is counted per new size, not spread over the samples."""
+    import time
+
+    seen: set[int] = set()
+    render = NoisyBackend.render
+
+    def compiling_render(self, native, settings):
+        if settings.samples not in seen:
+            seen.add(settings.samples)
+            time.sleep(0.25)
+        return render(self, native, settings)
+
+    monkeypatch.setattr(NoisyBackend, "render", compiling_render)
+    est = bf.estimate_cost(plane_scene("sun"), backend=noisy, target_error=0.005)
+    assert est.seconds_per_new_size >= 0.2
+    assert est.seconds_per_sample * 64 < 0.1  # the 64-sample pass's own compilation is not in its samples
+    assert est.pilot_samples == 4 * 16 + 2 * 64
+
+
 def test_estimate_cost_of_a_raster_backend_is_one_render(noisy, monkeypatch):
     monkeypatch.setattr(NoisyBackend, "path_tracer", False)
     est = bf.estimate_cost(plane_scene("sun"), backend=noisy)
