@@ -1756,7 +1756,9 @@ def splat_points(
     out = np.zeros((height, width, 4), dtype=np.float32)
     for c in range(3):
         out[..., c] = (acc[1 + c] * scale).sum(axis=0).reshape(height, width)
-    out[..., 3] = (1.0 - behind[-1]).reshape(height, width)
+    # rounding in the overlaps and logarithms leaves a hair outside [0, 1] (-5e-12 for spheres of 1e-7 m)
+    out[..., 3] = np.clip(1.0 - behind[-1], 0.0, 1.0).reshape(height, width)
+    np.maximum(out[..., :3], 0.0, out=out[..., :3])
     return out
 
 
