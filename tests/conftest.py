@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -26,6 +27,27 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         default=False,
         help="regenerate the golden reference images instead of comparing against them",
     )
+
+
+#: the Mitsuba variant of every backend a test creates without naming one (tests that are about a variant ask
+#: for it by name). The automatic choice depends on the machine's libLLVM: with one, each small test render
+#: would pay for JIT-compiling its kernels (the default run took 1112 s instead of about 600 s, measured), and
+#: outcomes would depend on what the machine has. Set BLENDIFY_MITSUBA_VARIANT before pytest to run the suite
+#: in another variant (``auto``: the automatic choice).
+TEST_MITSUBA_VARIANT = "scalar_rgb"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _mitsuba_default_variant():
+    """Sets $BLENDIFY_MITSUBA_VARIANT for the session (and the processes it starts) unless the caller set it."""
+    if "BLENDIFY_MITSUBA_VARIANT" in os.environ:
+        yield
+        return
+    os.environ["BLENDIFY_MITSUBA_VARIANT"] = TEST_MITSUBA_VARIANT
+    try:
+        yield
+    finally:
+        os.environ.pop("BLENDIFY_MITSUBA_VARIANT", None)
 
 
 @pytest.fixture

@@ -86,9 +86,10 @@ def _family(variant: str) -> str:
 class MitsubaBackend(Backend):
     """Mitsuba 3 backend.
 
-    Options: ``variant`` (None = the fastest variant that passes a subprocess probe, else
-    ``scalar_rgb``; or a variant name such as "scalar_rgb", "llvm_ad_rgb"; an unusable JIT variant falls
-    back to ``scalar_rgb`` with the reason in ``result.meta["variant_reason"]``),
+    Options: ``variant`` (None = the variant named by ``$BLENDIFY_MITSUBA_VARIANT`` when set, else the fastest
+    variant that passes a subprocess probe, else ``scalar_rgb``; or a variant name such as "scalar_rgb",
+    "llvm_ad_rgb"; an unusable JIT variant falls back to ``scalar_rgb`` with the reason in
+    ``result.meta["variant_reason"]``),
     ``max_analytic_spheres`` (point clouds up to this size are analytic spheres, larger ones one shape of
     capsules when they are opaque and not emissive, else the IR's merged icosphere mesh; None = the measured
     defaults: DEFAULT_MAX_ANALYTIC_OPAQUE for clouds that can be capsules, DEFAULT_MAX_ANALYTIC_SPHERES of the
@@ -190,7 +191,12 @@ class MitsubaBackend(Backend):
         """Lines for ``blendify info``: the variant a default ``MitsubaBackend()`` uses here and why, one line
         per variant probe (the probes run now when the probe cache has no result for them)."""
         gpus = _variant.gpu_devices()
-        return [*describe(None), f"devices: CPU; GPU: {', '.join(gpus) if gpus else 'none (no NVIDIA device node)'}"]
+        try:
+            requested = _variant.variant_from_environment()
+        except ValueError as exc:
+            return [f"unusable setting: {exc}"]
+        lines = describe(requested, None if requested is None else f"{_variant.VARIANT_ENV}={requested}")
+        return [*lines, f"devices: CPU; GPU: {', '.join(gpus) if gpus else 'none (no NVIDIA device node)'}"]
 
     @classmethod
     def capabilities(cls) -> dict[str, Capability]:

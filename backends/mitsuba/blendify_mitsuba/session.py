@@ -33,7 +33,15 @@ from blendify_core.pipeline.settings import RenderSettings
 
 from .aniso import SquarePixelPlan
 from .translate import MitsubaContext, MitsubaTranslator, ShapeInfo
-from .variant import VariantChoice, before_engine_import, choose_variant, quiet_engine_import
+from .variant import (
+    VARIANT_ENV,
+    VariantChoice,
+    before_engine_import,
+    choose_variant,
+    quiet_engine_import,
+    variant_from_environment,
+    with_source,
+)
 
 __all__ = ["DEFAULT_MAX_ANALYTIC_OPAQUE", "DEFAULT_MAX_ANALYTIC_SPHERES", "MitsubaNative", "MitsubaSession"]
 
@@ -90,6 +98,14 @@ class MitsubaSession:
     cached translation."""
 
     def __init__(self, requested_variant: str | None, max_analytic_spheres: int | None, sampler: str) -> None:
+        #: the requested variant comes from $BLENDIFY_MITSUBA_VARIANT (the code asked for none)
+        self.from_env = False
+        if requested_variant is None:
+            try:
+                requested_variant = variant_from_environment()
+            except ValueError as exc:
+                raise InvalidSceneError(str(exc)) from None
+            self.from_env = requested_variant is not None
         self.requested_variant = requested_variant
         self._max_analytic_spheres = max_analytic_spheres
         self.sampler = sampler
@@ -103,7 +119,8 @@ class MitsubaSession:
     def variant_choice(self) -> VariantChoice:
         """The resolved :class:`~blendify_mitsuba.variant.VariantChoice` (probes on first use)."""
         if self._choice is None:
-            self._choice = choose_variant(self.requested_variant)
+            source = f"{VARIANT_ENV}={self.requested_variant}" if self.from_env else None
+            self._choice = with_source(choose_variant(self.requested_variant), source)
         return self._choice
 
     @property

@@ -48,6 +48,9 @@ __all__ = [
     "describe",
     "gpu_devices",
     "KNOWN_VARIANTS",
+    "VARIANT_ENV",
+    "variant_from_environment",
+    "with_source",
 ]
 
 SCALAR = "scalar_rgb"
@@ -61,6 +64,10 @@ PROBE_TIMEOUT = 120.0
 MIN_LLVM = 16
 #: environment variable: a path relocates the probe cache file, off/0/false/none switches it off
 CACHE_ENV = "BLENDIFY_MITSUBA_PROBE_CACHE"
+#: environment variable: the variant a backend created without ``variant=`` or ``device=`` asks for (one of
+#: :data:`KNOWN_VARIANTS`; unset, empty or ``auto``: the automatic choice). Lets a job script, a cluster or a
+#: test run pin the variant without changing code.
+VARIANT_ENV = "BLENDIFY_MITSUBA_VARIANT"
 _CACHE_VERSION = 1
 _CACHE_MAX_ENTRIES = 64
 _DETAIL_CHARS = 2000
@@ -119,6 +126,18 @@ class VariantChoice:
     reason: str
     summary: str = ""
     attempts: tuple[ProbeAttempt, ...] = field(default=(), compare=False)
+
+
+def variant_from_environment() -> str | None:
+    """The variant :data:`VARIANT_ENV` asks for (None: unset, empty or ``auto``, i.e. the automatic choice).
+
+    Raises ``ValueError`` naming the variable and the accepted values for anything else."""
+    raw = os.environ.get(VARIANT_ENV, "").strip()
+    if raw in ("", "auto"):
+        return None
+    if raw not in KNOWN_VARIANTS:
+        raise ValueError(f"{VARIANT_ENV}: expected one of {list(KNOWN_VARIANTS)} or 'auto' (or unset), got {raw!r}")
+    return raw
 
 
 # -- libLLVM discovery --------------------------------------------------------------------------------
@@ -577,11 +596,19 @@ def _choose(requested: str | None, user_llvm: str | None) -> VariantChoice:
     return VariantChoice(SCALAR, None, reason, _fallback_summary(attempts, wanted, no_lib), tuple(attempts))
 
 
-def describe(requested: str | None = None) -> list[str]:
-    """Lines for ``blendify info``: the variant chosen for ``requested`` here and why, one line per probe
-    (runs the probes when the cache has no result for them)."""
+def with_source(choice: VariantChoice, source: str | None) -> VariantChoice:
+    """``choice`` with its reason naming where the request came from (e.g. ``BLENDIFY_MITSUBA_VARIANT=...``)."""
+    if source is None:
+        return choice
+    reason = f"requested by {source}" if choice.reason == "requested" else f"{choice.reason}; asked for by {source}"
+    return replace(choice, reason=reason)
+
+
+def describe(requested: str | None = None, source: str | None = None) -> list[str]:
+    """Lines for ``blendify info``: the variant chosen for ``requested`` (asked for by ``source``, if given)
+    here and why, one line per probe (runs the probes when the cache has no result for them)."""
     t0 = time.perf_counter()
-    choice = choose_variant(requested, quiet=True)
+    choice = with_source(choose_variant(requested, quiet=True), source)
     dt = time.perf_counter() - t0
     lines = [f"variant {choice.variant}" + (f" ({choice.summary})" if choice.summary else f" ({choice.reason})")]
     for a in choice.attempts:

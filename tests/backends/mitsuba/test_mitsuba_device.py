@@ -14,8 +14,10 @@ from blendify_core import testing
 
 @pytest.fixture
 def fresh_choice(monkeypatch):
-    """Variant choices made in this test only (the process-wide memo is replaced)."""
+    """Variant choices made in this test only (the process-wide memo is replaced), automatic where the test
+    names no variant (the suite's $BLENDIFY_MITSUBA_VARIANT is removed)."""
     monkeypatch.setattr(V, "_memo", {})
+    monkeypatch.delenv(V.VARIANT_ENV, raising=False)
     return monkeypatch
 
 
@@ -79,3 +81,31 @@ def test_device_and_variant_must_agree():
 def test_info_lists_the_devices(fake_gpu):
     lines = MitsubaBackend.info_details()
     assert "devices: CPU; GPU: /dev/nvidia0" in lines
+
+
+def test_the_environment_names_the_variant_when_the_code_does_not(fake_gpu, monkeypatch):
+    """$BLENDIFY_MITSUBA_VARIANT pins the variant of a backend created without variant= or device= (meta
+    says so); an explicit variant or device wins; ``auto`` and empty mean the automatic choice."""
+    monkeypatch.setenv(V.VARIANT_ENV, "scalar_rgb")
+    b = MitsubaBackend()
+    assert b.requested_variant == "scalar_rgb" and b.device_choice().used == "CPU (scalar_rgb)"
+    r = bf.render(testing.plane_scene("sun", resolution=(8, 8)), backend=b, samples=1)
+    assert r.meta["variant"] == "scalar_rgb" and "BLENDIFY_MITSUBA_VARIANT=scalar_rgb" in r.meta["variant_reason"]
+    assert MitsubaBackend(device="gpu").device_choice().used == "GPU (cuda_ad_rgb)"
+    assert MitsubaBackend(variant="cuda_ad_rgb").device_choice().used == "GPU (cuda_ad_rgb)"
+    assert MitsubaBackend.info_details()[0] == "variant scalar_rgb (requested by BLENDIFY_MITSUBA_VARIANT=scalar_rgb)"
+    for automatic in ("auto", "", " auto "):
+        monkeypatch.setenv(V.VARIANT_ENV, automatic)
+        assert MitsubaBackend().requested_variant is None
+        assert MitsubaBackend().device_choice().used == "GPU (cuda_ad_rgb)"
+
+
+@pytest.mark.parametrize("value", ["llvm", "scalar_spectral", "SCALAR_RGB", "1"])
+def test_an_unknown_variant_in_the_environment_is_a_clear_error(monkeypatch, value):
+    monkeypatch.setenv(V.VARIANT_ENV, value)
+    with pytest.raises(bf.InvalidSceneError, match=r"BLENDIFY_MITSUBA_VARIANT: expected one of \['scalar_rgb'.*got"):
+        MitsubaBackend()
+    with pytest.raises(bf.InvalidSceneError, match="BLENDIFY_MITSUBA_VARIANT: expected"):
+        bf.render(testing.plane_scene("sun", resolution=(8, 8)), backend="mitsuba", samples=1)
+    assert MitsubaBackend(variant="scalar_rgb").requested_variant == "scalar_rgb"  # the code's choice needs no look
+    assert any("BLENDIFY_MITSUBA_VARIANT: expected" in line for line in MitsubaBackend.info_details())

@@ -41,13 +41,15 @@ class FakeProbe:
 
 @pytest.fixture
 def env(tmp_path, monkeypatch):
-    """A private cache file, a fake libLLVM 15 file, no GPU, Dr.Jit not loaded, nothing memoised."""
+    """A private cache file, a fake libLLVM 15 file, no GPU, Dr.Jit not loaded, nothing memoised, the
+    automatic choice (no $BLENDIFY_MITSUBA_VARIANT)."""
     cache = tmp_path / "cache" / "probes.json"
     lib = tmp_path / "lib" / "libLLVM-15.so.1"
     lib.parent.mkdir()
     lib.write_bytes(b"not really a library")
     monkeypatch.setenv(_variant.CACHE_ENV, str(cache))
     monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
+    monkeypatch.delenv(_variant.VARIANT_ENV, raising=False)
     monkeypatch.setattr(_variant, "_memo", {})
     monkeypatch.setattr(_variant, "_gpu_present", lambda: False)
     monkeypatch.setattr(_variant, "_drjit_loaded", lambda: False)
@@ -277,6 +279,7 @@ def test_blendify_info_shows_the_variant(tmp_path):
         pytest.skip("mitsuba is not installed")
     env = dict(os.environ, BLENDIFY_MITSUBA_PROBE_CACHE=str(tmp_path / "probes.json"))
     env.pop("DRJIT_LIBLLVM_PATH", None)
+    env.pop("BLENDIFY_MITSUBA_VARIANT", None)  # the automatic choice, with its probes
     proc = subprocess.run(
         [sys.executable, "-m", "blendify_core", "info"], env=env, capture_output=True, text=True, timeout=600
     )
