@@ -101,11 +101,15 @@ def test_the_environment_names_the_variant_when_the_code_does_not(fake_gpu, monk
 
 
 @pytest.mark.parametrize("value", ["llvm", "scalar_spectral", "SCALAR_RGB", "1"])
-def test_an_unknown_variant_in_the_environment_is_a_clear_error(monkeypatch, value):
+def test_an_unknown_variant_in_the_environment_is_a_clear_error(monkeypatch, tmp_path, value):
+    """Read when a backend is created (``bf.render(backend="mitsuba")`` creates its shared one once per process)
+    and by the XML export, whose point clouds depend on the variant."""
+    from blendify_mitsuba.export import export_mitsuba
+
     monkeypatch.setenv(V.VARIANT_ENV, value)
     with pytest.raises(bf.InvalidSceneError, match=r"BLENDIFY_MITSUBA_VARIANT: expected one of \['scalar_rgb'.*got"):
         MitsubaBackend()
     with pytest.raises(bf.InvalidSceneError, match="BLENDIFY_MITSUBA_VARIANT: expected"):
-        bf.render(testing.plane_scene("sun", resolution=(8, 8)), backend="mitsuba", samples=1)
+        export_mitsuba(testing.plane_scene("sun", resolution=(8, 8)), tmp_path / "scene.xml")
     assert MitsubaBackend(variant="scalar_rgb").requested_variant == "scalar_rgb"  # the code's choice needs no look
     assert any("BLENDIFY_MITSUBA_VARIANT: expected" in line for line in MitsubaBackend.info_details())
