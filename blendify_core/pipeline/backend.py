@@ -121,6 +121,13 @@ class Backend(abc.ABC):
         it (a fixed number, not a timing, so a seed still gives the same picture). 1.0: no dearer."""
         return 1.0
 
+    def pass_overhead(self, settings: RenderSettings) -> float:
+        """The fixed time of one more render call with ``settings`` (scene update, film, read-back), in
+        pixel-samples of the full settings, as measured for this engine: ``final``'s pilots count it for each
+        of their passes, so that on a small or cheap image a pilot is tried only where its saving exceeds its
+        calls (a fixed number, not a timing, so a seed still gives the same picture). 0.0: negligible."""
+        return 0.0
+
     # -- discovery ---------------------------------------------------------------------------------
     @classmethod
     def probe(cls) -> BackendStatus:

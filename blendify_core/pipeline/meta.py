@@ -130,7 +130,8 @@ class RenderMeta(TypedDict, total=False):
     #: (core, ``target_error`` with ``effects=True``, scenes with caustics) the pilot deciding whether
     #: ``caustics=False`` reaches the target sooner: ``dropped``, ``why``, ``caustics_error`` (relative RMS of the
     #: light through glossy or refractive surfaces onto diffuse ones, 90 % upper bound; ``caustics_error_low``),
-    #: ``passes``, ``sample_cost`` (a pilot sample's cost in full ones), the samples each choice needs
+    #: ``passes``, ``sample_cost`` (a pilot sample's cost in full ones), ``cost_in_samples`` (the pilot's passes
+    #: and their fixed costs in full samples), the samples each choice needs
     caustics_pilot: dict[str, Any]
     #: (``bf.crosscheck`` with ``repeats``) renders averaged into the colour image
     repeats: int

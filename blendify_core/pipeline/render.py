@@ -772,11 +772,20 @@ def _effect_pilot(
     pilot_spp = base
     pilot_settings = pass_settings.replace(**spec["changes"])
     cost = float(inst.pilot_sample_cost(pilot_settings))
-    if need_full < PILOT_MIN_GAIN * (spent + cost * PILOT_PASSES * pilot_spp):
+    # a pilot pass's fixed cost in samples of this image (one more for switching to the pilot's settings)
+    call = float(inst.pass_overhead(pilot_settings)) / max(1, colours[0].shape[0] * colours[0].shape[1])
+
+    def pilot_cost(k: int) -> float:
+        return k * (cost * pilot_spp + call) + call
+
+    if need_full < PILOT_MIN_GAIN * (spent + pilot_cost(PILOT_PASSES)):
         out["retry"] = True  # tried again after the next pass, if the estimate grows
         out["why"] = f"not tried: the full passes need only {need_full:.0f} more samples"
-        if cost != 1:
-            out["why"] += f" (a pilot sample costs {cost:g} full ones)"
+        notes = [f"a pilot sample costs {cost:g} full ones"] if cost != 1 else []
+        if call > 0:
+            notes.append(f"a pass's fixed cost is {call:.3g} samples of this image")
+        if notes:
+            out["why"] += f" ({'; '.join(notes)})"
         return out
     passes: list[FloatArray] = []
     alphas: list[FloatArray] = []
@@ -797,7 +806,7 @@ def _effect_pilot(
             continue
         bias, low = _indirect_bounds(colours, passes)
         undecided = low <= threshold < bias
-        if not undecided or k >= max_passes or need_full < PILOT_MIN_GAIN * (spent + cost * (k + 1) * pilot_spp):
+        if not undecided or k >= max_passes or need_full < PILOT_MIN_GAIN * (spent + pilot_cost(k + 1)):
             break
     counts_p = [pilot_spp] * k
     est_p = relative_error_estimate(np.stack(passes), np.array(counts_p, dtype=np.float64))
@@ -806,6 +815,7 @@ def _effect_pilot(
         passes=k,
         full_samples_needed=int(total + need_full),
         sample_cost=cost,
+        cost_in_samples=pilot_cost(k),
         timings=timings,
     )
     if bias > threshold:
@@ -880,7 +890,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
                     if pilot.pop("retry", False):
                         continue
                     pending.remove(kind)
-                    spent += pilot.get("passes", 0) * pilot.get("sample_cost", 1.0) * base
+                    spent += pilot.get("cost_in_samples", 0.0)
                     if "timings" in pilot:
                         _add_timings(first.meta.setdefault("timings", {}), pilot.pop("timings"))
                     if pilot.get("dropped"):

@@ -42,17 +42,20 @@ def _plastic_scene() -> bf.Scene:
 class _Engine:
     """Passes of a known picture: full = picture x (1 + indirect) + noise(seed); the pilot's (direct light, or
     no caustics) = picture + noise(seed) + remainder x fresh noise (0: the same random numbers, 1: as many again
-    of its own); a pilot's sample costs ``cost`` full ones."""
+    of its own); a pilot's sample costs ``cost`` full ones, a render call ``overhead`` pixel-samples."""
 
     name = "stand-in"
 
-    def __init__(self, indirect: float, remainder: float, cost: float = 1.0) -> None:
-        self.indirect, self.remainder, self.cost = indirect, remainder, cost
+    def __init__(self, indirect: float, remainder: float, cost: float = 1.0, overhead: float = 0.0) -> None:
+        self.indirect, self.remainder, self.cost, self.overhead = indirect, remainder, cost, overhead
         self.picture = 0.2 + 0.6 * np.random.default_rng(0).random(SHAPE)
         self.direct_seeds: list[int] = []
 
     def pilot_sample_cost(self, settings: Any) -> float:
         return 1.0 if settings.caustics else self.cost
+
+    def pass_overhead(self, settings: Any) -> float:
+        return self.overhead
 
     def render_scene(self, scene: Any, settings: Any) -> RenderResult:
         noise = NOISE * self.picture * np.random.default_rng(settings.seed).standard_normal(SHAPE)
@@ -155,6 +158,23 @@ def test_caustics_pilot_weighs_its_samples_by_their_cost(monkeypatch):
     # need_full = 64 x (4^2 x 1.1 - 1) = 1062 < 15360: not tried yet, to be retried after the next pass
     later = _pilot(_Engine(indirect=0.0, remainder=0.02, cost=30.0), estimate_over_target=4.0, kind="caustics")
     assert later.get("retry") and later["why"].startswith("not tried"), later
+
+
+def test_a_pilot_counts_the_fixed_cost_of_its_render_calls():
+    """On a small image a render call's fixed cost (scene update, film, read-back: Cycles about 30 ms) outweighs
+    its samples: the pilot counts it for each of its passes and one switch of settings, so it is tried only
+    where the full passes still need PILOT_MIN_GAIN x that; the decision stays a function of the pixels."""
+    pixels = SHAPE[0] * SHAPE[1]
+    # need_full = 64 x (4^2 x 1.1 - 1) = 1062 samples; 2 passes of 16 samples cost 32: tried without overhead
+    free = _pilot(_Engine(indirect=0.0, remainder=0.02))
+    assert free["passes"] == PILOT_PASSES and free["cost_in_samples"] == PILOT_PASSES * 16, free
+    # 20 samples of fixed cost per call: 2 x (16 + 20) + 20 = 92, x 16 = 1472 > 1062: not tried yet
+    dear = _pilot(_Engine(indirect=0.0, remainder=0.02, overhead=20.0 * pixels))
+    assert dear.get("retry") and "a pass's fixed cost is 20 samples of this image" in dear["why"], dear
+    # 10 samples per call: 2 x 26 + 10 = 62, x 16 = 992 <= 1062: tried, counted, and the same decision as free
+    some = _pilot(_Engine(indirect=0.0, remainder=0.02, overhead=10.0 * pixels))
+    assert some["cost_in_samples"] == 62 and some["dropped"] == free["dropped"], some
+    assert some["pilot_samples_needed"] == free["pilot_samples_needed"]
 
 
 def test_caustics_pilot_not_tried_where_the_analysis_finds_none():

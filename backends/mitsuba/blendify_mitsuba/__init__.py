@@ -56,6 +56,13 @@ __all__ = [
 #: under load), weighed 1.25 here (it was 45x there while the loop was evaluated bounce by bounce)
 NO_CAUSTICS_COST = {"scalar": 30.0, "jit": 1.25}
 
+#: the fixed time of one render call (a pass of ``final``) in pixel-samples, per variant family: measured on a warm
+#: backend as (time of 1 spp) less 1/32 of (33 spp - 1 spp), plastic ball and cube under a sky and the floating
+#: bunny at 32 and 96 px: scalar_rgb 3.3-5.7 ms per call against 0.7-1.5 us per pixel-sample on one thread
+#: (2.2e3-3.9e3; about twice that on two threads), llvm_ad_rgb 10-13 ms against 0.34-0.86 us (1.2e4-4.0e4); the
+#: lowest, so a pilot is never refused for a cost it does not have
+PASS_OVERHEAD = {"scalar": 2.2e3, "jit": 1.2e4}
+
 #: ``device=`` -> the variant asked for ("cpu": the fastest CPU variant, llvm_ad_rgb else scalar_rgb)
 #: ("gpu": cuda_ad_rgb, else the fastest CPU variant, with the reason)
 _DEVICE_VARIANT = {
@@ -159,7 +166,14 @@ class MitsubaBackend(Backend):
         :data:`NO_CAUSTICS_COST` times Mitsuba's ``path`` in its variant family (measured; see there)."""
         if settings.caustics:
             return 1.0
-        return NO_CAUSTICS_COST["scalar" if self.session.variant_choice.variant.startswith("scalar") else "jit"]
+        return NO_CAUSTICS_COST[self._family()]
+
+    def pass_overhead(self, settings: RenderSettings) -> float:
+        """One render call's fixed time in pixel-samples of its variant family (:data:`PASS_OVERHEAD`)."""
+        return PASS_OVERHEAD[self._family()]
+
+    def _family(self) -> str:
+        return "scalar" if self.session.variant_choice.variant.startswith("scalar") else "jit"
 
     def device_choice(self) -> DeviceChoice | None:
         """What this backend renders on: the variant chosen (probes run once per process) and, when the
