@@ -8,7 +8,7 @@ Injected defects, applied to one side: a 1 % global brightness bias (the colour 
 instead of sRGB, re-rendered), a mirrored texture (re-rendered): the detection rate is the fraction that
 FAIL. Cycles vs Mitsuba on the same scenes is reported too (informative: the engines, not the statistics).
 
-Run: ``nice -n 10 wtpy benchmarks/crosscheck_calibration.py [--scenes 20 --seeds 5 --res 64x48 --spp 64]``.
+Run: ``nice -n 10 uv run python benchmarks/crosscheck_calibration.py [--scenes 20 --seeds 5 --res 64x48 --spp 64]``.
 Writes benchmarks/results/crosscheck_calibration.{md,png,json}; benchmarks/crosscheck_report.py copies the
 table into docs/crosscheck.md.
 """

@@ -13,7 +13,7 @@ transparency), lights that cast no shadows, an object floating in the dark (dire
 floating in the dark, a ball on a near-black floor (indirect light below the target), and geometric outputs
 only. A glass sphere on a floor calls for every effect (too slow to time here: the table says why).
 
-Run: ``wtpy benchmarks/effects_pay.py [--quick] [--reps N] [--scenes a,b]`` (writes
+Run: ``uv run python benchmarks/effects_pay.py [--quick] [--reps N] [--scenes a,b]`` (writes
 benchmarks/results/effects_pay.{md,json,png}); ``--report run1.json,run2.json`` rewrites the table and plot
 from measured runs (a later run replaces the rows it has).
 """
@@ -292,7 +292,7 @@ def write_report(data: dict[str, Any], out: Path) -> None:
         "column compares each pair's effect-aware and full renders (same seed: identical work gives identical "
         "pictures; noise = hypot of both estimated errors): a dropped effect's light must stay within the noise.",
         "",
-        "Run: `wtpy benchmarks/effects_pay.py --res 64 --reps 5` (``--quick``: 64 px, 3 repetitions)"
+        "Run: `uv run python benchmarks/effects_pay.py --res 128 --reps 3` (``--quick``: 64 px, 3 repetitions)"
         + (f"; this table merges {', '.join(info['sources'])} (later runs replace rows)" if info.get("sources") else "")
         + ".",
         "",
