@@ -166,13 +166,14 @@ class MitsubaBackend(Backend):
         :data:`NO_CAUSTICS_COST` times Mitsuba's ``path`` in its variant family (measured; see there)."""
         if settings.caustics:
             return 1.0
-        return NO_CAUSTICS_COST[self._family()]
+        return NO_CAUSTICS_COST[self._cost_family()]
 
     def pass_overhead(self, settings: RenderSettings) -> float:
         """One render call's fixed time in pixel-samples of its variant family (:data:`PASS_OVERHEAD`)."""
-        return PASS_OVERHEAD[self._family()]
+        return PASS_OVERHEAD[self._cost_family()]
 
-    def _family(self) -> str:
+    def _cost_family(self) -> str:
+        """The key of the measured per-variant costs (NO_CAUSTICS_COST, PASS_OVERHEAD): "scalar" or "jit"."""
         return "scalar" if self.session.variant_choice.variant.startswith("scalar") else "jit"
 
     def device_choice(self) -> DeviceChoice | None:
