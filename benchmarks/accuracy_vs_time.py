@@ -293,9 +293,14 @@ def measure_scene(
         prev = math.inf
         for spp in levels:
             extra: dict[str, Any] = {"samples": spp} if spp is not None else {}
+            est = None
             if ckind == "target":
                 limit = TARGET_TIME_LIMIT_GLASS if kind == "glass" else TARGET_TIME_LIMIT
                 extra = {"target_error": TARGET_RMS, "time_limit": limit}
+                # the price before paying, as a user asks for it: a pilot (its own seed), then the render
+                est = bf.estimate_cost(
+                    scene, backend=backend, target_error=TARGET_RMS, seed=20_000, threads=THREADS, **kw
+                )
             img, secs, meta = timed(scene, backend, seed=7, **kw, **extra)
             raw = rel_mse(img, own["rgba"])
             row: dict[str, Any] = {
@@ -313,6 +318,7 @@ def measure_scene(
                 "alpha_mse": alpha_mse(img, own["rgba"]),
             }
             if ckind == "target":
+                assert est is not None
                 pilot = meta.get("indirect_pilot") or {}
                 row.update(
                     estimated_error=meta.get("estimated_error"),
@@ -323,12 +329,21 @@ def measure_scene(
                     target_reached=meta.get("target_reached"),
                     indirect_dropped=bool(pilot.get("dropped")),
                     indirect_why=pilot.get("why"),
+                    caustics_dropped=bool((meta.get("caustics_pilot") or {}).get("dropped")),
+                    predicted_samples=est.samples,
+                    predicted_passes=est.passes,
+                    predicted_seconds=est.seconds,
+                    predicted_seconds_range=list(est.seconds_range),
+                    predicted_reaches_target=est.reaches_target,
+                    pilot_seconds=est.pilot_seconds,
+                    pilot_error=est.pilot_error,
                 )
             if backend == "cycles":
                 es = meta["engine_settings"]
                 row["bounces"] = {k: es[k] for k in ("diffuse_bounces", "glossy_bounces", "transmission_bounces")}
             elif backend == "mitsuba":
                 row["max_depth"] = meta.get("max_depth")
+                row["variant"] = meta.get("variant")
             rows.append(row)
             extra_txt = (
                 f" est={row['estimated_error']:.4f} true={row['true_error']:.4f} passes={row['passes']}"
@@ -509,6 +524,52 @@ def _time_cell(a: dict[str, Any] | None) -> str:
     return _f(a["seconds"]) + (" (extrapolated)" if a["how"] == "extrapolated" else "")
 
 
+def _ratio_ok(a: float | None, b: float | None) -> bool:
+    return bool(a and b) and 1 / 1.5 <= a / b <= 1.5  # type: ignore[operator]
+
+
+def cost_section(trows: list[dict[str, Any]]) -> list[str]:
+    """The table of ``bf.estimate_cost``'s predictions against the target renders that followed them."""
+    rows = [r for r in trows if r.get("predicted_samples") is not None]
+    if not rows:
+        return []
+    lines = [
+        "",
+        "## `bf.estimate_cost` before each target render",
+        "",
+        "Each target render above was preceded by `bf.estimate_cost(scene, backend, target_error=..., seed=20000)` "
+        "with the same settings (its pilot uses its own seed), the order a user follows: the prediction, then the "
+        "render, in the same process. Predicted seconds exclude the pilot (its own column). Renders stopped by "
+        "their time limit are shown but not counted (their samples are the limit's, not the target's).",
+        "",
+        "| scene | configuration | predicted spp | spp | ratio | predicted s (90 % range) | seconds | ratio "
+        "| pilot s | effect dropped by the render's pilot |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lo, hi = r["predicted_seconds_range"]
+        dropped = [k for k in ("indirect", "caustics") if r.get(f"{k}_dropped")]
+        lines.append(
+            f"| {r['scene']} | {r['config'].removeprefix('final to target, ')} | {r['predicted_samples']} "
+            f"| {r['samples']} | {r['predicted_samples'] / r['samples']:.2f} | {r['predicted_seconds']:.2f} "
+            f"({lo:.2f}-{hi:.2f}) | {r['seconds']:.2f} | {r['predicted_seconds'] / r['seconds']:.2f} "
+            f"| {r['pilot_seconds']:.1f} | {', '.join(dropped) or '-'} |"
+        )
+    counted = [r for r in rows if r["target_reached"]]
+
+    def tally(key: str, engine: str) -> str:
+        sel = [r for r in counted if r["backend"] == engine]
+        return f"{sum(1 for r in sel if _ratio_ok(r[f'predicted_{key}'], r[key]))}/{len(sel)}"
+
+    lines += [
+        "",
+        f"Within 1.5x, renders that reached the target: samples Cycles {tally('samples', 'cycles')}, Mitsuba "
+        f"{tally('samples', 'mitsuba')}; seconds Cycles {tally('seconds', 'cycles')}, Mitsuba "
+        f"{tally('seconds', 'mitsuba')}.",
+    ]
+    return lines
+
+
 def markdown(out: dict[str, Any], before: dict[str, Any] | None = None) -> str:
     m = out["machine"]
     res = out["resolution"]
@@ -521,7 +582,8 @@ def markdown(out: dict[str, Any], before: dict[str, Any] | None = None) -> str:
         f"{m['cpu_count']} cores shared with other jobs, {m['threads']} render threads, {m['platform']}; load "
         f"average (1 min) {min(loads):.1f}-{max(loads):.1f} while the scenes were measured (per scene below): "
         "times are wall-clock under that load, one render per point, so compare ratios within a scene. "
-        f"Measuring took {out['measured_seconds']:.0f} s.",
+        f"Measuring took {out['measured_seconds']:.0f} s. Mitsuba variant: "
+        f"{', '.join(sorted({str(r['variant']) for r in out['rows'] if r.get('variant')})) or 'not recorded'}.",
         "",
         f"References: each engine's own, full settings (`effects=False`, 12 bounces), {out['reference_spp']} spp "
         "(times the scene's factor: the table's spp) as two halves with seeds 4242/4243, 1 px box filter. "
@@ -610,6 +672,7 @@ def markdown(out: dict[str, Any], before: dict[str, Any] | None = None) -> str:
         f"noise is <= 1/4 of the target: within 1.5x {count(clean, within)} (Cycles {count(clean, within, 'cycles')}, "
         f"Mitsuba {count(clean, within, 'mitsuba')}), covered {count(clean, covers)}. "
         "Plot: [accuracy_vs_time_estimator.png](accuracy_vs_time_estimator.png).",
+        *cost_section(trows),
         "",
         "## Effect-aware vs full settings (the target renders above, paired in one run)",
         "",

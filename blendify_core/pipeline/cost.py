@@ -6,8 +6,9 @@ the preset's samples: their spread is the render's own first estimate, with the 
 sample count, so a quasi-Monte-Carlo sampler's faster convergence at higher counts is not extrapolated from
 tiny passes) and one pass of ``LONG_PASS`` times the preset's samples. Their times separate the fixed cost
 per pass, the cost per sample and what an engine pays the first time it renders a sample count (Mitsuba's
-llvm variants compile a kernel: the first pass against its repeats; where it does, the long pass is rendered
-again, compiled, so its compilation does not count as samples). The
+llvm variants compile a kernel: the first pass against its repeats; where it does, or where the long pass
+costs more than ``LONG_PASS`` short ones, the long pass is rendered again, compiled, so its compilation does
+not count as samples). The
 prediction replays the schedule :func:`~blendify_core.pipeline.render.render_to_target` follows from there
 (the same pass sizing), so predicted passes and samples are those the render takes if the error keeps
 falling as 1/sqrt(samples). The pilot costs about twice the cheapest ``final`` render.
@@ -43,6 +44,8 @@ __all__ = ["CostEstimate", "estimate_cost", "predict_schedule", "schedule"]
 #: the pilot's last pass renders this many times the preset's pass samples: it fixes the cost per sample,
 #: which 1- and 16-sample passes alone leave to timing noise on hard scenes
 LONG_PASS = 4
+#: timing noise allowed before a long pass dearer than LONG_PASS short ones counts as having compiled
+LONG_PASS_SLACK = 1.25
 
 
 @strict_api
@@ -151,13 +154,18 @@ def estimate_cost(
     per_size = max(firsts[0][1] - t_rep, 0.0)
     colours = [c for c, _, _ in firsts] + [long_rgb]
     counts = [float(base)] * FIRST_PASSES + [float(LONG_PASS * base)]
-    if per_size > t_rep:
+    if per_size > t_rep or t_long > LONG_PASS * t_rep * LONG_PASS_SLACK:
         # the engine compiled for the new sample count: the long pass's compilation (not the same as the first
         # pass's) hides its cost per sample, so it is timed again, compiled (Mitsuba's llvm variants: 48x48
-        # bunny, 0.0056 s per sample from the compiling pass against 0.0017 rendered)
-        long_again, t_long, _ = one(LONG_PASS * base, FIRST_PASSES + 1)
+        # bunny, 0.0056 s per sample from the compiling pass against 0.0017 rendered). A long pass dearer than
+        # LONG_PASS short ones has paid a one-time cost too (its fixed part is paid once, not LONG_PASS
+        # times), also where the first pass's size was compiled by an earlier render in the process and so
+        # showed none: a 64x64 bunny after a sample sweep was predicted 1.45 s for a 0.19 s render
+        long_again, t_again, _ = one(LONG_PASS * base, FIRST_PASSES + 1)
         colours.append(long_again)
         counts.append(float(LONG_PASS * base))
+        per_size = max(per_size, t_long - t_again)
+        t_long = t_again
         per_sample = max((t_long - t_rep) / ((LONG_PASS - 1) * base), 0.0)
     else:
         per_sample = max((t_long - per_size - t_rep) / ((LONG_PASS - 1) * base), 0.0)

@@ -176,6 +176,29 @@ def test_estimate_cost_keeps_a_compilation_out_of_the_cost_per_sample(noisy, mon
     assert est.pilot_samples == 4 * 16 + 2 * 64
 
 
+def test_estimate_cost_sees_a_compilation_when_the_first_pass_size_was_compiled_before(noisy, monkeypatch):
+    """An earlier render in the process compiled the pilot's first pass size, so its first pass shows no
+    compilation; the long pass still compiles and is no longer read as a cost per sample."""
+    import time
+
+    seen: set[int] = set()
+    render = NoisyBackend.render
+
+    def compiling_render(self, native, settings):
+        if settings.samples not in seen:
+            seen.add(settings.samples)
+            time.sleep(0.25)
+        return render(self, native, settings)
+
+    monkeypatch.setattr(NoisyBackend, "render", compiling_render)
+    bf.render(plane_scene("sun"), backend=noisy, samples=16)  # the user's earlier render at the pass size
+    est = bf.estimate_cost(plane_scene("sun"), backend=noisy, target_error=0.005)
+    assert est.seconds_per_sample * 64 < 0.1
+    assert est.seconds_per_new_size >= 0.2
+    result = bf.render(plane_scene("sun"), backend=noisy, target_error=0.005)
+    assert result.meta["samples"] / 1.5 <= est.samples <= result.meta["samples"] * 1.5
+
+
 def test_estimate_cost_of_a_raster_backend_is_one_render(noisy, monkeypatch):
     monkeypatch.setattr(NoisyBackend, "path_tracer", False)
     est = bf.estimate_cost(plane_scene("sun"), backend=noisy)
