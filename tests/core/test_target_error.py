@@ -61,6 +61,31 @@ def test_time_limit_stops_early(noisy):
     assert result.meta["passes"] == 1
 
 
+def test_time_limit_sizes_the_last_pass_to_fit(noisy, monkeypatch):
+    """Passes grow as the target nears; the time limit also caps the next pass's size at the samples that fit
+    in the time left (a clock advanced by the stand-in engine: 10 ms per sample). Checked only between
+    passes, the fifth pass here took the 65472 samples left to the cap and ended at 655 s for a 1 s limit."""
+    import types
+
+    from blendify_core.pipeline import render as render_module
+
+    clock = [0.0]
+    monkeypatch.setattr(render_module, "time", types.SimpleNamespace(perf_counter=lambda: clock[0]))
+    render = NoisyBackend.render
+
+    def timed_render(self, native, settings):
+        clock[0] += 0.01 * settings.samples
+        return render(self, native, settings)
+
+    monkeypatch.setattr(NoisyBackend, "render", timed_render)
+    result = bf.render(plane_scene("sun"), backend=noisy, samples=16, target_error=0.002, time_limit=1.0)
+    meta = result.meta
+    assert meta["stopped"] == "time_limit" and meta["target_reached"] is False
+    assert clock[0] <= 1.0 + 1e-9
+    assert meta["samples"] == 100  # 4 x 16, then the 36 that fit in the 0.36 s left
+    assert any("time_limit" in w for w in meta["warnings"])
+
+
 def test_raster_backend_warns_instead(monkeypatch, noisy):
     monkeypatch.setattr(NoisyBackend, "path_tracer", False)
     result = bf.render(plane_scene("sun"), backend=noisy, samples=4, target_error=0.01)
