@@ -70,6 +70,9 @@ class CostEstimate:
     reaches_target: bool
     #: an engine's extra cost the first time it renders a sample count (Mitsuba's llvm variants compile)
     seconds_per_new_size: float = 0.0
+    #: what one ``bf.render`` call costs outside the engine's passes (checks, the scene's fingerprint, the
+    #: result's assembly); the render is one call, so this is counted once
+    seconds_per_call: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -131,12 +134,17 @@ def estimate_cost(
         target = as_float("target_error", target_error, min_value=0.0, exclusive_min=True)
     base = preset.samples
 
+    outside: list[float] = []  # each pilot call's seconds outside the engine's part
+
     def one(samples: int, index: int) -> tuple[FloatArray | None, float, Any]:
         t0 = time.perf_counter()
         r = render(scene, backend=backend, quality=quality, samples=samples, seed=pass_seed(seed, index), **kwargs)
+        wall = time.perf_counter() - t0
         # the engine's part ("render": set-up + rendering + read-back): a pass of the real render repeats that,
-        # not the pilot's per-call checks or a re-translation for a new sample count
-        seconds = float(r.meta.get("timings", {}).get("render", time.perf_counter() - t0))
+        # not the pilot's per-call checks or a re-translation for a new sample count; those the real render
+        # pays once (``seconds_per_call``)
+        seconds = float(r.meta.get("timings", {}).get("render", wall))
+        outside.append(max(wall - seconds, 0.0))
         return (None if r.rgba is None else r.rgba[..., :3].astype(np.float64)), seconds, r
 
     t_start = time.perf_counter()
@@ -144,8 +152,9 @@ def estimate_cost(
     name = str(warm.meta.get("backend"))
     if not warm.meta.get("path_tracer"):
         _, seconds, _ = one(1, 0)
+        seconds += outside[-1]  # the one call's own checks
         return CostEstimate(name, target, 1, 1, seconds, (seconds, seconds), 0, time.perf_counter() - t_start,
-                            0.0, 0.0, seconds, "bias", True)  # fmt: skip
+                            0.0, 0.0, seconds, "bias", True, seconds_per_call=outside[-1])  # fmt: skip
     # the render's own first passes (the first of a sample count pays an engine's compilation for it, e.g.
     # Mitsuba's llvm variants: the difference to the repeats), then one pass of a new, larger count
     firsts = [one(base, i) for i in range(FIRST_PASSES)]
@@ -177,11 +186,13 @@ def estimate_cost(
     pilot_error = relative_error_estimate(stack, counts_arr)
     lo_err, hi_err = error_interval(stack, counts_arr)
     pilot_n = int(counts_arr.sum())
+    # the first call translated the scene, which the real render finds done: the repeats' median
+    per_call = float(np.median(outside[1:]))
     compiled = {base, LONG_PASS * base}  # sizes this process's engine has seen now
 
     def seconds_for(err: float) -> float:
         sizes, _ = schedule(err, pilot_n, target, base)
-        return len(sizes) * per_pass + sum(sizes) * per_sample + len(set(sizes) - compiled) * per_size
+        return per_call + len(sizes) * per_pass + sum(sizes) * per_sample + len(set(sizes) - compiled) * per_size
 
     passes, samples, reached = predict_schedule(pilot_error, pilot_n, target, base)
     seconds = seconds_for(pilot_error)
@@ -203,4 +214,5 @@ def estimate_cost(
         kind="noise",
         reaches_target=reached,
         seconds_per_new_size=per_size,
+        seconds_per_call=per_call,
     )
