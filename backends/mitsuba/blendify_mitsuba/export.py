@@ -4,7 +4,7 @@ backend does.
 The scene is translated by the backend's own translator (:class:`blendify_mitsuba.translate.MitsubaTranslator`,
 the same translation the renders use) with a stand-in engine (:data:`blendify_mitsuba.translate.ENGINE`) that
 keeps the plain dictionaries, mesh buffers and bitmaps instead of loading them. Meshes are then written as
-binary ``.ply`` files (with their ``vertex_color`` / ``vertex_alpha`` attributes), point clouds of capsules
+binary ``.ply`` files (with their ``vertex_color`` / ``vertex_alpha`` attributes), point clouds of spheres
 (:mod:`blendify_mitsuba.points`) as ``linearcurve`` text files, and bitmaps as float32
 ``.exr`` files into the folder ``<name>_files`` beside the XML, and the dictionary becomes XML through
 Mitsuba's own scene writer (``mitsuba.parser.write_file``). Every file is written atomically.
@@ -61,13 +61,12 @@ class _MeshData:
 
 @dataclass
 class _CurveData:
-    """The points :func:`blendify_mitsuba.translate.build_curves` would have made a capsule shape of."""
+    """The points :func:`blendify_mitsuba.translate.build_curves` would have made a curve shape of."""
 
     name: str
     centres: np.ndarray
     radii: np.ndarray
     bsdf: Any
-    length: float
     axis: Any = (0.0, 0.0, 1.0)
 
 
@@ -131,7 +130,7 @@ class _Writer:
 
     def curves(self, c: _CurveData) -> dict[str, Any]:
         path, rel = self._target(c.name, ".txt")
-        text = curve_file_text(c.centres, c.radii, c.length, c.axis)
+        text = curve_file_text(c.centres, c.radii, c.axis)
         atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="ascii"))
         out: dict[str, Any] = {"type": "linearcurve", "filename": rel}
         if c.bsdf is not None:

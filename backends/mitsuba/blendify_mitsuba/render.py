@@ -202,6 +202,11 @@ def seen_lights(scene: Any, keys: list[str], spp: int, seed: int) -> np.ndarray:
     return np.maximum(lit - dark, 0.0)  # type: ignore[no-any-return]
 
 
+#: a pixel whose centre sees the background is a catcher's edge when its coverage exceeds the catchers' alone
+#: by at most this much (both renders draw the same camera rays: equal where only the catcher is covered)
+_EDGE_COVERAGE_TOLERANCE = 1e-3
+
+
 def catch_shadows(native: MitsubaNative, rgba: np.ndarray, settings: RenderSettings) -> np.ndarray:
     """Shadow-catcher emulation: where a pixel centre sees a catcher, the pixel becomes black with
     alpha = (1 - shadowed / unshadowed radiance) x coverage; the unshadowed radiance comes from a
@@ -218,6 +223,10 @@ def catch_shadows(native: MitsubaNative, rgba: np.ndarray, settings: RenderSetti
         native.scene, cam, native.shapes, ("instance",), not native.variant.startswith("scalar"), native.parallel_rays
     )
     mask = np.isin(inst["instance"], native.catchers)
+    # a catcher's edge against the background (the pixel centre sees nothing, the pixel partly the catcher
+    # and nothing else: the same coverage with and without the other objects) is a catcher pixel too; before,
+    # its plane colour drew a bright line along the catcher's far edge (Cycles shows nothing there)
+    mask |= (inst["instance"] < 0) & (free[..., 3] > 0) & (rgba[..., 3] <= free[..., 3] + _EDGE_COVERAGE_TOLERANCE)
     lum = np.array([0.2126, 0.7152, 0.0722], np.float32)
     shadowed = rgba[..., :3] @ lum
     unshadowed = free[..., :3] @ lum

@@ -75,7 +75,7 @@ from . import layered
 from .aniso import SquarePixelPlan, plan_square_pixels
 from .integrator import register as register_integrator
 from .layered import register as register_layered
-from .points import capsule_length, curve_points, curves_fit, point_bitmap
+from .points import curve_points, curves_fit, point_bitmap
 from .principled import glossy_scale, layered_bsdf, principled_bsdf, principled_lobes, raw_rgb, with_bitmaps
 from .sided import register as register_sided
 
@@ -403,12 +403,13 @@ def blender_rows_for_mitsuba(img: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
-def build_curves(name: str, centres: np.ndarray, radii: np.ndarray, bsdf: Any, length: float, axis: Any) -> Any:
-    """One ``linearcurve`` shape of capsules along ``axis`` (:func:`blendify_mitsuba.points.curve_points`)."""
+def build_curves(name: str, centres: np.ndarray, radii: np.ndarray, bsdf: Any, axis: Any) -> Any:
+    """One ``linearcurve`` shape of spheres, their segments along ``axis``
+    (:func:`blendify_mitsuba.points.curve_points`)."""
     mi = _mi()
     if hasattr(mi, "build_curves"):  # the exporter's stand-in engine keeps the points
-        return mi.build_curves(name, centres, radii, bsdf, length, axis)
-    return curve_points(centres, radii, bsdf, length, axis)
+        return mi.build_curves(name, centres, radii, bsdf, axis)
+    return curve_points(centres, radii, bsdf, axis)
 
 
 def build_mesh(
@@ -1018,8 +1019,9 @@ class MitsubaTranslator(Translator):
             "primitive.plane": _IR_TESSELLATION,
             "shadow_catcher": approximate(
                 "emulated from two renders (with and without the other objects): where a pixel centre sees the "
-                "catcher, black with alpha = 1 - shadowed/unshadowed luminance; catcher edges against objects keep "
-                "the plane's colour; the catcher also reflects light onto objects"
+                "catcher (or the background beside the catcher only), black with alpha = 1 - "
+                "shadowed/unshadowed luminance; catcher edges against objects keep the plane's colour; the "
+                "catcher also reflects light onto objects"
             ),
         },
     )
@@ -1118,9 +1120,9 @@ class MitsubaTranslator(Translator):
         features={
             "pointcloud": _exact(
                 "analytic spheres up to max_analytic_opaque points for opaque, non-emissive clouds, beyond that "
-                "one shape of sphere-capped capsules (Embree round curves, depth and normals within the exactness "
-                "bounds); other clouds analytic spheres up to max_analytic_spheres points, else the IR's merged "
-                "icosphere mesh"
+                "one shape of exact spheres (Embree round curves, each point a segment ending in its sphere, "
+                "per-point colours in a bitmap); other clouds analytic spheres up to max_analytic_spheres points, "
+                "else the IR's merged icosphere mesh"
             ),
             "pointcloud.vertex_colors": EXACT,
             "pointcloud.emission": approximate("area emitter on the spheres, front (outer) side only"),
@@ -1178,10 +1180,9 @@ class MitsubaTranslator(Translator):
             else:
                 bsdf_d = self.dispatch(mat, ctx, _rgb(uniform))
                 ctx.shapes[key] = ShapeInfo(index, np.asarray(uniform, dtype=np.float64))
-            # capsules across the view (the camera's right vector): camera rays never run along them
+            # segments across the view (the camera's right vector): camera rays never run along them
             axis = np.asarray(ctx.scene.camera.matrix_world, dtype=np.float64)[:3, 0]
-            length = capsule_length(size_ratio)
-            ctx.entries[key] = build_curves(key, centres, radii * scale, bsdf_d, length, axis)
+            ctx.entries[key] = build_curves(key, centres, radii * scale, bsdf_d, axis)
             return
         tm = r.to_mesh()
         # to_mesh works in object space around the raw vertices: move to world space

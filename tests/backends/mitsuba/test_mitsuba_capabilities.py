@@ -22,10 +22,10 @@ FROZEN: dict[str, tuple[str, str]] = {
     "pointcloud": (
         "exact",
         "analytic spheres up to max_analytic_opaque points for opaque, non-emissive clouds, beyond that "
-        "one shape of sphere-capped capsules (Embree round curves, depth and normals within the exactness "
-        "bounds); other clouds analytic spheres up to max_analytic_spheres points, else the IR's merged "
+        "one shape of exact spheres (Embree round curves, each point a segment ending in its sphere, per-point "
+        "colours in a bitmap); other clouds analytic spheres up to max_analytic_spheres points, else the IR's merged "
         "icosphere mesh",
-    ),  # issue 17: the capsules replaced the mesh for opaque clouds, and the analytic spheres beyond 500 points
+    ),  # issue 17: curves (capsules, now spheres) replaced the mesh, analytic spheres beyond 500 points
     "pointcloud.vertex_colors": ("exact", ""),
     "pointcloud.emission": ("approximate", "area emitter on the spheres, front (outer) side only"),
     "primitive.cube": ("exact", "IR tessellation"),
@@ -45,8 +45,9 @@ FROZEN: dict[str, tuple[str, str]] = {
     "shadow_catcher": (
         "approximate",
         "emulated from two renders (with and without the other objects): where a pixel centre sees the "
-        "catcher, black with alpha = 1 - shadowed/unshadowed luminance; catcher edges against objects "
-        "keep the plane's colour; the catcher also reflects light onto objects",
+        "catcher (or the background beside the catcher only), black with alpha = 1 - "
+        "shadowed/unshadowed luminance; catcher edges against objects keep the plane's colour; the "
+        "catcher also reflects light onto objects",
     ),
     "object.no_shadow": ("unsupported", "Mitsuba has no per-object shadow visibility"),
     "material.principled": (

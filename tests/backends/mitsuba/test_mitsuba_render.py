@@ -756,3 +756,38 @@ def test_environment_texels_sit_where_blender_puts_them(row):
     expected = 0.5 / np.pi * irradiance
     print(f"row {row}: mitsuba {got[..., :3].mean():.4f}, Blender's mapping {expected:.4f}")
     assert got[..., :3].mean() == pytest.approx(expected, rel=0.01)
+
+
+def test_shadow_catcher_edge_against_the_background_is_invisible(scalar_backend):
+    """The catcher's far edge against the background: pixels whose centre sees the background but which
+    partly cover the catcher (and nothing else) are catcher pixels too: no RGB, alpha only for a shadow (as in
+    Cycles). Before, they kept the plane's colour: a bright line along the horizon. Pixels partly covering an
+    object against the background keep the object's colour."""
+    scene = bf.Scene()
+    scene.renderables.add_plane_mesh(
+        1.0, DiffuseMaterial(), UniformColors((1.0, 1.0, 1.0)), shadow_catcher=True, tag="catcher"
+    )
+    scene.renderables.add_cube_mesh(
+        0.12, DiffuseMaterial(), UniformColors((0.8, 0.3, 0.2)), translation=(0.0, 0.1, 0.06), tag="cube"
+    )
+    scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(35, 25, 0))
+    scene.lights.set_background_light(0.3)
+    testing.look_at_camera(scene, (64, 48), (0.0, -0.9, 0.18), (0.0, 0.0, 0.1), fov_x=np.deg2rad(50.0))
+    r = _render(scalar_backend, scene, samples=16, outputs=("rgb", "instance"))
+    cube = r.instance == 1
+    near_cube = np.zeros_like(cube)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            near_cube |= np.roll(np.roll(cube, dy, axis=0), dx, axis=1)
+    background = (r.instance < 0) & ~near_cube
+    horizon = np.flatnonzero((r.instance == 0).any(axis=1)).min()  # the topmost row seeing the catcher
+    edge = background & (np.arange(cube.shape[0]) == horizon - 1)[:, None]  # the row above the far edge
+    assert edge.sum() > 40
+    rgb, alpha = r.rgba[background][:, :3], r.rgba[edge][:, 3]
+    print(f"background rgb max {rgb.max():.4f}; above the far edge: alpha max {alpha.max():.4f}")
+    assert np.all(rgb == 0)  # before: the lit plane's colour along the far edge (up to 0.44)
+    assert alpha.max() < 0.05  # the catcher is unshadowed there
+    # the cube against the background: pixels partly covering it keep its colour, the cube is opaque
+    above = (r.instance < 0) & np.roll(cube, -1, axis=0)  # background pixels right above a cube pixel
+    assert above.sum() >= 3
+    assert r.rgba[above][:, 0].max() > 0.05 and np.all(r.rgba[cube][:, 3] == 1)
