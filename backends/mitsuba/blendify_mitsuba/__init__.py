@@ -97,9 +97,9 @@ class MitsubaBackend(Backend):
     variant that passes a subprocess probe, else ``scalar_rgb``; or a variant name such as "scalar_rgb",
     "llvm_ad_rgb"; an unusable JIT variant falls back to ``scalar_rgb`` with the reason in
     ``result.meta["variant_reason"]``),
-    ``max_analytic_spheres`` (point clouds up to this size are analytic spheres, larger ones one shape of
-    capsules when they are opaque and not emissive, else the IR's merged icosphere mesh; None = the measured
-    defaults: DEFAULT_MAX_ANALYTIC_OPAQUE for clouds that can be capsules, DEFAULT_MAX_ANALYTIC_SPHERES of the
+    ``max_analytic_spheres`` (point clouds up to this size are analytic spheres, larger ones one curve shape
+    of spheres when they are opaque and not emissive, else the IR's merged icosphere mesh; None = the measured
+    defaults: DEFAULT_MAX_ANALYTIC_OPAQUE for clouds that can be curves, DEFAULT_MAX_ANALYTIC_SPHERES of the
     variant for the others) and
     ``device`` (None: as ``variant``; "cpu": llvm_ad_rgb when its probe passes, else scalar_rgb; "gpu" or
     "cuda": cuda_ad_rgb; "llvm" / "scalar": that variant; without the device ``bf.render`` warns and renders

@@ -216,7 +216,7 @@ def export_mitsuba(
     """Write ``scene`` as a Mitsuba 3 XML file that ``mitsuba.load_file`` loads and renders as the ``mitsuba``
     backend does (the same translation: integrator, sensor with film and sampler, shapes, BSDFs, emitters).
 
-    Meshes go to ``.ply``, capsule point clouds to ``.txt`` and bitmaps to ``.exr`` files in ``<name>_files/``
+    Meshes go to ``.ply``, curve point clouds to ``.txt`` and bitmaps to ``.exr`` files in ``<name>_files/``
     beside the XML, referenced by relative paths. ``settings`` are render settings
     (:func:`blendify_core.pipeline.settings.resolve_settings` keywords, e.g. ``quality="final", samples=64``)
     that fix the integrator and the sampler; ``variant``, ``max_analytic_spheres`` and ``sampler`` are the

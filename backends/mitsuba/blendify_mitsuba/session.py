@@ -46,14 +46,14 @@ from .variant import (
 __all__ = ["DEFAULT_MAX_ANALYTIC_OPAQUE", "DEFAULT_MAX_ANALYTIC_SPHERES", "MitsubaNative", "MitsubaSession"]
 
 #: point clouds up to this many points become analytic spheres (exact), larger ones the merged icosphere mesh
-#: when they cannot be capsules (emissive, partly transparent, too small for their distance: see
+#: when they cannot be one curve shape (emissive, partly transparent, too small for their distance: see
 #: blendify_mitsuba.points.curves_fit). Measured (benchmarks/results/mitsuba_pointcloud_*.md): in scalar_rgb
 #: analytic spheres load and render faster than the merged mesh up to ~100k points; in the JIT variants one
-#: BSDF per sphere makes rendering slow (llvm_ad_rgb, 5k points: 9.2 s vs 0.35 s as capsules).
+#: BSDF per sphere makes rendering slow (llvm_ad_rgb, 5k points: 9.2 s vs 0.35 s as curves).
 DEFAULT_MAX_ANALYTIC_SPHERES = {"scalar": 100_000, "jit": 500}
-#: clouds that can be one shape of capsules (blendify_mitsuba.points) are analytic spheres only up to this
-#: many points, in every variant: the capsules keep the spheres' depth and normals within the exactness
-#: bounds and load faster from a few hundred points on (scalar_rgb, 128x128, load + render: 1000 points
+#: clouds that can be one curve shape of spheres (blendify_mitsuba.points) are analytic spheres only up to this
+#: many points, in every variant: the curves intersect the same spheres (per-point colours in a bitmap)
+#: and load faster from a few hundred points on (scalar_rgb, 128x128, load + render: 1000 points
 #: 0.75 s vs 0.29 s, 20k points 5.0 s vs 0.47 s). An explicit ``max_analytic_spheres`` applies to every cloud.
 DEFAULT_MAX_ANALYTIC_OPAQUE = 500
 
@@ -136,7 +136,7 @@ class MitsubaSession:
 
     @property
     def max_analytic_opaque(self) -> int:
-        """Clouds that can be one shape of capsules are analytic spheres up to this size (an explicit
+        """Clouds that can be one curve shape are analytic spheres up to this size (an explicit
         ``max_analytic_spheres``, else :data:`DEFAULT_MAX_ANALYTIC_OPAQUE` within the variant's limit)."""
         if self._max_analytic_spheres is not None:
             return self._max_analytic_spheres

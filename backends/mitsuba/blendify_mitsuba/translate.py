@@ -710,7 +710,7 @@ class MitsubaTranslator(Translator):
 
     ``settings`` give the film (pixel filter), the samples and the integrator; ``max_analytic_spheres``
     the largest point cloud made of analytic spheres, ``max_analytic_opaque`` (None: the same) the largest
-    one that could be one shape of capsules (:func:`~blendify_mitsuba.points.curves_fit`); ``sampler``
+    one that could be one curve shape of spheres (:func:`~blendify_mitsuba.points.curves_fit`); ``sampler``
     Mitsuba's sampler plugin."""
 
     backend = "mitsuba"
@@ -1131,7 +1131,7 @@ class MitsubaTranslator(Translator):
     def pointcloud(self, r: PointCloud, ctx: MitsubaContext, index: int) -> None:
         """Analytic spheres (one shape and BSDF per point) up to ``max_analytic_opaque`` points for opaque,
         non-emissive, non-transmissive clouds under a similarity transform, beyond that one ``linearcurve``
-        shape of capsules (:mod:`blendify_mitsuba.points`); other clouds analytic spheres up to
+        shape of spheres (:mod:`blendify_mitsuba.points`); other clouds analytic spheres up to
         ``max_analytic_spheres`` points, beyond that one merged icosphere mesh with per-vertex colours."""
         mi = _mi()
         prefix = f"r{index:05d}"
@@ -1150,8 +1150,8 @@ class MitsubaTranslator(Translator):
         scale = float(np.linalg.svd(np.asarray(matrix)[:3, :3], compute_uv=False)[0])
         emissive = strength > 0 or _emission(mat) is not None
         size_ratio = _size_ratio(ctx, centres, radii * scale)
-        capsules = curves_fit(mat, src.opacity(alpha)[1], emissive, matrix, size_ratio) is None
-        if n <= (self.max_analytic_opaque if capsules else self.max_analytic_spheres):
+        curves = curves_fit(mat, src.opacity(alpha)[1], emissive, matrix, size_ratio) is None
+        if n <= (self.max_analytic_opaque if curves else self.max_analytic_spheres):
             for i in range(n):
                 c = per_point[i] if per_point is not None else uniform
                 bsdf = self.dispatch(mat, ctx, _rgb(c))
@@ -1171,7 +1171,7 @@ class MitsubaTranslator(Translator):
                 ctx.shapes[key] = ShapeInfo(index, np.asarray(c, dtype=np.float64))
             ctx.n_analytic_spheres += n
             return
-        if capsules:
+        if curves:
             key = f"{prefix}_curves"
             if per_point is not None:
                 tex = mi.load_dict(point_bitmap(per_point, mi.TensorXf))

@@ -35,9 +35,9 @@ def _render_xml(mi, path, seed):
         lambda: every_feature_scene((40, 30)),
         lambda: textured_quad_scene((24, 24)),
         lambda: pointcloud_scene(150, (24, 24)),
-        lambda: pointcloud_scene(800, (24, 24)),  # beyond 500 opaque points: one shape of capsules
+        lambda: pointcloud_scene(800, (24, 24)),  # beyond 500 opaque points: one curve shape
     ],
-    ids=["every_feature", "textured_quad", "pointcloud", "pointcloud_capsules"],
+    ids=["every_feature", "textured_quad", "pointcloud", "pointcloud_curves"],
 )
 def test_the_xml_renders_what_the_backend_renders(build, tmp_path, scalar_backend):
     scene = build()

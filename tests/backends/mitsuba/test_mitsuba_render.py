@@ -586,7 +586,7 @@ def test_pointcloud_per_point_alpha(max_spheres):
 
 
 def test_large_pointclouds_are_one_curve_shape_matching_the_spheres():
-    """Beyond max_analytic_spheres an opaque cloud is one shape of capsules (blendify_mitsuba.points):
+    """Beyond max_analytic_spheres an opaque cloud is one curve shape of spheres (blendify_mitsuba.points):
     coverage, brightness and per-point colours agree with the exact analytic spheres."""
     scene = testing.pointcloud_scene(300, (64, 64), point_size=0.12)
     results = {}
@@ -618,11 +618,11 @@ def _interior(result, margin: int = 2) -> np.ndarray:
     return ok
 
 
-@pytest.mark.parametrize(("point_size", "fov"), [(0.4, 45.0), (0.02, 1.5)])  # short and longest capsules
+@pytest.mark.parametrize(("point_size", "fov"), [(0.4, 45.0), (0.02, 1.5)])  # large and small for their distance
 def test_curve_points_have_the_spheres_depth_and_normals(point_size, fov):
-    """The capsules (blendify_mitsuba.points) keep the exactness bounds the path tracers' spheres are held to
-    (depth q99 <= 1e-4 relative, normals q99 <= 0.5 deg, 2 px inside the silhouettes): their length adapts to
-    the points' size for their distance."""
+    """The curve spheres (blendify_mitsuba.points) keep the exactness bounds the path tracers' spheres are held
+    to (depth q99 <= 1e-4 relative, normals q99 <= 0.5 deg, 2 px inside the silhouettes): Embree intersects
+    each point's own sphere."""
     g = np.linspace(-0.6, 0.6, 3)
     p = np.stack(np.meshgrid(g, g, [0.0]), axis=-1).reshape(-1, 3)
     scene = bf.Scene()

@@ -268,9 +268,9 @@ def test_pointcloud_analytic_then_merged(mi_scalar):
     first = tr.scene_dict["r00000_p0000000"]
     assert first["radius"] == pytest.approx(pc.radii()[0])
     assert first["center"] == pytest.approx(list(pc.vertices[0]))
-    tr = _translate(scene, mi_scalar, max_spheres=10)  # opaque: one shape of capsules (blendify_mitsuba.points)
+    tr = _translate(scene, mi_scalar, max_spheres=10)  # opaque: one curve shape (blendify_mitsuba.points)
     assert tr.n_analytic_spheres == 0 and list(k for k in tr.scene_dict if k.startswith("r")) == ["r00000_curves"]
-    assert tr.scene_dict["r00000_curves"].primitive_count() == 2 * 50  # a capsule and a spacer per point
+    assert tr.scene_dict["r00000_curves"].primitive_count() == 2 * 50  # a sphere's segment and a spacer per point
     far = testing.pointcloud_scene(n=50, point_size=0.002)  # radius 1e-3 seen from ~5 units: too small
     tr = _translate(far, mi_scalar, max_spheres=10)
     assert list(k for k in tr.scene_dict if k.startswith("r")) == ["r00000_mesh"]
@@ -281,14 +281,14 @@ def test_pointcloud_analytic_then_merged(mi_scalar):
 
 
 def test_pointcloud_opaque_limit(mi_scalar):
-    """Clouds that can be capsules leave the analytic spheres at max_analytic_opaque points, the others at
+    """Clouds that can be curves leave the analytic spheres at max_analytic_opaque points, the others at
     max_analytic_spheres; the backend's defaults are 500 and the variant's limit, an explicit value is both."""
     from blendify_mitsuba import DEFAULT_MAX_ANALYTIC_OPAQUE, DEFAULT_MAX_ANALYTIC_SPHERES, MitsubaBackend
 
     scene = testing.pointcloud_scene(n=50)
     tr = MitsubaTranslator(SETTINGS, max_analytic_spheres=1000, max_analytic_opaque=10).translate(scene)
     assert [k for k in tr.scene_dict if k.startswith("r")] == ["r00000_curves"]
-    scene.renderables["points"].materials[0].alpha = 0.5  # no capsules: analytic spheres up to 1000
+    scene.renderables["points"].materials[0].alpha = 0.5  # no curves: analytic spheres up to 1000
     tr = MitsubaTranslator(SETTINGS, max_analytic_spheres=1000, max_analytic_opaque=10).translate(scene)
     assert tr.n_analytic_spheres == 50
     session = MitsubaBackend(variant="scalar_rgb").session
