@@ -618,7 +618,8 @@ def _interior(result, margin: int = 2) -> np.ndarray:
     return ok
 
 
-@pytest.mark.parametrize(("point_size", "fov"), [(0.4, 45.0), (0.02, 1.5)])  # large and small for their distance
+# large and small for their distance (radius / camera distance 0.08, 4e-3, 4e-4: the mesh before, under 1e-3)
+@pytest.mark.parametrize(("point_size", "fov"), [(0.4, 45.0), (0.02, 1.5), (0.002, 0.15)])
 def test_curve_points_have_the_spheres_depth_and_normals(point_size, fov):
     """The curve spheres (blendify_mitsuba.points) keep the exactness bounds the path tracers' spheres are held
     to (depth q99 <= 1e-4 relative, normals q99 <= 0.5 deg, 2 px inside the silhouettes): Embree intersects

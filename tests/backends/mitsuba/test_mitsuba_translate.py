@@ -271,7 +271,7 @@ def test_pointcloud_analytic_then_merged(mi_scalar):
     tr = _translate(scene, mi_scalar, max_spheres=10)  # opaque: one curve shape (blendify_mitsuba.points)
     assert tr.n_analytic_spheres == 0 and list(k for k in tr.scene_dict if k.startswith("r")) == ["r00000_curves"]
     assert tr.scene_dict["r00000_curves"].primitive_count() == 2 * 50  # a sphere's segment and a spacer per point
-    far = testing.pointcloud_scene(n=50, point_size=0.002)  # radius 1e-3 seen from ~5 units: too small
+    far = testing.pointcloud_scene(n=50, point_size=0.0002)  # radius 1e-4 seen from ~5 units: too small
     tr = _translate(far, mi_scalar, max_spheres=10)
     assert list(k for k in tr.scene_dict if k.startswith("r")) == ["r00000_mesh"]
     pc.materials[0].alpha = 0.5  # partly transparent points need their inside: the merged icosphere mesh
