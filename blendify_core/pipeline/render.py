@@ -654,7 +654,8 @@ def _samples_that_fit(remaining: float, pass_seconds: list[tuple[float, int]]) -
     seconds over their samples: the fixed cost per pass counted as if per sample, so a long pass is
     estimated on the safe side). Passes grow as the target nears, so checking the limit only between
     passes overran it: a glass sphere at 256x256 with ``time_limit=45`` stopped after 68.6 s (its fifth
-    pass, 1024 samples, took 60 s)."""
+    pass, 1024 samples, took 60 s); a pass sized to all the time left still ran to 72-76 s when the machine
+    slowed down mid-pass."""
     seconds = sum(t for t, _ in pass_seconds)
     samples = sum(n for _, n in pass_seconds)
     if remaining <= 0:
@@ -933,7 +934,9 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
             if fits < min(n, base):  # not even a first-size pass fits: stop rather than overrun the limit
                 stopped = "time_limit"
                 break
-            n = min(n, fits)
+            # at most half the time left per pass, so the limit is approached in halving steps: a machine that
+            # slows down (other jobs) mid-pass overruns it by up to the slowdown of that half, not of all of it
+            n = min(n, max(fits // 2, min(n, base)))
         t_pass = time.perf_counter()
         r = inst.render_scene(
             scene, pass_settings.replace(seed=pass_seed(settings.seed, len(colours)), samples=max(1, n))

@@ -61,10 +61,12 @@ def test_time_limit_stops_early(noisy):
     assert result.meta["passes"] == 1
 
 
-def test_time_limit_sizes_the_last_pass_to_fit(noisy, monkeypatch):
-    """Passes grow as the target nears; the time limit also caps the next pass's size at the samples that fit
-    in the time left (a clock advanced by the stand-in engine: 10 ms per sample). Checked only between
-    passes, the fifth pass here took the 65472 samples left to the cap and ended at 655 s for a 1 s limit."""
+@pytest.mark.parametrize("slowdown", [1.0, 1.9])
+def test_time_limit_sizes_the_passes_to_fit(noisy, monkeypatch, slowdown):
+    """Passes grow as the target nears; the time limit also caps each pass at half the samples that fit in
+    the time left (a clock advanced by the stand-in engine: 10 ms per sample, ``slowdown`` times that after
+    the first four passes, as when other jobs start). Checked only between passes, the fifth pass here took
+    the 65472 samples left to the cap and ended at 655 s for a 1 s limit."""
     import types
 
     from blendify_core.pipeline import render as render_module
@@ -72,17 +74,21 @@ def test_time_limit_sizes_the_last_pass_to_fit(noisy, monkeypatch):
     clock = [0.0]
     monkeypatch.setattr(render_module, "time", types.SimpleNamespace(perf_counter=lambda: clock[0]))
     render = NoisyBackend.render
+    calls = []
 
     def timed_render(self, native, settings):
-        clock[0] += 0.01 * settings.samples
+        calls.append(settings.samples)
+        clock[0] += 0.01 * settings.samples * (slowdown if len(calls) > 4 else 1.0)
         return render(self, native, settings)
 
     monkeypatch.setattr(NoisyBackend, "render", timed_render)
     result = bf.render(plane_scene("sun"), backend=noisy, samples=16, target_error=0.002, time_limit=1.0)
     meta = result.meta
     assert meta["stopped"] == "time_limit" and meta["target_reached"] is False
-    assert clock[0] <= 1.0 + 1e-9
-    assert meta["samples"] == 100  # 4 x 16, then the 36 that fit in the 0.36 s left
+    assert clock[0] <= 1.0 + 1e-9  # within the limit even when the engine slowed down 1.9x
+    assert meta["samples"] == sum(calls) and len(calls) > 4
+    if slowdown == 1.0:
+        assert clock[0] >= 1.0 - 0.16  # and it stopped less than one 16-sample pass short of it
     assert any("time_limit" in w for w in meta["warnings"])
 
 
