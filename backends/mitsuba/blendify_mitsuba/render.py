@@ -48,21 +48,7 @@ def render_native(
         try:
             if settings.wants("rgb"):
                 t0 = time.perf_counter()
-                rgba = render_rgba(native.scene, native.spp, settings.seed)
-                if native.light_shapes:
-                    seen = seen_lights(native.scene, native.light_shapes, native.spp, settings.seed)
-                    rgba[..., :3] = np.maximum(rgba[..., :3] - seen, 0.0)
-                if native.coverage_scene is not None:
-                    # emissive surfaces + a sky: rendered with the sky visible; the coverage alpha comes
-                    # from a one-bounce pass of the shapes, the sky behind partly covered pixels is removed
-                    alpha = render_rgba(native.coverage_scene, native.spp, settings.seed)[..., 3]
-                    rgba[..., :3] -= (1.0 - alpha)[..., None] * _sky(native, settings)
-                    rgba[..., :3] = np.maximum(rgba[..., :3], 0.0)
-                    rgba[..., 3] = alpha
-                elif native.sky_scene is not None:
-                    # an opaque film whose emitters were hidden from the camera (the light shapes; the sky too,
-                    # in Mitsuba 3.9): the sky behind the pixels' uncovered part is added back
-                    rgba[..., :3] += (1.0 - rgba[..., 3])[..., None] * _sky(native, settings)
+                rgba = _film(native, native.scene, settings)
                 if native.catcher_scene is not None:
                     rgba = catch_shadows(native, rgba, settings)
                 if native.aniso is not None:
@@ -207,10 +193,34 @@ def seen_lights(scene: Any, keys: list[str], spp: int, seed: int) -> np.ndarray:
 _EDGE_COVERAGE_TOLERANCE = 1e-3
 
 
+def _film(native: MitsubaNative, scene: Any, settings: RenderSettings) -> np.ndarray:
+    """``scene`` (the scene, or the one without shadow catchers) rendered with the film's treatment: the light
+    shapes the camera sees removed, the coverage alpha or the sky behind uncovered pixels as needed."""
+    rgba = render_rgba(scene, native.spp, settings.seed)
+    if native.light_shapes:
+        seen = seen_lights(scene, native.light_shapes, native.spp, settings.seed)
+        rgba[..., :3] = np.maximum(rgba[..., :3] - seen, 0.0)
+    if native.coverage_scene is not None:
+        # emissive surfaces + a sky: rendered with the sky visible; the coverage alpha comes
+        # from a one-bounce pass of the shapes, the sky behind partly covered pixels is removed
+        alpha = render_rgba(native.coverage_scene, native.spp, settings.seed)[..., 3]
+        rgba[..., :3] -= (1.0 - alpha)[..., None] * _sky(native, settings)
+        rgba[..., :3] = np.maximum(rgba[..., :3], 0.0)
+        rgba[..., 3] = alpha
+    elif native.sky_scene is not None:
+        # an opaque film whose emitters were hidden from the camera (the light shapes; the sky too,
+        # in Mitsuba 3.9): the sky behind the pixels' uncovered part is added back
+        rgba[..., :3] += (1.0 - rgba[..., 3])[..., None] * _sky(native, settings)
+    return rgba
+
+
 def catch_shadows(native: MitsubaNative, rgba: np.ndarray, settings: RenderSettings) -> np.ndarray:
     """Shadow-catcher emulation: where a pixel centre sees a catcher, the pixel becomes black with
     alpha = (1 - shadowed / unshadowed radiance) x coverage; the unshadowed radiance comes from a
-    render of the catchers alone (same seed and samples)."""
+    render of the catchers alone (same seed and samples). The other pixels come from a render without the
+    catchers: in Cycles a catcher neither lights nor shades the other objects (measured on
+    ``testing.pointcloud_catcher_scene``: the white catcher's bounce made the bunny 14-25 % brighter than in
+    Cycles; without it the object pixels agree to a relative MSE of 4e-4)."""
     free = render_rgba(native.catcher_scene, native.spp, settings.seed)
     # the catcher scene holds the same lights and integrator: the same treatment of what the camera sees of them
     if native.light_shapes:
@@ -232,10 +242,28 @@ def catch_shadows(native: MitsubaNative, rgba: np.ndarray, settings: RenderSetti
     unshadowed = free[..., :3] @ lum
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(unshadowed > 1e-8, shadowed / unshadowed, 1.0)
-    out = rgba.copy()
+    shadow = np.where(mask, np.clip(1.0 - ratio, 0.0, 1.0), 0.0)
+    if native.objects_scene is not None:
+        out = _film(native, native.objects_scene, settings)
+        # an object's pixel that also covers a catcher: that part's alpha is the shadow of the catcher pixels
+        # beside it (without this the objects' feet turned partly transparent where they meet the catcher)
+        part = np.clip(rgba[..., 3] - out[..., 3], 0.0, 1.0)
+        out[..., 3] += np.where(mask, 0.0, part * _neighbour_mean(shadow, mask))
+    else:
+        out = rgba.copy()
     out[mask, :3] = 0.0
-    out[mask, 3] = np.clip(1.0 - ratio[mask], 0.0, 1.0) * free[mask, 3]
+    out[mask, 3] = shadow[mask] * free[mask, 3]
     return out
+
+
+def _neighbour_mean(values: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """The mean of ``values`` over the pixels of the 3x3 neighbourhood where ``where`` holds (0: none)."""
+    h, w = values.shape
+    v = np.pad(np.where(where, values, 0.0), 1)
+    n = np.pad(where.astype(np.float64), 1)
+    total = sum(v[dy : dy + h, dx : dx + w] for dy in range(3) for dx in range(3))
+    count = sum(n[dy : dy + h, dx : dx + w] for dy in range(3) for dx in range(3))
+    return np.where(count > 0, total / np.maximum(count, 1.0), 0.0)  # type: ignore[no-any-return]
 
 
 #: the second ray of every pixel passes this far (pixels) from its centre: Mitsuba's ray-triangle test is

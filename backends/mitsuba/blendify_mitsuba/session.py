@@ -79,6 +79,7 @@ class MitsubaNative:
     sky_radiance: list[float] | None = None  # a constant sky's radiance: what sky_scene renders, without a render
     catcher_scene: Any = None  # shadow catchers alone (unshadowed radiance)
     catchers: list[int] = field(default_factory=list)  # renderable indices of the shadow catchers
+    objects_scene: Any = None  # everything but the shadow catchers (what the other objects look like)
     light_shapes: list[str] = field(default_factory=list)  # light shapes to remove from the camera's view
     integrator: dict[str, Any] = field(default_factory=dict)
     effects: Any = None
@@ -245,9 +246,11 @@ class MitsubaSession:
                 raise RenderError(f"mitsuba: translating the scene failed: {type(exc).__name__}: {exc}") from exc
             try:
                 mi_scene = mi.load_dict(tr.scene_dict)
-                cov_scene = sky_scene = catcher_scene = None
+                cov_scene = sky_scene = catcher_scene = objects_scene = None
                 if tr.catcher_dict is not None:
                     catcher_scene = mi.load_dict(tr.catcher_dict)
+                if tr.objects_dict is not None:
+                    objects_scene = mi.load_dict(tr.objects_dict)
                 if tr.coverage_dict is not None:
                     cov_scene = mi.load_dict(tr.coverage_dict)
                 if tr.background_dict is not None:
@@ -267,6 +270,7 @@ class MitsubaSession:
             sky_scene=sky_scene,
             sky_radiance=tr.sky_radiance,
             catcher_scene=catcher_scene,
+            objects_scene=objects_scene,
             catchers=tr.catchers,
             light_shapes=tr.light_shapes,
             integrator=tr.integrator,

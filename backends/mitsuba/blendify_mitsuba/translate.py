@@ -193,6 +193,9 @@ class Translation:
     #: shadow catchers: the scene with the catcher planes as the only renderables, and their indices
     catcher_dict: dict[str, Any] | None = None
     catchers: list[int] = field(default_factory=list)
+    #: ... and the scene without the catchers: what the other objects look like (a catcher neither lights nor
+    #: shades them in Cycles)
+    objects_dict: dict[str, Any] | None = None
     #: the ids of the light shapes (point lights with a radius, area lights) when the integrator cannot hide
     #: them from the camera: the render removes their directly seen emission (render.seen_lights)
     light_shapes: list[str] = field(default_factory=list)
@@ -793,7 +796,7 @@ class MitsubaTranslator(Translator):
             # the path (with max_depth 1 only emitters count); the scene has no lights, so this stays cheap
             two = {"type": "path", "max_depth": 2, "hide_emitters": False}
             coverage_dict = {"type": "scene", "integrator": two, "sensor": self.sensor(ctx), **ctx.entries}
-        catcher_dict = None
+        catcher_dict = objects_dict = None
         if ctx.catchers:
             # the catchers alone under the same lights: the unshadowed radiance of the shadow-catcher emulation
             own = tuple(f"r{ri:05d}_" for ri in ctx.catchers)
@@ -801,6 +804,10 @@ class MitsubaTranslator(Translator):
             if "environment" in catcher_dict:
                 catcher_dict["environment"] = self._environment_again(ctx)
             catcher_dict["sensor"] = self.sensor(ctx)
+            objects_dict = {k: v for k, v in d.items() if not k.startswith(own)}
+            if "environment" in objects_dict:
+                objects_dict["environment"] = self._environment_again(ctx)
+            objects_dict["sensor"] = self.sensor(ctx)
         return Translation(
             d,
             ctx.shapes,
@@ -810,6 +817,7 @@ class MitsubaTranslator(Translator):
             sky_radiance=sky_radiance,
             catcher_dict=catcher_dict,
             catchers=ctx.catchers,
+            objects_dict=objects_dict,
             light_shapes=light_shapes,
             integrator=integrator,
             effects=effects,
@@ -1018,16 +1026,18 @@ class MitsubaTranslator(Translator):
         features={
             "primitive.plane": _IR_TESSELLATION,
             "shadow_catcher": approximate(
-                "emulated from two renders (with and without the other objects): where a pixel centre sees the "
-                "catcher (or the background beside the catcher only), black with alpha = 1 - "
-                "shadowed/unshadowed luminance; catcher edges against objects keep the plane's colour; the "
-                "catcher also reflects light onto objects"
+                "emulated from three renders (all, the catchers alone, all but the catchers): where a pixel "
+                "centre sees the catcher (or the background beside the catcher only), black with alpha = 1 - "
+                "shadowed/unshadowed luminance; the other pixels from the render without the catchers (a "
+                "catcher neither lights nor shades the objects, as in Cycles), their alpha grown by the shadow "
+                "beside them where they also cover a catcher"
             ),
         },
     )
     def plane(self, plane: PlaneMesh, ctx: MitsubaContext, index: int) -> None:
         """A plane: the IR's tessellation. A shadow catcher is recorded for the emulation (the catchers-alone
-        scene built by :meth:`translate`, composited by :func:`blendify_mitsuba.render.catch_shadows`)."""
+        and catcher-free scenes built by :meth:`translate`, composited by
+        :func:`blendify_mitsuba.render.catch_shadows`)."""
         if plane.shadow_catcher:
             ctx.catchers.append(index)
         self._tessellated(plane, ctx, index)

@@ -44,10 +44,11 @@ FROZEN: dict[str, tuple[str, str]] = {
     ),
     "shadow_catcher": (
         "approximate",
-        "emulated from two renders (with and without the other objects): where a pixel centre sees the "
-        "catcher (or the background beside the catcher only), black with alpha = 1 - "
-        "shadowed/unshadowed luminance; catcher edges against objects keep the plane's colour; the "
-        "catcher also reflects light onto objects",
+        "emulated from three renders (all, the catchers alone, all but the catchers): where a pixel "
+        "centre sees the catcher (or the background beside the catcher only), black with alpha = 1 - "
+        "shadowed/unshadowed luminance; the other pixels from the render without the catchers (a "
+        "catcher neither lights nor shades the objects, as in Cycles), their alpha grown by the shadow "
+        "beside them where they also cover a catcher",
     ),
     "object.no_shadow": ("unsupported", "Mitsuba has no per-object shadow visibility"),
     "material.principled": (

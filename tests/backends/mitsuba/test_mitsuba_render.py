@@ -759,21 +759,28 @@ def test_environment_texels_sit_where_blender_puts_them(row):
     assert got[..., :3].mean() == pytest.approx(expected, rel=0.01)
 
 
-def test_shadow_catcher_edge_against_the_background_is_invisible(scalar_backend):
-    """The catcher's far edge against the background: pixels whose centre sees the background but which
-    partly cover the catcher (and nothing else) are catcher pixels too: no RGB, alpha only for a shadow (as in
-    Cycles). Before, they kept the plane's colour: a bright line along the horizon. Pixels partly covering an
-    object against the background keep the object's colour."""
+def _cube_on_catcher(resolution: tuple[int, int], height: float) -> bf.Scene:
+    """A white shadow-catcher plane (its far edge in view) and a 0.12 cube centred ``height`` above it, seen
+    from low down; sun and background."""
     scene = bf.Scene()
     scene.renderables.add_plane_mesh(
         1.0, DiffuseMaterial(), UniformColors((1.0, 1.0, 1.0)), shadow_catcher=True, tag="catcher"
     )
     scene.renderables.add_cube_mesh(
-        0.12, DiffuseMaterial(), UniformColors((0.8, 0.3, 0.2)), translation=(0.0, 0.1, 0.06), tag="cube"
+        0.12, DiffuseMaterial(), UniformColors((0.8, 0.3, 0.2)), translation=(0.0, 0.1, height), tag="cube"
     )
     scene.lights.add_sun(3.0, rotation_mode="eulerXYZ", rotation=(35, 25, 0))
     scene.lights.set_background_light(0.3)
-    testing.look_at_camera(scene, (64, 48), (0.0, -0.9, 0.18), (0.0, 0.0, 0.1), fov_x=np.deg2rad(50.0))
+    testing.look_at_camera(scene, resolution, (0.0, -0.9, 0.18), (0.0, 0.0, 0.1), fov_x=np.deg2rad(50.0))
+    return scene
+
+
+def test_shadow_catcher_edge_against_the_background_is_invisible(scalar_backend):
+    """The catcher's far edge against the background: pixels whose centre sees the background but which
+    partly cover the catcher (and nothing else) are catcher pixels too: no RGB, alpha only for a shadow (as in
+    Cycles). Before, they kept the plane's colour: a bright line along the horizon. Pixels partly covering an
+    object against the background keep the object's colour."""
+    scene = _cube_on_catcher((64, 48), 0.06)
     r = _render(scalar_backend, scene, samples=16, outputs=("rgb", "instance"))
     cube = r.instance == 1
     near_cube = np.zeros_like(cube)
@@ -788,7 +795,24 @@ def test_shadow_catcher_edge_against_the_background_is_invisible(scalar_backend)
     print(f"background rgb max {rgb.max():.4f}; above the far edge: alpha max {alpha.max():.4f}")
     assert np.all(rgb == 0)  # before: the lit plane's colour along the far edge (up to 0.44)
     assert alpha.max() < 0.05  # the catcher is unshadowed there
-    # the cube against the background: pixels partly covering it keep its colour, the cube is opaque
+    # the cube against the background: pixels partly covering it keep its colour; the cube is opaque (its
+    # bottom edge also covers some catcher: alpha there = the cube's coverage + that part's shadow)
     above = (r.instance < 0) & np.roll(cube, -1, axis=0)  # background pixels right above a cube pixel
     assert above.sum() >= 3
-    assert r.rgba[above][:, 0].max() > 0.05 and np.all(r.rgba[cube][:, 3] == 1)
+    assert r.rgba[above][:, 0].max() > 0.05
+    assert np.all(r.rgba[_interior(r) & cube][:, 3] == 1) and r.rgba[cube][:, 3].min() > 0.8
+
+
+def test_shadow_catcher_neither_lights_nor_shades_objects(scalar_backend):
+    """In Cycles a shadow catcher is invisible to the other objects (no light bounced off it, no sky hidden
+    by it): the objects' pixels are those of the scene without the catcher (same seed and samples). Before,
+    the white catcher's bounce lit the cube from below (measured: its pixels 1.36x as bright)."""
+    scene = _cube_on_catcher((48, 36), 0.08)
+    with_catcher = _render(scalar_backend, scene, samples=16, outputs=("rgb", "instance"))
+    cube = with_catcher.instance == 1
+    scene.renderables.remove("catcher")
+    alone = _render(scalar_backend, scene, samples=16, outputs=("rgb",))
+    ratio = with_catcher.rgba[cube][:, :3].mean() / alone.rgba[cube][:, :3].mean()
+    print(f"cube pixels with the catcher / without: {ratio:.4f}")
+    assert cube.sum() > 30
+    assert np.abs(with_catcher.rgba[cube] - alone.rgba[cube]).max() < 1e-5
