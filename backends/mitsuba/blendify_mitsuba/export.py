@@ -272,7 +272,7 @@ def export_mitsuba(
     if tr.light_shapes:
         notes.append("lights seen by the camera in a scene with emissive materials: the backend removes them")
     if tr.catcher_dict is not None:
-        notes.append("shadow catchers: emulated by the backend from a second render")
+        notes.append("shadow catchers: emulated by the backend from two more renders (catchers alone, all but them)")
     if tr.aniso is not None:
         notes.append("fx != fy: the XML renders the square-pixel camera, the backend resamples its rows")
     if tr.ignored:
