@@ -934,9 +934,12 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
             if fits < min(n, base):  # not even a first-size pass fits: stop rather than overrun the limit
                 stopped = "time_limit"
                 break
-            # at most half the time left per pass, so the limit is approached in halving steps: a machine that
-            # slows down (other jobs) mid-pass overruns it by up to the slowdown of that half, not of all of it
-            n = min(n, max(fits // 2, min(n, base)))
+            if n > fits:
+                # a pass that would not fit is cut to half of what does, so the limit is approached in halving
+                # steps: a machine that slows down mid-pass (other jobs) overruns it by that half's slowdown, not
+                # the whole rest's. A pass that fits is left as it is: a render that ends before its limit
+                # gives the same pixels as without one
+                n = max(fits // 2, min(n, base))
         t_pass = time.perf_counter()
         r = inst.render_scene(
             scene, pass_settings.replace(seed=pass_seed(settings.seed, len(colours)), samples=max(1, n))

@@ -63,8 +63,8 @@ def test_time_limit_stops_early(noisy):
 
 @pytest.mark.parametrize("slowdown", [1.0, 1.9])
 def test_time_limit_sizes_the_passes_to_fit(noisy, monkeypatch, slowdown):
-    """Passes grow as the target nears; the time limit also caps each pass at half the samples that fit in
-    the time left (a clock advanced by the stand-in engine: 10 ms per sample, ``slowdown`` times that after
+    """Passes grow as the target nears; a pass that would not fit in the time left is cut to half the samples
+    that fit (a clock advanced by the stand-in engine: 10 ms per sample, ``slowdown`` times that after
     the first four passes, as when other jobs start). Checked only between passes, the fifth pass here took
     the 65472 samples left to the cap and ended at 655 s for a 1 s limit."""
     import types
@@ -90,6 +90,30 @@ def test_time_limit_sizes_the_passes_to_fit(noisy, monkeypatch, slowdown):
     if slowdown == 1.0:
         assert clock[0] >= 1.0 - 0.16  # and it stopped less than one 16-sample pass short of it
     assert any("time_limit" in w for w in meta["warnings"])
+
+
+def test_a_time_limit_that_is_not_reached_changes_nothing(noisy, monkeypatch):
+    """Passes that fit in the time left keep their sizes: the same seed gives the same picture with a generous
+    time limit as without one."""
+    import types
+
+    from blendify_core.pipeline import render as render_module
+
+    clock = [0.0]
+    monkeypatch.setattr(render_module, "time", types.SimpleNamespace(perf_counter=lambda: clock[0]))
+    render = NoisyBackend.render
+
+    def timed_render(self, native, settings):
+        clock[0] += 0.01 * settings.samples
+        return render(self, native, settings)
+
+    monkeypatch.setattr(NoisyBackend, "render", timed_render)
+    free = bf.render(plane_scene("sun"), backend=noisy, samples=16, target_error=0.01)
+    took = clock[0]
+    clock[0] = 0.0
+    limited = bf.render(plane_scene("sun"), backend=noisy, samples=16, target_error=0.01, time_limit=1.2 * took)
+    assert limited.meta["stopped"] == "target reached" and limited.meta["samples"] == free.meta["samples"]
+    assert np.array_equal(limited.rgba, free.rgba)
 
 
 def test_raster_backend_warns_instead(monkeypatch, noisy):
