@@ -23,7 +23,8 @@ KNOWN = {
     ("shadow_catcher", "cycles"): "Cycles' albedo pass on the catcher is 1.205 where Mitsuba and pyrender give "
     "the material's 0.604 (twice as much: the catcher's shader mix is counted twice?), and the shadow alpha "
     "differs (mean over the catcher: Cycles 0.024, Mitsuba 0.028, pyrender 0.017); Cycles hides the catcher from "
-    "reflections and bounced light (blendify 2.1's catcher), Mitsuba's emulation lets it light the ball",
+    "reflections and bounced light (blendify 2.1's catcher), and so does Mitsuba's emulation since it takes the "
+    "other objects' pixels from a render without the catcher",
     ("shadow_catcher", "pyrender"): "pyrender's shadow catcher only catches shadow-mapped sun/spot shadows (no "
     "sky occlusion): mean catcher alpha 0.017 vs 0.024-0.028; colour ratio 1.11-1.13 vs the path tracers",
 }

@@ -3,7 +3,7 @@ silhouette agree between all three backends (depth q99 <= 1e-4 relative, normal 
 smooth mesh with n-gon caps (the IR's angle-weighted vertex normals passed to every engine) and on every
 primitive type (the IR's tessellation in every engine). Point clouds: exact spheres in every backend (Cycles'
 native points, Mitsuba's analytic spheres up to 500 points, pyrender's ray-sphere intersection per pixel
-centre); Mitsuba's larger clouds are capsules laid across the view, held to the same bounds."""
+centre); Mitsuba's larger clouds are exact spheres in one curve shape, held to the same bounds."""
 
 from __future__ import annotations
 
@@ -155,7 +155,7 @@ CLOUDS = {"50": (50, 0.25), "30k": (30_000, 0.04), "150k": (150_000, 0.02)}
 @pytest.mark.parametrize("other", ["cycles", "mitsuba"])
 def test_pointcloud_sizes_exact_in_pyrender(renders, other, size, ortho):
     """Every cloud size is drawn as exact spheres (no level of detail): depth, normals and the mask at pixel
-    centres agree with the path tracers' spheres (Mitsuba's larger clouds are capsules across the view, within
+    centres agree with the path tracers' spheres (Mitsuba's larger clouds are exact curve spheres, within
     the same bounds; along an orthographic view's rays Mitsuba's curves vanished)."""
     n, diameter = CLOUDS[size]
     require("pyrender")
