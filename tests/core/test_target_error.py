@@ -31,6 +31,46 @@ def noisy():
     bf.close_backends()
 
 
+@pytest.fixture
+def compiling(monkeypatch):
+    """The stand-in engine compiles (0.25 s) the first time it renders each sample count, as Mitsuba's llvm
+    variants do."""
+    import time
+
+    seen: set[int] = set()
+    render = NoisyBackend.render
+
+    def compiling_render(self, native, settings):
+        if settings.samples not in seen:
+            seen.add(settings.samples)
+            time.sleep(0.25)
+        return render(self, native, settings)
+
+    monkeypatch.setattr(NoisyBackend, "render", compiling_render)
+    return seen
+
+
+@pytest.fixture
+def fake_clock(monkeypatch):
+    """The render module's clock advanced only by the stand-in engine: 10 ms per sample, times
+    ``slowdown[0]`` after the first four passes. Returns (clock, slowdown, calls) as mutable lists."""
+    import types
+
+    from blendify_core.pipeline import render as render_module
+
+    clock, slowdown, calls = [0.0], [1.0], []
+    monkeypatch.setattr(render_module, "time", types.SimpleNamespace(perf_counter=lambda: clock[0]))
+    render = NoisyBackend.render
+
+    def timed_render(self, native, settings):
+        calls.append(settings.samples)
+        clock[0] += 0.01 * settings.samples * (slowdown[0] if len(calls) > 4 else 1.0)
+        return render(self, native, settings)
+
+    monkeypatch.setattr(NoisyBackend, "render", timed_render)
+    return clock, slowdown, calls
+
+
 def true_error(rgba):
     return float(np.sqrt(np.mean((rgba[..., :3] - TRUTH) ** 2 / (TRUTH**2 + 1e-2))))
 
@@ -62,26 +102,13 @@ def test_time_limit_stops_early(noisy):
 
 
 @pytest.mark.parametrize("slowdown", [1.0, 1.9])
-def test_time_limit_sizes_the_passes_to_fit(noisy, monkeypatch, slowdown):
+def test_time_limit_sizes_the_passes_to_fit(noisy, fake_clock, slowdown):
     """Passes grow as the target nears; a pass that would not fit in the time left is cut to half the samples
     that fit (a clock advanced by the stand-in engine: 10 ms per sample, ``slowdown`` times that after
     the first four passes, as when other jobs start). Checked only between passes, the fifth pass here took
     the 65472 samples left to the cap and ended at 655 s for a 1 s limit."""
-    import types
-
-    from blendify_core.pipeline import render as render_module
-
-    clock = [0.0]
-    monkeypatch.setattr(render_module, "time", types.SimpleNamespace(perf_counter=lambda: clock[0]))
-    render = NoisyBackend.render
-    calls = []
-
-    def timed_render(self, native, settings):
-        calls.append(settings.samples)
-        clock[0] += 0.01 * settings.samples * (slowdown if len(calls) > 4 else 1.0)
-        return render(self, native, settings)
-
-    monkeypatch.setattr(NoisyBackend, "render", timed_render)
+    clock, slow, calls = fake_clock
+    slow[0] = slowdown
     result = bf.render(plane_scene("sun"), backend=noisy, samples=16, target_error=0.002, time_limit=1.0)
     meta = result.meta
     assert meta["stopped"] == "time_limit" and meta["target_reached"] is False
@@ -92,22 +119,10 @@ def test_time_limit_sizes_the_passes_to_fit(noisy, monkeypatch, slowdown):
     assert any("time_limit" in w for w in meta["warnings"])
 
 
-def test_a_time_limit_that_is_not_reached_changes_nothing(noisy, monkeypatch):
+def test_a_time_limit_that_is_not_reached_changes_nothing(noisy, fake_clock):
     """Passes that fit in the time left keep their sizes: the same seed gives the same picture with a generous
     time limit as without one."""
-    import types
-
-    from blendify_core.pipeline import render as render_module
-
-    clock = [0.0]
-    monkeypatch.setattr(render_module, "time", types.SimpleNamespace(perf_counter=lambda: clock[0]))
-    render = NoisyBackend.render
-
-    def timed_render(self, native, settings):
-        clock[0] += 0.01 * settings.samples
-        return render(self, native, settings)
-
-    monkeypatch.setattr(NoisyBackend, "render", timed_render)
+    clock, _, _ = fake_clock
     free = bf.render(plane_scene("sun"), backend=noisy, samples=16, target_error=0.01)
     took = clock[0]
     clock[0] = 0.0
@@ -210,42 +225,18 @@ def test_estimate_cost_predicts_the_samples_the_render_takes(noisy, target):
     assert "samples" in str(est) and f"{target:g}" in str(est)
 
 
-def test_estimate_cost_keeps_a_compilation_out_of_the_cost_per_sample(noisy, monkeypatch):
+def test_estimate_cost_keeps_a_compilation_out_of_the_cost_per_sample(noisy, compiling):
     """An engine that compiles for every new sample count (Mitsuba's llvm variants): the long pass is timed
     again once compiled, so the compilation is counted per new size, not spread over the samples."""
-    import time
-
-    seen: set[int] = set()
-    render = NoisyBackend.render
-
-    def compiling_render(self, native, settings):
-        if settings.samples not in seen:
-            seen.add(settings.samples)
-            time.sleep(0.25)
-        return render(self, native, settings)
-
-    monkeypatch.setattr(NoisyBackend, "render", compiling_render)
     est = bf.estimate_cost(plane_scene("sun"), backend=noisy, target_error=0.005)
     assert est.seconds_per_new_size >= 0.2
     assert est.seconds_per_sample * 64 < 0.1  # the 64-sample pass's own compilation is not in its samples
     assert est.pilot_samples == 4 * 16 + 2 * 64
 
 
-def test_estimate_cost_sees_a_compilation_when_the_first_pass_size_was_compiled_before(noisy, monkeypatch):
+def test_estimate_cost_sees_a_compilation_when_the_first_pass_size_was_compiled_before(noisy, compiling):
     """An earlier render in the process compiled the pilot's first pass size, so its first pass shows no
     compilation; the long pass still compiles and is no longer read as a cost per sample."""
-    import time
-
-    seen: set[int] = set()
-    render = NoisyBackend.render
-
-    def compiling_render(self, native, settings):
-        if settings.samples not in seen:
-            seen.add(settings.samples)
-            time.sleep(0.25)
-        return render(self, native, settings)
-
-    monkeypatch.setattr(NoisyBackend, "render", compiling_render)
     bf.render(plane_scene("sun"), backend=noisy, samples=16)  # the user's earlier render at the pass size
     est = bf.estimate_cost(plane_scene("sun"), backend=noisy, target_error=0.005)
     assert est.seconds_per_sample * 64 < 0.1
