@@ -760,6 +760,7 @@ def _effect_pilot(
     counts: list[int],
     estimate: float,
     spent: float = 0.0,
+    eff: Effects | None = None,
 ) -> dict[str, Any]:
     """Decide from pixels whether the settings without one effect (:data:`PILOTS`: ``indirect`` = direct
     light alone, ``max_bounces=0``; ``caustics`` = ``caustics=False``) reach ``settings.target_error`` sooner.
@@ -773,7 +774,8 @@ def _effect_pilot(
     cost, weighed by their cost). The effect is left out when its light is <= ``INDIRECT_SHARE``
     x target and the pilot's settings need at most ``DIRECT_SAMPLES_SLACK`` x the full settings' samples, each
     sample weighed by its cost (:meth:`Backend.pilot_sample_cost`: e.g. Mitsuba renders caustics=False with a
-    Python integrator). Stopping depends only on pixels, so a seed still gives the same picture. Returns the
+    Python integrator). ``eff``: the scene's :func:`analyse_effects` when the caller has it (analysed here
+    otherwise). Stopping depends only on pixels, so a seed still gives the same picture. Returns the
     decision and its numbers (``meta["<kind>_pilot"]``); with ``dropped`` also the passes to continue from."""
     spec = PILOTS[kind]
     target = float(settings.target_error or 0.0)
@@ -781,7 +783,7 @@ def _effect_pilot(
     total = sum(counts)
     need_full = total * (estimate / target) ** 2 * 1.1 - total
     out: dict[str, Any] = {"dropped": False}
-    skip = _pilot_applies(kind, settings, analyse_effects(scene))
+    skip = _pilot_applies(kind, settings, eff if eff is not None else analyse_effects(scene))
     if skip is not None:
         out["why"] = skip
         return out
@@ -896,13 +898,15 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     pending, spent = list(PILOTS), 0.0
     pass_seconds: list[tuple[float, int]] = []  # (seconds, samples) of the passes after the first
     engine_meta: Mapping[str, Any] | None = None  # how the picture's passes were rendered, once a pilot dropped
+    eff: Effects | None = None  # the scene's effects, analysed once for all the pilots' rounds
     while True:
         if len(colours) >= FIRST_PASSES:
             estimate = relative_error_estimate(np.stack(colours), np.array(counts))
             if pending and estimate > noise_target:
+                eff = eff if eff is not None else analyse_effects(scene)
                 for kind in list(pending):  # caustics first; if kept, direct light alone
                     pilot = pilots[kind] = _effect_pilot(
-                        kind, inst, scene, settings, pass_settings, colours, counts, estimate, spent
+                        kind, inst, scene, settings, pass_settings, colours, counts, estimate, spent, eff
                     )
                     if pilot.pop("retry", False):
                         continue

@@ -358,6 +358,77 @@ def test_world_bounds_follow_the_pose():
     assert np.allclose(hi, [1 + r, 2 + r, 4])
 
 
+def _vertex_bounds(obj):
+    """The bounds of the object's tessellation, rotated and translated (the definition world_bounds keeps)."""
+    v = obj.to_mesh().vertices @ obj.rotation_matrix.T + obj.translation
+    return v.min(axis=0), v.max(axis=0)
+
+
+def test_world_bounds_of_every_primitive_enclose_its_tessellation_tightly():
+    """Spheres and ellipsoids give their own bounds (the tessellation lies inside, within its chord error),
+    mesh primitives and curves the tessellation's, for any rotation; and they follow pose and size changes."""
+    s, m, c = bf.Scene(), bf.DiffuseMaterial(), bf.UniformColors((1, 1, 1))
+    pose = {"rotation_mode": "eulerXYZ", "rotation": (30, 50, 10), "translation": (1, 2, 3)}
+    rng = np.random.default_rng(1)
+    objs = {
+        "sphere": s.renderables.add_sphere_nurbs(0.4, m, c, **pose),
+        "ellipsoid": s.renderables.add_ellipsoid_nurbs((0.3, 0.1, 0.5), m, c, **pose),
+        "cube": s.renderables.add_cube_mesh(0.3, m, c, **pose),
+        "cylinder": s.renderables.add_cylinder_mesh(0.2, 0.7, m, c, **pose),
+        "plane": s.renderables.add_plane_mesh(2.0, m, c, **pose),
+        "circle": s.renderables.add_circle_mesh(0.5, m, c, **pose),
+        "curve": s.renderables.add_curve_nurbs(rng.normal(size=(5, 3)), 0.05, m, c, **pose),
+    }
+    for name, obj in objs.items():
+        for step in range(3):
+            lo, hi = obj.world_bounds()
+            vlo, vhi = _vertex_bounds(obj)
+            tol = 2e-3 * float(np.max(vhi - vlo)) if name in ("sphere", "ellipsoid") else 1e-12
+            assert np.all(lo <= vlo + 1e-12) and np.all(hi >= vhi - 1e-12), (name, step)
+            assert np.allclose(lo, vlo, atol=tol) and np.allclose(hi, vhi, atol=tol), (name, step)
+            if step == 0:
+                obj.set_position(rotation_mode="eulerXYZ", rotation=(-20, 10, 80), translation=(-4, 0, 1))
+            elif name in ("sphere", "cylinder", "circle", "curve"):
+                obj.radius = 0.9
+            elif name in ("cube", "plane"):
+                obj.size = 1.7
+    sphere = objs["sphere"]
+    assert np.allclose(sphere.world_bounds()[1] - sphere.world_bounds()[0], 1.8)
+
+
+def test_world_bounds_tessellate_a_primitive_once_per_geometry_and_rotation(monkeypatch):
+    """A render asks for every object's bounds several times (scene bounds, effect analysis): a curve is
+    tessellated once while its geometry and rotation stay, not again for a new translation, and again after
+    either changes."""
+    from blendify_core.ir.renderables.parametric import CurveBezier
+
+    s = bf.Scene()
+    curve = s.renderables.add_curve_nurbs(
+        np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0]], dtype=float),
+        0.05,
+        bf.DiffuseMaterial(),
+        bf.UniformColors((1, 1, 1)),
+    )
+    calls = []
+    original = CurveBezier.to_mesh
+    monkeypatch.setattr(CurveBezier, "to_mesh", lambda self, *a, **k: calls.append(1) or original(self, *a, **k))
+    first = curve.world_bounds()
+    curve.world_bounds()
+    s.bounds()
+    assert len(calls) == 1
+    curve.set_position(translation=(0, 0, 5))
+    lo, hi = curve.world_bounds()
+    assert len(calls) == 1 and np.allclose(lo - first[0], [0, 0, 5]) and np.allclose(hi - first[1], [0, 0, 5])
+    curve.set_position(rotation_mode="eulerXYZ", rotation=(0, 0, 90), translation=(0, 0, 5))
+    lo, hi = curve.world_bounds()
+    assert len(calls) == 2
+    assert np.allclose(lo, _vertex_bounds(curve)[0]) and np.allclose(hi, _vertex_bounds(curve)[1])
+    curve.radius = 0.2
+    lo, hi = curve.world_bounds()
+    assert len(calls) == 5  # (two more for _vertex_bounds above)
+    assert np.allclose(lo, _vertex_bounds(curve)[0]) and np.allclose(lo[2], 4.8)
+
+
 def test_mesh_vertex_normals_computed_once_per_geometry():
     """A mesh's vertex normals are computed once while its arrays live (every render of an unchanged mesh
     reuses them), read-only, and recomputed when the vertices change."""

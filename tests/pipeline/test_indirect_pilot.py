@@ -195,3 +195,16 @@ def test_a_dropped_effect_shows_in_how_the_picture_was_rendered(monkeypatch):
     assert r.meta["integrator"] == "no caustics" and r.meta["engine_settings"] == {"caustics": False}
     kept = render_module.render_to_target(_Engine(indirect=0.05, remainder=0.02), _plastic_scene(), settings)  # type: ignore[arg-type]
     assert not kept.meta["caustics_pilot"]["dropped"] and kept.meta["integrator"] == "full"
+
+
+def test_a_render_analyses_the_scene_once_for_all_its_pilot_rounds(monkeypatch):
+    """render_to_target decides both pilots, and retries one as the estimate grows, from one effect analysis
+    (each round analysed the scene again before: 7 analyses in one Mitsuba render of a plastic scene)."""
+    calls = []
+    analyse = render_module.analyse_effects
+    monkeypatch.setattr(render_module, "analyse_effects", lambda scene: calls.append(1) or analyse(scene))
+    settings = resolve_settings(quality="final", seed=3)
+    result = render_module.render_to_target(_Engine(indirect=0.05, remainder=0.02), _plastic_scene(), settings)  # type: ignore[arg-type]
+    meta = result.meta
+    assert meta["caustics_pilot"]["why"] and meta["indirect_pilot"]["why"], meta
+    assert len(calls) == 1

@@ -57,6 +57,10 @@ class SphereNURBS(ParametricPrimitive):
     def to_mesh(self, segments: int = 64, rings: int = 32) -> TriMesh:
         return uv_sphere(self.radius, segments, rings)
 
+    def world_bounds(self) -> tuple[AnyArray, AnyArray]:
+        """The sphere's own bounds (centre +- radius; no tessellation)."""
+        return self.translation - self.radius, self.translation + self.radius
+
     def _params(self, arrays: dict[str, AnyArray], prefix: str) -> dict[str, Any]:
         return {"radius": self.radius}
 
@@ -79,6 +83,12 @@ class EllipsoidNURBS(ParametricPrimitive):
     def __init__(self, radius: Any, material: Any, colors: Any, tag: str = "", **pose: Any):
         self.radius = radius
         super().__init__(material, colors, tag, **pose)
+
+    def world_bounds(self) -> tuple[AnyArray, AnyArray]:
+        """The rotated ellipsoid's own bounds (no tessellation): along world axis i, the half extent is the
+        norm of row i of rotation x diag(radius)."""
+        half = np.linalg.norm(self.rotation_matrix * np.asarray(self.radius, dtype=np.float64), axis=1)
+        return self.translation - half, self.translation + half
 
     def to_mesh(self, segments: int = 64, rings: int = 32) -> TriMesh:
         m = uv_sphere(1.0, segments, rings)

@@ -91,6 +91,10 @@ class MeshPrimitive(Renderable):
         self._smooth = as_bool("smooth", smooth)
         self._bump("geometry")
 
+    def _bounds_vertices(self) -> AnyArray:
+        """The polygons' corners (the mesh's vertices, without its triangulation and normals)."""
+        return self._polygons()[0]
+
     def to_mesh(self) -> TriMesh:
         v, polys, normals = self._polygons()
         tris, poly_idx, _ = triangulate_polygons(polys)
