@@ -176,11 +176,14 @@ WHY: dict[str, str | dict[str, str]] = {
         "0.0057-0.0083 (above half the target) and kept them, then the indirect-light pilot kept that (0.09); "
         "their 4 passes of 16 samples cost 0.82-0.86x there (the full passes' first estimate asked for 2352 "
         "samples, the render then took 208 or 1728)",
-        "mitsuba": "the floor also sees the sky in the coats; the caustics pilot is not tried (30x cost rule), the "
-        "indirect-light pilot's 2 passes and its own translation (0.03 s) are, and keep the light (0.093): at 32 px "
-        "the renders take 0.6-2 s, so that is 0.68x (0.48-1.00, noisy: the machine ran other benchmarks; 0.82x in "
-        "an earlier run). At 128 px no pilot is tried (as in the llvm and Cycles rows). The pilot is gated by "
-        "samples, not seconds, so that a seed gives the same picture",
+        "mitsuba": "scalar_rgb: the floor also sees the sky in the coats; the caustics pilot is not tried (30x "
+        "cost rule), nor, at 32 px, the indirect-light pilot: its 2 passes cost 2 x (16 + 2.15) samples of this "
+        "image plus 29 for switching to its settings (Mitsuba translates and loads the scene again, 25-40 ms), "
+        "x 16 = 1050 > the 64-94 more samples the first passes ask for on every seed: the same work in both "
+        "settings, 0.97x (0.83-1.20) on a quiet machine (load 0.3-0.4). Before the switch was counted (as one 3-6 "
+        "ms call), the pilot ran on 1 of the 6 seeds and kept the light (0.093): that pair 0.79x, the median "
+        "0.95x (0.79-1.09); an earlier run beside other benchmarks (load 4) gave 0.68x (0.48-1.00). The pilot is "
+        "gated by samples, not seconds, so that a seed gives the same picture",
         "mitsuba:llvm_ad_rgb": "at 128 px the first passes already estimate the render within 65 samples of the "
         "target: neither pilot is tried (not worth their passes), the same work in both settings; the ratios "
         "(0.49-2.20 for identical work) are the timing noise of a loaded machine",

@@ -128,6 +128,13 @@ class Backend(abc.ABC):
         calls (a fixed number, not a timing, so a seed still gives the same picture). 0.0: negligible."""
         return 0.0
 
+    def switch_overhead(self, settings: RenderSettings) -> float:
+        """The extra time of the first render call with ``settings`` after calls with others (a pilot's
+        settings: the engine translates or loads the scene for them), in pixel-samples of the full settings,
+        as measured for this engine; ``final``'s pilots count it once. Default: one more
+        :meth:`pass_overhead`."""
+        return self.pass_overhead(settings)
+
     # -- discovery ---------------------------------------------------------------------------------
     @classmethod
     def probe(cls) -> BackendStatus:

@@ -790,11 +790,14 @@ def _effect_pilot(
     pilot_spp = base
     pilot_settings = pass_settings.replace(**spec["changes"])
     cost = float(inst.pilot_sample_cost(pilot_settings))
-    # a pilot pass's fixed cost in samples of this image (one more for switching to the pilot's settings)
-    call = float(inst.pass_overhead(pilot_settings)) / max(1, colours[0].shape[0] * colours[0].shape[1])
+    # a pilot pass's fixed cost in samples of this image, and the first one's for switching to its settings
+    pixels = max(1, colours[0].shape[0] * colours[0].shape[1])
+    call = float(inst.pass_overhead(pilot_settings)) / pixels
+    switch_overhead = getattr(inst, "switch_overhead", None)  # (a stand-in engine may have pass_overhead only)
+    switch = float(switch_overhead(pilot_settings)) / pixels if switch_overhead is not None else call
 
     def pilot_cost(k: int) -> float:
-        return k * (cost * pilot_spp + call) + call
+        return k * (cost * pilot_spp + call) + switch
 
     if need_full < PILOT_MIN_GAIN * (spent + pilot_cost(PILOT_PASSES)):
         out["retry"] = True  # tried again after the next pass, if the estimate grows
@@ -802,6 +805,8 @@ def _effect_pilot(
         notes = [f"a pilot sample costs {cost:g} full ones"] if cost != 1 else []
         if call > 0:
             notes.append(f"a pass's fixed cost is {call:.3g} samples of this image")
+        if switch > call:
+            notes.append(f"switching to the pilot's settings {switch:.3g}")
         if notes:
             out["why"] += f" ({'; '.join(notes)})"
         return out

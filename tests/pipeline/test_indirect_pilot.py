@@ -177,6 +177,31 @@ def test_a_pilot_counts_the_fixed_cost_of_its_render_calls():
     assert some["pilot_samples_needed"] == free["pilot_samples_needed"]
 
 
+class _Loading(_Engine):
+    """A stand-in engine that loads the scene again for other settings (Mitsuba: 25-40 ms in scalar_rgb)."""
+
+    def __init__(self, switch: float, **kw: Any) -> None:
+        super().__init__(**kw)
+        self.switch = switch
+
+    def switch_overhead(self, settings: Any) -> float:
+        return self.switch
+
+
+def test_a_pilot_counts_the_switch_to_its_settings_once():
+    """Switching to the pilot's settings (a translation and load) is counted once, at the engine's own
+    cost: with 10 samples per call and 40 for the switch, 2 x 26 + 40 = 92, x 16 > 1062: not tried; with the
+    switch costing one call (an engine without switch_overhead) the same pilot is tried."""
+    pixels = SHAPE[0] * SHAPE[1]
+    one_call = _pilot(_Engine(indirect=0.0, remainder=0.02, overhead=10.0 * pixels))
+    assert one_call["cost_in_samples"] == 62, one_call
+    loading = _pilot(_Loading(40.0 * pixels, indirect=0.0, remainder=0.02, overhead=10.0 * pixels))
+    assert loading.get("retry") and "switching to the pilot's settings 40" in loading["why"], loading
+    # 20 for the switch: 2 x 26 + 20 = 72, x 16 = 1152 > 1062 still; at 5x the target 1696 more: tried
+    tried = _pilot(_Loading(20.0 * pixels, indirect=0.0, remainder=0.02, overhead=10.0 * pixels), 5.0)
+    assert tried["cost_in_samples"] == 72 and tried["passes"] == PILOT_PASSES, tried
+
+
 def test_caustics_pilot_not_tried_where_the_analysis_finds_none():
     pilot = _pilot(_Engine(indirect=0.0, remainder=0.02), kind="caustics", scene=_scene())  # all diffuse
     assert pilot["why"] == "not tried: the effect analysis already found no caustics", pilot

@@ -63,6 +63,16 @@ NO_CAUSTICS_COST = {"scalar": 30.0, "jit": 1.25}
 #: lowest, so a pilot is never refused for a cost it does not have
 PASS_OVERHEAD = {"scalar": 2.2e3, "jit": 1.2e4}
 
+#: the extra time of the first call with other settings (a pilot's: the scene is translated and loaded again
+#: for them) in pixel-samples, per variant family: measured on the plastic ball and cube under a sun and a sky
+#: at 32 px, a 16-spp pass with max_bounces=0 right after full ones against the same pass again: +25-40 ms in
+#: scalar_rgb (3.5e4-5e4 pixel-samples at 0.7 us each on two threads) and +26 ms in llvm_ad_rgb with its
+#: kernels in Dr.Jit's cache (6e4 at 0.43 us; compiling them costs another 0.75-1 s, not counted: a cached
+#: kernel does not pay it). One pass call (PASS_OVERHEAD) was counted before, and a scalar pilot that kept the
+#: light ran 0.79x at 32 px (the pilot, 2 passes with the scene's translation and load, took 0.10-0.16 s where
+#: a 0.65 s render counted it as 38 samples, 0.045 s)
+SWITCH_OVERHEAD = {"scalar": 3.0e4, "jit": 3.0e4}
+
 #: ``device=`` -> the variant asked for ("cpu": the fastest CPU variant, llvm_ad_rgb else scalar_rgb)
 #: ("gpu": cuda_ad_rgb, else the fastest CPU variant, with the reason)
 _DEVICE_VARIANT = {
@@ -171,6 +181,10 @@ class MitsubaBackend(Backend):
     def pass_overhead(self, settings: RenderSettings) -> float:
         """One render call's fixed time in pixel-samples of its variant family (:data:`PASS_OVERHEAD`)."""
         return PASS_OVERHEAD[self._cost_family()]
+
+    def switch_overhead(self, settings: RenderSettings) -> float:
+        """The first call with other settings: a translation and load of the scene (:data:`SWITCH_OVERHEAD`)."""
+        return SWITCH_OVERHEAD[self._cost_family()]
 
     def _cost_family(self) -> str:
         """The key of the measured per-variant costs (NO_CAUSTICS_COST, PASS_OVERHEAD): "scalar" or "jit"."""
