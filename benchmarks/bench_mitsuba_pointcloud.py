@@ -1,7 +1,8 @@
 """Point clouds in Mitsuba: analytic spheres (one shape + BSDF per point) versus what the backend uses beyond
-``max_analytic_spheres`` (one ``linearcurve`` shape of capsules, :mod:`blendify_mitsuba.points`, for opaque
-clouds), load (translate + load_dict) and render times against the number of points. Chooses
-``DEFAULT_MAX_ANALYTIC_SPHERES``. One warm-up render first, so that importing Mitsuba is not counted.
+``max_analytic_spheres`` (one ``linearcurve`` shape whose segments end in each point's exact sphere,
+:mod:`blendify_mitsuba.points`, for opaque clouds), load (translate + load_dict) and render times against the
+number of points. Chooses ``DEFAULT_MAX_ANALYTIC_SPHERES``. One warm-up render first, so that importing Mitsuba is
+not counted.
 
 Run: ``uv run --no-sync python benchmarks/bench_mitsuba_pointcloud.py [--variant llvm_ad_rgb --analytic-max 5000]``.
 Writes ``benchmarks/results/mitsuba_pointcloud_<variant>.md`` and ``.png``.
@@ -40,7 +41,7 @@ def run(n: int, analytic: bool, variant: str, settings) -> tuple[str, float, flo
         res = b.render(native, settings)
         t2 = time.perf_counter()
         keys = list(native.shapes)
-    kind = "analytic spheres" if keys[0].endswith("_p0000000") else "capsule curves"
+    kind = "analytic spheres" if keys[0].endswith("_p0000000") else "curve spheres"
     kind = "merged icospheres" if keys[0].endswith("_mesh") else kind
     return kind, t1 - t0, t2 - t1, float(res.rgba[..., 3].mean())
 
@@ -65,13 +66,13 @@ def main() -> None:
     RESULTS.mkdir(parents=True, exist_ok=True)
     stamp = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     lines = [
-        "# Mitsuba point clouds: analytic spheres vs one shape of capsule curves",
+        "# Mitsuba point clouds: analytic spheres vs one curve shape of spheres",
         "",
         f"Scene: `testing.pointcloud_scene(n)` (points on a unit sphere, per-point colours, sun + background), "
         f"128x128, 16 spp, variant {args.variant}, mitsuba {metadata.version('mitsuba')}, 2 cores shared with "
         f"other jobs (load average {os.getloadavg()[0]:.1f} at the end), {stamp}. "
         "`load` = translate + `mi.load_dict` (one sphere shape and BSDF per point vs one `linearcurve` "
-        "shape of capsules with a per-point colour bitmap); one warm-up render before, so no import is counted.",
+        "shape of exact spheres with a per-point colour bitmap); one warm-up render before, so no import is counted.",
         "",
         "| points | representation | load (s) | render (s) | total (s) | coverage |",
         "|---|---|---|---|---|---|",
@@ -82,11 +83,11 @@ def main() -> None:
         "",
         "Both are within the path tracers' exactness bounds (depth q99 <= 1e-4 relative, normals q99 <= 0.5 "
         "deg; `tests/backends/mitsuba/test_mitsuba_render.py::test_curve_points_have_the_spheres_depth_and_normals`"
-        "), so clouds that can be capsules leave the analytic spheres where the curves become faster in total "
+        "), so clouds that can be curves leave the analytic spheres where the curves become faster in total "
         f"(`blendify_mitsuba.DEFAULT_MAX_ANALYTIC_OPAQUE`: {DEFAULT_MAX_ANALYTIC_OPAQUE}; the others at "
         f"`DEFAULT_MAX_ANALYTIC_SPHERES`: {DEFAULT_MAX_ANALYTIC_SPHERES}). The merged icosphere "
-        "mesh (emissive or partly transparent clouds, and points smaller than 1/1000 of the scene's extent: "
-        "here the 100,000 points, point size 2/sqrt(n)) is measured in `mitsuba_pointcloud_options.md`.",
+        "mesh (emissive or partly transparent clouds, and points smaller than 5e-5 of their distance to the camera) "
+        "is measured in `mitsuba_pointcloud_options.md`.",
         "",
     ]
     (RESULTS / f"mitsuba_pointcloud_{args.variant}.md").write_text("\n".join(lines))
@@ -99,7 +100,7 @@ def main() -> None:
         print("matplotlib is missing: no plot written")
         return
     fig, ax = plt.subplots(figsize=(6, 4))
-    for kind, style in (("analytic spheres", "o-"), ("capsule curves", "s-"), ("merged icospheres", "^-")):
+    for kind, style in (("analytic spheres", "o-"), ("curve spheres", "s-"), ("merged icospheres", "^-")):
         xs = [r[0] for r in rows if r[1] == kind]
         if not xs:
             continue
