@@ -31,7 +31,9 @@ from blendify_core.pipeline.render import (
     MAX_PASSES,
     MAX_SAMPLES,
     _next_pass_samples,
+    error_dof,
     error_interval,
+    few_terms_factor,
     pass_seed,
     relative_error_estimate,
     render,
@@ -89,13 +91,17 @@ class CostEstimate:
         )
 
 
-def schedule(error_at: float, samples_at: int, target: float, base: int) -> tuple[list[int], bool]:
+def schedule(
+    error_at: float, samples_at: int, target: float, base: int, pixels: float = float("inf")
+) -> tuple[list[int], bool]:
     """The pass sizes ``render_to_target`` renders if the error is ``error_at`` at ``samples_at`` samples and
-    falls as 1/sqrt(samples), and whether it reaches ``target`` before the caps."""
+    falls as 1/sqrt(samples), and whether it reaches ``target`` before the caps. ``pixels``: how many pixels
+    carry the error (:func:`error_dof` per pass), which the render's stopping rule trusts by
+    (:func:`few_terms_factor`)."""
     counts = [base] * FIRST_PASSES
     while True:
         total = sum(counts)
-        estimate = error_at * np.sqrt(samples_at / total)
+        estimate = error_at * np.sqrt(samples_at / total) * few_terms_factor((len(counts) - 1) * pixels)
         if estimate <= target:
             return counts, True
         if len(counts) >= MAX_PASSES or total >= MAX_SAMPLES:
@@ -103,9 +109,11 @@ def schedule(error_at: float, samples_at: int, target: float, base: int) -> tupl
         counts.append(_next_pass_samples(total, float(estimate), target, base))
 
 
-def predict_schedule(error_at: float, samples_at: int, target: float, base: int) -> tuple[int, int, bool]:
+def predict_schedule(
+    error_at: float, samples_at: int, target: float, base: int, pixels: float = float("inf")
+) -> tuple[int, int, bool]:
     """Passes and total samples of :func:`schedule`, and whether it reaches ``target``."""
-    counts, reached = schedule(error_at, samples_at, target, base)
+    counts, reached = schedule(error_at, samples_at, target, base, pixels)
     return len(counts), sum(counts), reached
 
 
@@ -184,6 +192,7 @@ def estimate_cost(
     stack = np.stack(colours)  # type: ignore[arg-type]
     counts_arr = np.array(counts)
     pilot_error = relative_error_estimate(stack, counts_arr)
+    pixels = error_dof(stack, counts_arr) / (len(counts_arr) - 1)  # the pixels that carry the error
     lo_err, hi_err = error_interval(stack, counts_arr)
     pilot_n = int(counts_arr.sum())
     # the first call translated the scene, which the real render finds done: the repeats' median
@@ -191,10 +200,10 @@ def estimate_cost(
     compiled = {base, LONG_PASS * base}  # sizes this process's engine has seen now
 
     def seconds_for(err: float) -> float:
-        sizes, _ = schedule(err, pilot_n, target, base)
+        sizes, _ = schedule(err, pilot_n, target, base, pixels)
         return per_call + len(sizes) * per_pass + sum(sizes) * per_sample + len(set(sizes) - compiled) * per_size
 
-    passes, samples, reached = predict_schedule(pilot_error, pilot_n, target, base)
+    passes, samples, reached = predict_schedule(pilot_error, pilot_n, target, base, pixels)
     seconds = seconds_for(pilot_error)
     hi_err = hi_err if np.isfinite(hi_err) else pilot_error * 2
     # the seconds are not monotonic in the error (whole passes: a larger error can mean fewer, larger passes)

@@ -293,3 +293,43 @@ def test_cli_estimate_prints_the_price_and_writes_nothing(noisy, tmp_path, capsy
     assert main(["render", str(scene_file), "-b", noisy, "-o", str(out)]) == 0
     assert "estimated error" in capsys.readouterr().out and out.exists()
     assert main(["render", str(scene_file), "-b", noisy, "--estimate", "-s", "4"]) != 0
+
+
+def test_few_terms_factor_is_the_chi_square_bound():
+    """sqrt(dof / chi2.ppf(0.05, dof)), the exact values (scipy) within 4 %; 1 where nothing varies."""
+    from blendify_core.pipeline.render import few_terms_factor
+
+    exact = {3: 2.920, 9: 1.645, 30: 1.2737, 100: 1.1328, 20000: 1.0083}
+    for dof, value in exact.items():
+        assert few_terms_factor(dof) == pytest.approx(value, rel=0.04), dof
+    assert few_terms_factor(float("inf")) == 1.0
+    assert few_terms_factor(0.5) == float("inf")  # too few to trust at all
+
+
+def test_error_dof_counts_the_pixels_that_carry_the_error():
+    from blendify_core.pipeline.render import error_dof
+
+    rng = np.random.default_rng(0)
+    passes = 0.5 + 0.05 * rng.normal(size=(4, 20, 30, 3))  # every pixel as noisy: 600 pixels x 3 dof
+    # the terms' own noise makes the participation ratio count 1 / (1 + 2/9) of them: on the safe side
+    assert error_dof(passes) == pytest.approx(3 * 600 / (1 + 2 / 9), rel=0.05)
+    one = np.full((4, 20, 30, 3), 0.5)
+    one[:, 7, 9, :] += 0.05 * rng.normal(size=(4, 3))  # one noisy pixel: 3 dof
+    assert error_dof(one) == pytest.approx(3.0)
+    assert error_dof(np.full((4, 5, 5, 3), 0.5)) == float("inf")  # nothing varies
+
+
+def test_a_one_pixel_render_stops_at_its_target(noisy, monkeypatch):
+    """Where one pixel carries the error, its estimate from 4 passes has 3 degrees of freedom: trusted as it
+    is, 18 of 40 1x1 renders stopped above the target (5 above 1.5x); the stopping rule trusts its 95 % bound."""
+    from blendify_core.pipeline import render as render_module
+
+    scene = plane_scene(resolution=(1, 1))
+
+    def misses() -> int:
+        renders = [bf.render(scene, backend=noisy, quality="final", target_error=0.05, seed=s) for s in range(40)]
+        return sum(true_error(r.rgba) > 0.05 for r in renders)
+
+    assert misses() <= 4  # 3 of 40 (the bound is one-sided 95 %); 1 of them above 1.5x the target
+    monkeypatch.setattr(render_module, "few_terms_factor", lambda dof: 1.0)
+    assert misses() >= 12  # 18 of 40; 5 above 1.5x
