@@ -676,6 +676,8 @@ def _next_pass_samples(total: int, estimate: float, target: float, base: int) ->
     passes without overshooting by much, and a render repeats few distinct pass sizes (an engine that compiles
     per sample count, like Mitsuba's llvm variants, then reuses its kernels)."""
     needed = total * (estimate / target) ** 2 * 1.1 - total
+    if not np.isfinite(needed):  # an estimate not to be trusted at all: as many as the cap allows
+        return int(max(MAX_SAMPLES - total, 1))
     half = max(float(np.ceil(needed / 2)), float(base))
     n = base * 2 ** int(np.floor(np.log2(half / base)))
     return int(np.clip(n, 1, max(MAX_SAMPLES - total, 1)))

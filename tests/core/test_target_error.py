@@ -333,3 +333,10 @@ def test_a_one_pixel_render_stops_at_its_target(noisy, monkeypatch):
     assert misses() <= 4  # 3 of 40 (the bound is one-sided 95 %); 1 of them above 1.5x the target
     monkeypatch.setattr(render_module, "few_terms_factor", lambda dof: 1.0)
     assert misses() >= 12  # 18 of 40; 5 above 1.5x
+
+
+def test_an_untrusted_estimate_sizes_the_next_pass_to_the_cap():
+    from blendify_core.pipeline.render import MAX_SAMPLES, _next_pass_samples
+
+    assert _next_pass_samples(64, float("inf"), 0.01, 16) == MAX_SAMPLES - 64
+    assert _next_pass_samples(64, 0.02, 0.01, 16) == 64  # half of the 218 still needed, down to 16 x 2^k
