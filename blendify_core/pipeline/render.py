@@ -579,10 +579,33 @@ def relative_error_estimate(passes: FloatArray, samples: FloatArray | None = Non
     result is the RMS over pixel-channels of sqrt(var / (m^2 + 0.01)) (Mitsuba's relative-MSE floor), with m
     an estimate of the pixel's value that a bright outlier does not raise (:func:`_relative_divisor`): its
     square is the relative MSE."""
+    return float(np.sqrt(_relative_terms(passes, samples).mean()))
+
+
+def _relative_terms(passes: FloatArray, samples: FloatArray | None = None) -> FloatArray:
+    """Each pixel-channel's relative MSE of the passes' mean (:func:`relative_error_estimate` is the root of
+    their mean; :func:`error_dof` counts the pixels that carry them)."""
     n = np.ones(passes.shape[0]) if samples is None else np.asarray(samples, dtype=np.float64)
     mean, var_one = _per_sample_variance(passes, n)
-    rel = var_one / n.sum() / _relative_divisor(passes, n, mean)
-    return float(np.sqrt(rel.mean()))
+    terms: FloatArray = var_one / n.sum() / _relative_divisor(passes, n, mean)
+    return terms
+
+
+def _dof_of_terms(terms: FloatArray, k: int) -> float:
+    """:func:`error_dof` of ``k`` passes from their :func:`_relative_terms`."""
+    t = terms.reshape(-1, terms.shape[-1]).sum(axis=-1) if terms.ndim >= 2 else terms.ravel()
+    total = float(t.sum())
+    if total <= 0.0:
+        return float("inf")  # no pixel varies between the passes: nothing to be unsure about
+    return (k - 1) * total * total / float((t * t).sum())
+
+
+def _estimate_and_trusted(passes: FloatArray, samples: FloatArray) -> tuple[float, float]:
+    """:func:`relative_error_estimate` and the bound ``final`` stops on (times :func:`few_terms_factor`),
+    from one computation of the terms."""
+    terms = _relative_terms(passes, samples)
+    estimate = float(np.sqrt(terms.mean()))
+    return estimate, estimate * few_terms_factor(_dof_of_terms(terms, passes.shape[0]))
 
 
 def error_dof(passes: FloatArray, samples: FloatArray | None = None) -> float:
@@ -590,15 +613,7 @@ def error_dof(passes: FloatArray, samples: FloatArray | None = None) -> float:
     pixels that carry the error (the participation ratio (sum t)^2 / sum t^2 of the pixels' relative-MSE terms
     t, channels summed: one noisy pixel counts once; equally noisy pixels count 1 / (1 + 2 / (C (K - 1))) each,
     C channels, as their estimated terms scatter: on the safe side)."""
-    k = passes.shape[0]
-    n = np.ones(k) if samples is None else np.asarray(samples, dtype=np.float64)
-    mean, var_one = _per_sample_variance(passes, n)
-    t = var_one / _relative_divisor(passes, n, mean)
-    t = t.reshape(-1, t.shape[-1]).sum(axis=-1) if t.ndim >= 2 else t.ravel()
-    total = float(t.sum())
-    if total <= 0.0:
-        return float("inf")  # no pixel varies between the passes: nothing to be unsure about
-    return (k - 1) * total * total / float((t * t).sum())
+    return _dof_of_terms(_relative_terms(passes, samples), passes.shape[0])
 
 
 def few_terms_factor(dof: float, z: float = 1.645) -> float:
@@ -940,9 +955,8 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     eff: Effects | None = None  # the scene's effects, analysed once for all the pilots' rounds
     while True:
         if len(colours) >= FIRST_PASSES:
-            estimate = relative_error_estimate(np.stack(colours), np.array(counts))
-            # the estimate trusted for stopping: its 95 % upper bound where few pixels carry the error
-            trusted = estimate * few_terms_factor(error_dof(np.stack(colours), np.array(counts)))
+            # the estimate, and the one trusted for stopping: its 95 % upper bound where few pixels carry the error
+            estimate, trusted = _estimate_and_trusted(np.stack(colours), np.array(counts))
             if pending and estimate > noise_target:
                 eff = eff if eff is not None else analyse_effects(scene)
                 for kind in list(pending):  # caustics first; if kept, direct light alone
@@ -961,8 +975,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
                         pass_settings = pass_settings.replace(**PILOTS[kind]["changes"])
                         bias = float(pilot[f"{kind}_error"])
                         noise_target = float(np.sqrt(target**2 - bias**2))
-                        estimate = relative_error_estimate(np.stack(colours), np.array(counts))
-                        trusted = estimate * few_terms_factor(error_dof(np.stack(colours), np.array(counts)))
+                        estimate, trusted = _estimate_and_trusted(np.stack(colours), np.array(counts))
                         pending.clear()
                         break
             if trusted <= noise_target:
@@ -1003,7 +1016,8 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     w = (n_arr / n_arr.sum()).reshape(-1, 1, 1, 1)
     stack = np.stack(colours)
     if len(colours) >= 2:
-        estimate = float(np.hypot(relative_error_estimate(stack, n_arr), bias))
+        noise, trusted = _estimate_and_trusted(stack, n_arr)
+        estimate = float(np.hypot(noise, bias))
     rgb = (stack * w).sum(axis=0)
     alpha = (np.stack(alphas) * w).sum(axis=0)
     first.rgba = np.concatenate([rgb, alpha], axis=-1).astype(np.float32)
@@ -1025,8 +1039,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     meta["estimated_error_jackknife"] = [float(np.hypot(v, bias)) for v in spread]
     low, high = confidence_interval(estimate, spread, bias)
     if len(colours) >= 2:  # where few pixels carry the error, at least the bound the stopping rule trusted
-        few = few_terms_factor(error_dof(stack, n_arr))
-        high = max(high, float(np.hypot(relative_error_estimate(stack, n_arr) * few, bias)))
+        high = max(high, float(np.hypot(trusted, bias)))
     meta["estimated_error_interval"] = [low, high]
     meta["target_reached"] = bool(estimate <= target)
     meta["stopped"] = stopped
