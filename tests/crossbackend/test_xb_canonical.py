@@ -17,9 +17,6 @@ OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
 #: measured, understood differences (docs/crosscheck.md): (scene, backend in the pair) -> reason.
 #: The pairs are xfail (not strict): when a backend fixes the cause, the test XPASSes and the entry goes.
 KNOWN = {
-    ("fuze", "cycles"): "the albedo differs by 3.4 % (Cycles filters its albedo pass over the pixel, Mitsuba "
-    "looks the texture up at the pixel centre); the smooth normals agree since every backend gets the IR's "
-    "angle-weighted vertex normals (tests/crossbackend/test_xb_geometry.py)",
     ("shadow_catcher", "cycles"): "Cycles' albedo pass on the catcher is 1.205 where Mitsuba and pyrender give "
     "the material's 0.604 (twice as much: the catcher's shader mix is counted twice?); the shadow alpha differs "
     "(mean over the catcher: Cycles 0.027, Mitsuba 0.028, pyrender 0.017) and Cycles leaves a little colour on the "

@@ -138,6 +138,9 @@ class CyclesBackend(Backend):
     engine = "bpy"
     qualities = ("final", "draft", "preview")
     path_tracer = True
+    #: the depth and object-index passes come from a first sample Cycles fixes at the pixel centre
+    #: (:func:`blendify_blender.render.sample_window`)
+    geometry_pins_first_sample = True
     #: Blender renders at least 4x4 pixels; the core renders smaller images padded and crops them
     min_resolution = (4, 4)
     file_formats = ("blend",)

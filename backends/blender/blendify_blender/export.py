@@ -20,6 +20,7 @@ from typing import Any
 from blendify_blender import session
 from blendify_blender.blendfile.common import TAG_PROPERTY
 from blendify_blender.blendfile.settings import PORTABLE_KEYS, SETTINGS_PROPERTY
+from blendify_blender.render import set_sample_window
 from blendify_blender.translate import build_scene
 from blendify_core.errors import InvalidSceneError, OutputError, RenderError
 from blendify_core.ir.scene import Scene
@@ -41,7 +42,8 @@ def export_blend(scene: Any, path: str | os.PathLike[str], pack_textures: bool =
     then renamed: no ``.blend1`` backup, the main file path and the working directory do not change.
     The built datablocks are removed afterwards. ``settings`` are render settings
     (:func:`blendify_core.pipeline.settings.resolve_settings` keywords, e.g. ``quality="final", samples=64``)
-    stored in the file. Returns the written path.
+    stored in the file; the file renders the samples blendify's colour renders take (a sample subset past
+    Cycles' first sample, :func:`blendify_blender.render.sample_window`). Returns the written path.
     """
     out, render_settings = _checked_arguments(scene, path, pack_textures, settings)
     bpy = session.bpy_module()
@@ -54,6 +56,8 @@ def export_blend(scene: Any, path: str | os.PathLike[str], pack_textures: bool =
                 bl_scene = built.bscene
                 # the blendify settings, read back by attach_blend(render_settings=True) as given
                 bl_scene[SETTINGS_PROPERTY] = json.dumps({k: getattr(render_settings, k) for k in PORTABLE_KEYS})
+                # Blender renders the file's colour from the samples blendify's colour renders take
+                set_sample_window(bl_scene.cycles, int(bl_scene.cycles.samples))
                 for img in _scene_images(bpy, bl_scene):
                     # in-memory images (no file behind them) are always packed, files only when asked
                     in_memory = img.source == "GENERATED" or not (img.filepath_raw or img.filepath)

@@ -204,6 +204,47 @@ def test_seed_determinism(cycles):
     assert not np.array_equal(a, c)
 
 
+def _sphere_edge_pixel() -> bf.Scene:
+    """One pixel half covered by a sphere's silhouette (its converged coverage about 0.52)."""
+    scene = bf.Scene()
+    testing.look_at_camera(scene, (1, 1), (0.0, -5.0, 0.0), (1.0, 0.0, 0.0), fov_x=2 * np.arctan(0.25 / 5))
+    scene.renderables.add_sphere_nurbs(1.0, bf.DiffuseMaterial(), bf.UniformColors((0.5, 0.5, 0.5)))
+    scene.lights.add_point(strength=100.0, translation=(0, -4, 3))
+    return scene
+
+
+def test_first_sample_moves_with_the_seed(cycles):
+    """Cycles fixes each pixel's first sample at its centre whatever the seed; colour renders skip it: at 1 spp
+    the edge pixel differs between seeds, and the mean over seeds of a 16-spp render is its converged coverage
+    (with the centre sample: 0.547 against 0.517, 200 seeds)."""
+    scene = _sphere_edge_pixel()
+    reference = float(bf.render(scene, backend=cycles, samples=4096).rgba[0, 0, 3])
+    one = [float(bf.render(scene, backend=cycles, samples=1, seed=s).rgba[0, 0, 3]) for s in range(12)]
+    assert 0.0 in one and 1.0 in one, one  # the centre is inside: always 1.0 before
+    r16 = [bf.render(scene, backend=cycles, samples=16, seed=s) for s in range(40)]
+    mean = float(np.mean([r.rgba[0, 0, 3] for r in r16]))
+    assert abs(mean - reference) < 0.012, (mean, reference)  # standard error about 0.003
+    assert r16[0].meta["engine_settings"]["sample_offset"] == 16
+    # the depth and object-index passes come from Cycles' first sample: rendered apart, the colour is the same
+    every = bf.render(scene, backend=cycles, samples=16, outputs=("rgb", "depth", "instance", "normal", "albedo"))
+    assert every.meta["engine_settings"]["sample_offset"] == 16
+    assert np.array_equal(every.rgba, r16[0].rgba)
+    assert np.isfinite(every.depth[0, 0]) and every.instance[0, 0] == 0
+    assert np.linalg.norm(every.normal[0, 0]) == pytest.approx(1.0, abs=1e-3) and every.albedo[0, 0].max() > 0.1
+
+
+def test_sample_window_is_an_aligned_block_after_the_first_sample():
+    from blendify_blender.render import sample_window
+
+    assert [sample_window(n, ("rgb",)) for n in (1, 2, 3, 16, 17, 1000)] == [1, 2, 4, 16, 32, 1024]
+    assert sample_window(1 << 24, ("rgb",)) == 0  # no room: Cycles' own samples
+    assert sample_window((1 << 23) + 1, ("rgb",)) == 1
+    for first_sample_only in ("depth", "instance"):
+        assert sample_window(16, ("rgb", first_sample_only)) == 0
+    assert sample_window(16, ("rgb", "normal", "albedo")) == 16  # accumulated over the samples
+    assert sample_window(16, ("normal",)) == 0  # no colour: Cycles' own first sample
+
+
 def test_uint8_texture_decoded_like_the_ir(cycles):
     scene = bf.Scene()
     tex = np.full((4, 4, 3), 128, dtype=np.uint8)
@@ -258,9 +299,11 @@ def test_wireframe_overlay(cycles):
     scene.lights.set_background_light(1.0)
     r = bf.render(scene, backend=cycles, samples=8, outputs=("rgb", "albedo"))
     assert r.rgba[10, 10, 2] > 0.5 and r.rgba[10, 10, 0] < 0.05  # face interior: blue
-    assert r.rgba[20, 0, 0] > 0.3 and r.albedo[20, 0, 0] > 0.3  # the border edge: red wire
+    assert r.rgba[20, 0, 0] > 0.3  # the border edge: red wire (its edge runs through the pixel centres)
     diag = np.array([r.rgba[i, 39 - i, 0] for i in range(5, 35)])
     assert diag.min() > 0.2  # the triangulation's diagonal (vertex 0 to 2) is an edge too
+    # the albedo is the pixel centre's: red on the diagonal, blue inside the face
+    assert min(r.albedo[i, 39 - i, 0] for i in range(5, 35)) > 0.9 and r.albedo[10, 10, 2] > 0.9
 
 
 def test_every_feature_scene_all_outputs(cycles):

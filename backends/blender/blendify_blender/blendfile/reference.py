@@ -63,6 +63,13 @@ bpy.ops.wm.open_mainfile(filepath=path)
 sc = bpy.context.scene
 if seed:
     sc.cycles.seed = int(seed)
+# the samples blendify's colour renders take: past Cycles' first sample, which sits at the pixel centre whatever
+# the seed (blendify_blender.render.sample_window)
+cy = sc.cycles
+n = int(cy.sample_subset_length) if cy.use_sample_subset else int(cy.samples)
+block = 1 << max(0, n - 1).bit_length()
+if block + n <= 1 << 24:
+    cy.use_sample_subset, cy.sample_offset, cy.sample_subset_length, cy.samples = True, block, n, block + n
 sc.render.image_settings.media_type = "IMAGE"
 sc.render.image_settings.file_format = "OPEN_EXR"
 sc.render.image_settings.color_depth = "32"
@@ -73,7 +80,7 @@ with OpenEXR.File(out) as f:
     rgba = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float32)
 np.save(out + ".npy", rgba)
 pct = sc.render.resolution_percentage / 100.0
-print(json.dumps({"engine": sc.render.engine, "samples": sc.cycles.samples,
+print(json.dumps({"engine": sc.render.engine, "samples": n,
                   "width": int(sc.render.resolution_x * pct), "height": int(sc.render.resolution_y * pct)}))
 """
 
@@ -98,8 +105,9 @@ def prepare_blend(src: str | Path, out: str | Path, size: tuple[int, int], sampl
 
 
 def blender_render(path: str | Path, exr: str | Path, seed: int | None = None) -> tuple[dict[str, Any], np.ndarray]:
-    """Blender's render of ``path`` with the file's own settings (``seed`` overrides its seed), written to
-    ``exr``; returns ({"engine", "samples"} of the file, float32 (H, W, 4) linear RGBA)."""
+    """Blender's render of ``path`` with the file's own settings (``seed`` overrides its seed) over the samples
+    blendify's colour renders take (past Cycles' fixed first sample), written to ``exr``; returns ({"engine",
+    "samples"} of the file, float32 (H, W, 4) linear RGBA)."""
     info = run_bpy_script(_RENDER, str(path), str(exr), "" if seed is None else str(seed))
     rgba = np.load(f"{exr}.npy")
     return info, rgba.reshape(int(info["height"]), int(info["width"]), 4)

@@ -149,7 +149,8 @@ def file_render_settings(sc: Any) -> tuple[dict[str, Any], dict[str, Any], list[
     notes: list[str] = []
     ftype = str(cy.pixel_filter_type)
     portable: dict[str, Any] = {
-        "samples": int(cy.samples),
+        # a sample subset renders its length (blendify's own files render past Cycles' fixed first sample)
+        "samples": int(cy.sample_subset_length) if cy.use_sample_subset else int(cy.samples),
         "seed": int(cy.seed),
         "max_bounces": int(cy.max_bounces),
         "diffuse_bounces": int(cy.diffuse_bounces),
