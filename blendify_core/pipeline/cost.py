@@ -30,11 +30,14 @@ from blendify_core.pipeline.render import (
     FIRST_PASSES,
     MAX_PASSES,
     MAX_SAMPLES,
+    _mean_mse,
     _next_pass_samples,
     error_dof,
     error_interval,
+    expected_size_factor,
     few_terms_factor,
     pass_seed,
+    pass_size_model,
     relative_error_estimate,
     render,
 )
@@ -92,16 +95,30 @@ class CostEstimate:
 
 
 def schedule(
-    error_at: float, samples_at: int, target: float, base: int, pixels: float = float("inf")
+    error_at: float,
+    samples_at: int,
+    target: float,
+    base: int,
+    pixels: float = float("inf"),
+    size_model: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[list[int], bool]:
     """The pass sizes ``render_to_target`` renders if the error is ``error_at`` at ``samples_at`` samples and
     falls as 1/sqrt(samples), and whether it reaches ``target`` before the caps. ``pixels``: how many pixels
     carry the error (:func:`error_dof` per pass), which the render's stopping rule trusts by
-    (:func:`few_terms_factor`)."""
+    (:func:`few_terms_factor`). ``size_model``: (the pilot's fitted pooled variances, its passes' samples)
+    (:func:`~blendify_core.pipeline.render.pass_size_model`, ``error_at`` then without the factor it carries):
+    the estimate of passes of different sizes falls as that model says, with the factor the render's estimate
+    carries (:func:`~blendify_core.pipeline.render.expected_size_factor`)."""
     counts = [base] * FIRST_PASSES
+    at = None if size_model is None else _mean_mse(size_model[0], np.asarray(size_model[1], dtype=np.float64))[1]
     while True:
         total = sum(counts)
-        estimate = error_at * np.sqrt(samples_at / total) * few_terms_factor((len(counts) - 1) * pixels)
+        if size_model is None or not at:
+            mse_ratio = samples_at / total
+        else:
+            n = np.asarray(counts, dtype=np.float64)
+            mse_ratio = _mean_mse(size_model[0], n)[1] / at * expected_size_factor(size_model[0], n)
+        estimate = error_at * np.sqrt(mse_ratio) * few_terms_factor((len(counts) - 1) * pixels)
         if estimate <= target:
             return counts, True
         if len(counts) >= MAX_PASSES or total >= MAX_SAMPLES:
@@ -109,11 +126,9 @@ def schedule(
         counts.append(_next_pass_samples(total, float(estimate), target, base))
 
 
-def predict_schedule(
-    error_at: float, samples_at: int, target: float, base: int, pixels: float = float("inf")
-) -> tuple[int, int, bool]:
-    """Passes and total samples of :func:`schedule`, and whether it reaches ``target``."""
-    counts, reached = schedule(error_at, samples_at, target, base, pixels)
+def predict_schedule(*args: Any, **kwargs: Any) -> tuple[int, int, bool]:
+    """Passes and total samples of :func:`schedule` (the same arguments), and whether it reaches ``target``."""
+    counts, reached = schedule(*args, **kwargs)
     return len(counts), sum(counts), reached
 
 
@@ -199,11 +214,16 @@ def estimate_cost(
     per_call = float(np.median(outside[1:]))
     compiled = {base, LONG_PASS * base}  # sizes this process's engine has seen now
 
+    # where the pilot's passes of two sizes show a stratified sampler's faster fall, the render's will too
+    coef, carried = pass_size_model(stack, counts_arr)
+    size_model = None if coef is None else (coef, counts_arr)
+    unscaled = 1.0 if coef is None else 1.0 / np.sqrt(carried)  # the schedule starts from the 1/n estimate
+
     def seconds_for(err: float) -> float:
-        sizes, _ = schedule(err, pilot_n, target, base, pixels)
+        sizes, _ = schedule(err * unscaled, pilot_n, target, base, pixels, size_model)
         return per_call + len(sizes) * per_pass + sum(sizes) * per_sample + len(set(sizes) - compiled) * per_size
 
-    passes, samples, reached = predict_schedule(pilot_error, pilot_n, target, base, pixels)
+    passes, samples, reached = predict_schedule(pilot_error * unscaled, pilot_n, target, base, pixels, size_model)
     seconds = seconds_for(pilot_error)
     hi_err = hi_err if np.isfinite(hi_err) else pilot_error * 2
     # the seconds are not monotonic in the error (whole passes: a larger error can mean fewer, larger passes)

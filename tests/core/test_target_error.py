@@ -8,6 +8,7 @@ from core_fake_backend import NoisyPathTracer
 
 import blendify_core as bf
 from blendify_core.pipeline.render import error_interval, relative_error_estimate
+from blendify_core.pipeline.result import RenderResult
 from blendify_core.registry import register_backend, unregister_backend
 from blendify_core.testing import plane_scene
 
@@ -340,3 +341,148 @@ def test_an_untrusted_estimate_sizes_the_next_pass_to_the_cap():
 
     assert _next_pass_samples(64, float("inf"), 0.01, 16) == MAX_SAMPLES - 64
     assert _next_pass_samples(64, 0.02, 0.01, 16) == 64  # half of the 218 still needed, down to 16 x 2^k
+
+
+class PinnedFirstSample(NoisyPathTracer):
+    """A stand-in engine like Cycles: rendering depth beside colour fixes one sample per pixel (the pixel centre),
+    which adds ``PIN_BIAS`` / samples to the colour (a silhouette's centre sample far from the pixel's mean); the
+    geometric render gives the exact plane depth."""
+
+    name = "pinned-test"
+    geometry_pins_first_sample = True
+    PIN_BIAS = 20.0
+    calls: list[tuple[str, ...]] = []
+
+    def render(self, native, settings):
+        type(self).calls.append(tuple(settings.outputs))
+        result = super().render(native, settings)
+        if "depth" in settings.outputs:
+            w, h = native.camera.resolution
+            result.depth = np.full((h, w), 2.0, np.float32)
+            result.rgba[..., :3] += self.PIN_BIAS / settings.samples
+        if "rgb" not in settings.outputs:
+            result.rgba = None
+        return result
+
+
+@pytest.mark.parametrize("pinned", [True, False])
+def test_geometric_outputs_of_a_target_error_render_leave_the_colour_passes_unbiased(monkeypatch, pinned):
+    """Where the engine says rendering depth pins its first colour sample, the depth comes from a render of its
+    own and every colour pass renders colour alone: the colour converges to the truth. An engine without that
+    flag renders every output in every pass, as before."""
+    monkeypatch.setattr(PinnedFirstSample, "geometry_pins_first_sample", pinned)
+    monkeypatch.setattr(PinnedFirstSample, "calls", [])
+    register_backend(PinnedFirstSample.name, PinnedFirstSample)
+    try:
+        scene = plane_scene("sun", resolution=(16, 12))
+        result = bf.render(
+            scene, backend=PinnedFirstSample.name, samples=16, target_error=0.02, outputs=("rgb", "depth")
+        )
+    finally:
+        unregister_backend(PinnedFirstSample.name)
+        bf.close_backends()
+    calls = PinnedFirstSample.calls
+    assert result.depth is not None and np.all(result.depth == 2.0)
+    assert tuple(result.meta["settings"]["outputs"]) == ("rgb", "depth")
+    bias = abs(float(result.rgba[..., :3].mean()) - TRUTH)
+    if pinned:
+        assert calls[0] == ("depth",) and all(c == ("rgb",) for c in calls[1:]) and len(calls) >= 5
+        assert bias < 0.001, (bias, calls)  # the passes' noise: about 0.0004
+    else:
+        assert all(c == ("rgb", "depth") for c in calls), calls
+        # one pinned sample per pass: passes x PIN_BIAS / samples (the later, larger passes dilute it)
+        assert bias > 0.0015, (bias, calls)
+
+
+# -- passes of different sizes from a stratified sampler ------------------------------------------------------
+SIZES = np.array([16.0] * 4 + [64.0, 128.0, 256.0])
+
+
+def _passes(rng, sizes, a, b, shape=(36, 48, 3)):
+    """Passes of a 0.5 grey with relative variance a / n + b / n^1.5 per pixel-channel (n: the pass's samples)."""
+    sd = 0.5 * np.sqrt(a / sizes + b / sizes**1.5)
+    return 0.5 + rng.standard_normal((len(sizes),) + shape) * sd.reshape((-1,) + (1,) * len(shape))
+
+
+def _true_error(sizes, a, b):
+    w = sizes / sizes.sum()
+    return float(np.sqrt((w * w * (a / sizes + b / sizes**1.5)).sum() * 0.25 / (0.25 + 1e-2)))
+
+
+@pytest.mark.parametrize(("a", "b"), [(1.0, 0.0), (0.0, 3.0), (0.2, 3.0), (0.5, 1.0)])
+def test_the_estimate_of_passes_of_different_sizes_follows_a_stratified_sampler(a, b):
+    """A stratified sampler's pass variance falls faster than 1/samples at edges (Cycles' point cloud: samples x
+    variance 4x lower at 256 spp than at 16): the 1/n estimate of the first passes' size then overestimates the
+    mean of larger later passes (1.41x for b / n^1.5 alone); the fitted model follows it (within 8 %), and
+    leaves independent samples' estimate as it was."""
+    rng = np.random.default_rng(5)
+    ratios = [relative_error_estimate(_passes(rng, SIZES, a, b), SIZES) / _true_error(SIZES, a, b) for _ in range(12)]
+    assert 0.95 <= float(np.mean(ratios)) <= 1.08, ratios
+
+
+def test_equal_passes_and_a_few_bright_pixels_leave_the_estimate_unscaled():
+    from blendify_core.pipeline.render import _pass_size_factor, _per_sample_variance, _relative_divisor
+
+    rng = np.random.default_rng(6)
+
+    def factor(passes, n):
+        mean, var_one = _per_sample_variance(passes, n)
+        div = _relative_divisor(passes, n, mean)
+        return _pass_size_factor(passes, n, mean, div, var_one / n.sum() / div)
+
+    equal = np.full(6, 16.0)
+    assert factor(_passes(rng, equal, 0.0, 3.0), equal) == 1.0
+    assert factor(_passes(rng, SIZES, 0.0, 3.0), SIZES) < 0.6  # the same model, passes of different sizes
+    for _ in range(5):  # independent samples plus two rare bright paths in small passes: never lowered
+        passes = _passes(rng, SIZES, 1.0, 0.0)
+        for i in (0, 2):
+            passes[i, rng.integers(36), rng.integers(48)] += 12.5
+        assert factor(passes, SIZES) == 1.0
+    few = _passes(rng, SIZES, 0.0, 3.0, shape=(4, 4, 3))  # 16 pixels cannot pin the model down
+    assert factor(few, SIZES) == 1.0
+
+
+def test_expected_size_factor_is_the_models_ratio():
+    from blendify_core.pipeline.render import _mean_mse, expected_size_factor
+
+    for coef in (np.array([0.0, 3.0]), np.array([0.5, 1.0])):
+        true_mse, assumed = _mean_mse(coef, SIZES)
+        assert expected_size_factor(coef, SIZES) == pytest.approx(true_mse / assumed, rel=1e-9)
+    assert expected_size_factor(np.array([1.0, 0.0]), SIZES) == pytest.approx(1.0)
+    assert expected_size_factor(np.array([0.0, 3.0]), np.full(5, 16.0)) == 1.0
+
+
+class StratifiedBackend(NoisyPathTracer):
+    """A stand-in stratified sampler: the per-pass noise falls as samples^-0.75 (variance as samples^-1.5)."""
+
+    name = "stratified-test"
+
+    def render(self, native, settings):
+        w, h = native.camera.resolution
+        rng = np.random.default_rng(settings.seed)
+        rgb = self.truth + rng.normal(size=(h, w, 3)) * 0.3 * settings.samples**-0.75
+        rgba = np.concatenate([rgb, np.ones((h, w, 1))], axis=-1).astype(np.float32)
+        return RenderResult(rgba=rgba, meta={"samples": settings.samples, "seed": settings.seed})
+
+
+def test_estimate_cost_replays_a_stratified_samplers_faster_fall(monkeypatch):
+    """The pilot's passes of two sizes show the faster fall, and the prediction follows the render's estimate
+    (3136 samples predicted for 3136; without the model 5440). The render's estimate is the true error (0.0018;
+    the 1/samples estimate said 0.0038, and took 3904 samples)."""
+    from blendify_core.pipeline import cost
+
+    register_backend(StratifiedBackend.name, StratifiedBackend)
+    try:
+        scene = plane_scene("sun", resolution=(48, 36))
+        result = bf.render(scene, backend=StratifiedBackend.name, target_error=0.004)
+        assert result.meta["target_reached"]
+        taken = result.meta["samples"]
+        assert abs(true_error(result.rgba) - result.meta["estimated_error"]) < 0.15 * result.meta["estimated_error"]
+        est = bf.estimate_cost(scene, backend=StratifiedBackend.name, target_error=0.004)
+        assert taken / 1.3 <= est.samples <= taken * 1.3, (est.samples, taken)
+        monkeypatch.setattr(cost, "pass_size_model", lambda *a: (None, 1.0))
+        plain = bf.estimate_cost(scene, backend=StratifiedBackend.name, target_error=0.004)
+        assert plain.samples > 1.5 * taken, (plain.samples, taken)
+    finally:
+        unregister_backend(StratifiedBackend.name)
+        bf.close_backends()
