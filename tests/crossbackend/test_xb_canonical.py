@@ -17,6 +17,11 @@ OUTPUTS = ("rgb", "depth", "normal", "albedo", "instance")
 #: measured, understood differences (docs/crosscheck.md): (scene, backend in the pair) -> reason.
 #: The pairs are xfail (not strict): when a backend fixes the cause, the test XPASSes and the entry goes.
 KNOWN = {
+    ("fuze", "cycles"): "Cycles' colour is 0.28 % brighter than Mitsuba's (global ratio 1.0028): the noise-aware "
+    "test of bf.crosscheck rejects 4 of its tiles (global excess z 4.3); cause not found (the textured, "
+    "smooth-shaded mesh: texture decoding or filtering). The albedo agrees to 0.65 % since both engines take "
+    "it at the pixel centre (3.4 % while Cycles averaged it over the pixel); the smooth normals agree since "
+    "every backend gets the IR's angle-weighted vertex normals (tests/crossbackend/test_xb_geometry.py)",
     ("shadow_catcher", "cycles"): "Cycles' albedo pass on the catcher is 1.205 where Mitsuba and pyrender give "
     "the material's 0.604 (twice as much: the catcher's shader mix is counted twice?); the shadow alpha differs "
     "(mean over the catcher: Cycles 0.027, Mitsuba 0.028, pyrender 0.017) and Cycles leaves a little colour on the "
