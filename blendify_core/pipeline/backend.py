@@ -74,9 +74,10 @@ class Backend(abc.ABC):
     #: True for Monte Carlo renderers: ``target_error`` renders independent passes until the estimated
     #: error is low enough (see ``blendify_core.pipeline.render.render_to_target``)
     path_tracer: ClassVar[bool] = False
-    #: True where rendering a geometric output (depth, normal, albedo, instance) beside colour pins each pixel's
-    #: first colour sample (Cycles writes depth and object index from a first sample fixed at the pixel centre):
-    #: ``target_error`` then renders the geometric outputs apart, so that its colour passes stay unbiased
+    #: True where the engine's geometric outputs (depth, normal, albedo, instance) need a sample its colour must not
+    #: take (Cycles writes depth and object index from a first sample fixed at the pixel centre, so it renders them
+    #: beside colour with a render of their own): ``target_error`` then asks for them once, apart, and renders its
+    #: colour passes alone
     geometry_pins_first_sample: ClassVar[bool] = False
     #: the smallest image the engine renders; the core pads smaller cameras and crops the result
     min_resolution: ClassVar[tuple[int, int]] = (1, 1)

@@ -1066,9 +1066,9 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     The first 4 passes use ``settings.samples`` each; later passes are sized from the current estimate
     (error falls as 1/sqrt(samples)). Stopping depends only on the passes' pixels, so a seed gives the same
     picture every time. Geometric outputs come from the first pass, or from a render of their own where the
-    backend's :attr:`~blendify_core.pipeline.backend.Backend.geometry_pins_first_sample` says they would fix
-    the colour passes' first sample. ``meta`` records the estimate with its
-    90 % interval, the passes, the total samples, whether the target was reached and why the passes stopped."""
+    backend's :attr:`~blendify_core.pipeline.backend.Backend.geometry_pins_first_sample` says they need a sample
+    its colour must not take. ``meta`` records the estimate with its 90 % interval, the passes, the total
+    samples, whether the target was reached and why the passes stopped."""
     t0 = time.perf_counter()
     if settings.target_error is None:
         raise InvalidSceneError("target_error: render_to_target needs settings.target_error (a positive number)")
@@ -1078,7 +1078,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     geometric = tuple(o for o in settings.outputs if o != "rgb")
     geometry: RenderResult | None = None
     if geometric and "rgb" in settings.outputs and getattr(inst, "geometry_pins_first_sample", False):
-        # the geometric outputs apart, so that no colour pass keeps the engine's fixed first sample
+        # the geometric outputs once, apart (the engine would render them apart with every pass)
         geometry = inst.render_scene(scene, pass_settings.replace(outputs=geometric))
         pass_settings = pass_settings.replace(outputs=("rgb",))
     first = inst.render_scene(scene, pass_settings)

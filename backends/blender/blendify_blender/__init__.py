@@ -138,8 +138,8 @@ class CyclesBackend(Backend):
     engine = "bpy"
     qualities = ("final", "draft", "preview")
     path_tracer = True
-    #: the depth and object-index passes come from a first sample Cycles fixes at the pixel centre
-    #: (:func:`blendify_blender.render.sample_window`)
+    #: the geometric outputs come from the first sample, which Cycles fixes at the pixel centre and colour skips: a
+    #: render asking for both renders twice (:func:`blendify_blender.render.render_built`)
     geometry_pins_first_sample = True
     #: Blender renders at least 4x4 pixels; the core renders smaller images padded and crops them
     min_resolution = (4, 4)
