@@ -582,14 +582,27 @@ def relative_error_estimate(passes: FloatArray, samples: FloatArray | None = Non
     return float(np.sqrt(_relative_terms(passes, samples).mean()))
 
 
-def _relative_terms(passes: FloatArray, samples: FloatArray | None = None) -> FloatArray:
-    """Each pixel-channel's relative MSE of the passes' mean (:func:`relative_error_estimate` is the root of
-    their mean; :func:`error_dof` counts the pixels that carry them), times :func:`_pass_size_factor`."""
+#: what every error statistic of a set of passes starts from (:func:`_error_parts`): the samples per pass, the
+#: per-sample variance, the relative divisor and :func:`_pass_size_factor`
+_ErrorParts = tuple[FloatArray, FloatArray, FloatArray, float]
+
+
+def _error_parts(passes: FloatArray, samples: FloatArray | None = None) -> _ErrorParts:
+    """:data:`_ErrorParts` of passes (K, H, W, C), computed once for the estimate, its bound and its interval."""
     n = np.ones(passes.shape[0]) if samples is None else np.asarray(samples, dtype=np.float64)
     mean, var_one = _per_sample_variance(passes, n)
     divisor = _relative_divisor(passes, n, mean)
-    terms: FloatArray = var_one / n.sum() / divisor
-    return terms * _pass_size_factor(passes, n, mean, divisor, terms)
+    return n, var_one, divisor, _pass_size_factor(passes, n, mean, divisor, var_one / n.sum() / divisor)
+
+
+def _relative_terms(
+    passes: FloatArray, samples: FloatArray | None = None, parts: _ErrorParts | None = None
+) -> FloatArray:
+    """Each pixel-channel's relative MSE of the passes' mean (:func:`relative_error_estimate` is the root of
+    their mean; :func:`error_dof` counts the pixels that carry them), times :func:`_pass_size_factor`."""
+    n, var_one, divisor, factor = parts if parts is not None else _error_parts(passes, samples)
+    terms: FloatArray = var_one / n.sum() / divisor * factor
+    return terms
 
 
 #: the faster rate of :func:`_pass_size_factor`'s model: the variance of a stratified (scrambled Sobol) pass
@@ -734,10 +747,12 @@ def _dof_of_terms(terms: FloatArray, k: int) -> float:
     return (k - 1) * total * total / float((t * t).sum())
 
 
-def _estimate_and_trusted(passes: FloatArray, samples: FloatArray) -> tuple[float, float]:
+def _estimate_and_trusted(
+    passes: FloatArray, samples: FloatArray, parts: _ErrorParts | None = None
+) -> tuple[float, float]:
     """:func:`relative_error_estimate` and the bound ``final`` stops on (times :func:`few_terms_factor`),
-    from one computation of the terms."""
-    terms = _relative_terms(passes, samples)
+    from one computation of the terms (``parts``: :func:`_error_parts`, when the caller has them)."""
+    terms = _relative_terms(passes, samples, parts)
     estimate = float(np.sqrt(terms.mean()))
     return estimate, estimate * few_terms_factor(_dof_of_terms(terms, passes.shape[0]))
 
@@ -766,19 +781,18 @@ def few_terms_factor(dof: float, z: float = 1.645) -> float:
     return float(np.sqrt(dof / q))
 
 
-def error_interval(passes: FloatArray, samples: FloatArray | None = None, z: float = 1.645) -> tuple[float, float]:
+def error_interval(
+    passes: FloatArray, samples: FloatArray | None = None, z: float = 1.645, parts: _ErrorParts | None = None
+) -> tuple[float, float]:
     """A two-sided 90 % (``z`` = 1.645) confidence interval of :func:`relative_error_estimate`, by the
     jackknife over passes: each pass left out in turn re-estimates the per-sample variance (the full
     mean's sample count kept), so a pass with a rare bright path widens the interval. K >= 3 passes."""
     k = passes.shape[0]
     if k < 3:
         return 0.0, float("inf")
-    n = np.ones(k) if samples is None else np.asarray(samples, dtype=np.float64)
-    mean, var_one = _per_sample_variance(passes, n)
-    divisor = _relative_divisor(passes, n, mean)
+    n, var_one, divisor, factor = parts if parts is not None else _error_parts(passes, samples)
     denom = n.sum() * divisor
-    factor = _pass_size_factor(passes, n, mean, divisor, var_one / denom)  # as the estimate carries it
-    full = float((var_one / denom).mean()) * factor
+    full = float((var_one / denom).mean()) * factor  # the size factor as the estimate carries it
     loo = np.empty(k)
     for i in range(k):
         keep = np.arange(k) != i
@@ -1165,15 +1179,15 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     n_arr = np.array(counts, dtype=np.float64)
     w = (n_arr / n_arr.sum()).reshape(-1, 1, 1, 1)
     stack = np.stack(colours)
-    if len(colours) >= 2:
-        noise, trusted = _estimate_and_trusted(stack, n_arr)
+    parts = _error_parts(stack, n_arr) if len(colours) >= 2 else None  # once for the estimate, bound, interval
+    if parts is not None:
+        noise, trusted = _estimate_and_trusted(stack, n_arr, parts)
         estimate = float(np.hypot(noise, bias))
     rgb = (stack * w).sum(axis=0)
     alpha = (np.stack(alphas) * w).sum(axis=0)
     first.rgba = np.concatenate([rgb, alpha], axis=-1).astype(np.float32)
-    if len(colours) >= 2:  # the variance of the weighted mean (the noise-aware comparison uses it)
-        var_one = (n_arr.reshape(w.shape) * (np.stack(colours) - rgb) ** 2).sum(axis=0) / (len(colours) - 1)
-        first.rgb_var = (var_one / n_arr.sum()).astype(np.float32)
+    if parts is not None:  # the variance of the weighted mean (the noise-aware comparison uses it)
+        first.rgb_var = (parts[1] / n_arr.sum()).astype(np.float32)
     meta = first.meta
     if engine_meta is not None:  # the picture comes from passes without the dropped effect: say how they ran
         for key in ENGINE_META_KEYS:
@@ -1185,7 +1199,7 @@ def render_to_target(inst: Backend, scene: Scene, settings: RenderSettings) -> R
     meta["estimated_error_kind"] = (
         "relative RMS error (its square is the relative MSE), from the variance between independent passes"
     )
-    spread = error_interval(stack, n_arr)
+    spread = error_interval(stack, n_arr, parts=parts)
     meta["estimated_error_jackknife"] = [float(np.hypot(v, bias)) for v in spread]
     low, high = confidence_interval(estimate, spread, bias)
     if len(colours) >= 2:  # where few pixels carry the error, at least the bound the stopping rule trusted
