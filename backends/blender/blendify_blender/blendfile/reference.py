@@ -64,12 +64,11 @@ sc = bpy.context.scene
 if seed:
     sc.cycles.seed = int(seed)
 # the samples blendify's colour renders take: past Cycles' first sample, which sits at the pixel centre whatever
-# the seed (blendify_blender.render.sample_window)
+# the seed
+from blendify_blender.render import set_sample_window
 cy = sc.cycles
 n = int(cy.sample_subset_length) if cy.use_sample_subset else int(cy.samples)
-block = 1 << max(0, n - 1).bit_length()
-if block + n <= 1 << 24:
-    cy.use_sample_subset, cy.sample_offset, cy.sample_subset_length, cy.samples = True, block, n, block + n
+set_sample_window(cy, n)
 sc.render.image_settings.media_type = "IMAGE"
 sc.render.image_settings.file_format = "OPEN_EXR"
 sc.render.image_settings.color_depth = "32"
