@@ -309,8 +309,8 @@ def main(argv: list[str] | None = None) -> int:
         "",
         "How to read the table: *rgb rel* is the mean of |a − r| / max(|r|, 0.02) over colour channels "
         "(Mitsuba's error with its floor); *(interior)* restricts it to pixels whose 3×3 neighbourhood is one "
-        "surface (no silhouette, no border between objects, no crease), where an area-filtered pass (Cycles) and "
-        "a pixel-centre pass (Mitsuba AOVs, pyrender) are comparable; *rgb ratio* = sum(a) / sum(r) (a units "
+        "surface (no silhouette, no border between objects, no crease), where colour averaged over the pixel and "
+        "a pixel-centre pass (every engine's geometric outputs) are comparable; *rgb ratio* = sum(a) / sum(r) (a units "
         "check); *depth q99* the 99th percentile of the relative depth difference where both hit; *mask diff px* "
         "pixels hit by one backend only (*interior*: not explained by a ≤1 px silhouette move); *normal q99* "
         "angular error on interior pixels; *id agree* the instance agreement where both hit; *albedo rel* the "
